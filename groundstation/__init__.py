@@ -1,0 +1,1 @@
+"""The host application: links, session, recorder, live view, replay and the `dive` CLI."""

@@ -1,0 +1,1 @@
+"""The paper's model-based value-function learner and its successors (numpy/numba, no I/O)."""

@@ -1,0 +1,61 @@
+"""The import rules of style.md, checked by walking every module's AST."""
+
+from __future__ import annotations
+
+import ast
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+OURS = {"protocol", "learning", "simulator", "groundstation", "tests", "benchmarks", "recordings"}
+ALLOWED: dict[str, set[str]] = {
+    "protocol": set(),
+    "learning": set(),
+    "simulator": {"protocol", "learning"},
+    "groundstation": {"protocol", "learning"},
+}
+# Inside groundstation each of these foreign libraries is imported by one module only.
+SINGLE_OWNER = ("mcap", "rerun", "serial")
+
+
+def _imports(path: Path) -> set[str]:
+    tree = ast.parse(path.read_text(), filename=str(path))
+    names: set[str] = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            names.update(alias.name.split(".")[0] for alias in node.names)
+        elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+            names.add(node.module.split(".")[0])
+    return names
+
+
+def _modules(package: str) -> list[Path]:
+    return sorted((ROOT / package).rglob("*.py"))
+
+
+@pytest.mark.parametrize("package", sorted(ALLOWED))
+def test_package_imports_only_what_the_layout_allows(package: str) -> None:
+    for path in _modules(package):
+        ours = (_imports(path) & OURS) - {package}
+        forbidden = ours - ALLOWED[package]
+        assert not forbidden, f"{path.relative_to(ROOT)} imports {sorted(forbidden)}"
+
+
+def test_protocol_uses_the_standard_library_only() -> None:
+    for path in _modules("protocol"):
+        foreign = {n for n in _imports(path) if n not in sys.stdlib_module_names and n != "protocol"}
+        assert not foreign, f"{path.relative_to(ROOT)} imports {sorted(foreign)}"
+
+
+@pytest.mark.parametrize("library", SINGLE_OWNER)
+def test_each_foreign_io_library_has_one_owner_in_groundstation(library: str) -> None:
+    owners = [p.relative_to(ROOT) for p in _modules("groundstation") if library in _imports(p)]
+    assert len(owners) <= 1, f"{library} is imported by {owners}"
+
+
+def test_nothing_imports_groundstation() -> None:
+    for package in ("protocol", "learning", "simulator"):
+        for path in _modules(package):
+            assert "groundstation" not in _imports(path), f"{path.relative_to(ROOT)} imports groundstation"
