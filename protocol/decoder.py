@@ -1,0 +1,141 @@
+"""Streaming frame decoder: bytes in, decoded frames out; never raises, memory bounded, rejects counted."""
+
+from __future__ import annotations
+
+import binascii
+from dataclasses import dataclass, field, fields
+
+from protocol.cobs import cobs_decode
+from protocol.enums import INCOMPATIBLE_FLAGS_MASK, PROTOCOL_VERSION
+from protocol.errors import CobsError
+from protocol.frame import HEADER, MAX_CHUNK, MIN_INNER
+from protocol.registry import Message, message_class
+
+_SEQ_HALF = 0x8000  # a seq this far or more behind the expected one is late/duplicate, not a gap
+
+
+@dataclass(slots=True)
+class DecoderStats:
+    """Counters of one decoder (one sender): good frames, bytes, rejects by cause, sequence gaps."""
+
+    frames: int = 0
+    bytes: int = 0
+    cobs_errors: int = 0
+    runts: int = 0
+    crc_errors: int = 0
+    incompatible: int = 0
+    unknown_id: int = 0
+    oversize: int = 0
+    malformed: int = 0  # a known message whose payload could not be decoded
+    lost: int = 0  # frames missing by sequence number
+    duplicates: int = 0  # frames whose seq is at or behind one already seen (retries, reordering)
+
+    @property
+    def rejects(self) -> int:
+        return (
+            self.cobs_errors + self.runts + self.crc_errors + self.incompatible + self.unknown_id
+            + self.oversize + self.malformed
+        )
+
+    def as_dict(self) -> dict[str, int]:
+        return {f.name: getattr(self, f.name) for f in fields(self)}
+
+
+@dataclass(frozen=True, slots=True)
+class Frame:
+    """A received frame: header fields, the decoded message and the inner bytes (for raw recording)."""
+
+    flags: int
+    seq: int
+    msg_id: int
+    message: Message
+    inner: bytes
+
+    @property
+    def payload(self) -> bytes:
+        return self.inner[HEADER.size : -2]
+
+
+@dataclass
+class StreamDecoder:
+    """Feed it whatever the link delivers; it returns the frames completed so far.
+
+    One decoder serves one sender: sequence gaps are counted against that sender's counter.
+    """
+
+    stats: DecoderStats = field(default_factory=DecoderStats)
+    _buffer: bytes = b""
+    _discarding: bool = False  # inside a chunk already over MAX_CHUNK: drop bytes until the next 0x00
+    _expected_seq: int | None = None
+
+    def feed(self, data: bytes) -> list[Frame]:
+        stats = self.stats
+        stats.bytes += len(data)
+        if self._discarding:
+            end = data.find(0)
+            if end < 0:
+                return []
+            data = data[end + 1 :]
+            self._discarding = False
+        chunks = (self._buffer + data).split(b"\x00") if self._buffer else bytes(data).split(b"\x00")
+        rest = chunks.pop()
+        if len(rest) > MAX_CHUNK:
+            stats.oversize += 1
+            self._discarding = True
+            rest = b""
+        self._buffer = rest
+        frames: list[Frame] = []
+        for chunk in chunks:
+            if chunk:
+                frame = self._decode_chunk(chunk)
+                if frame is not None:
+                    frames.append(frame)
+        return frames
+
+    def reset_sequence(self) -> None:
+        """Forget the expected seq (the sender rebooted or the link was re-established)."""
+        self._expected_seq = None
+
+    def _decode_chunk(self, chunk: bytes) -> Frame | None:
+        stats = self.stats
+        if len(chunk) > MAX_CHUNK:
+            stats.oversize += 1
+            return None
+        try:
+            inner = cobs_decode(chunk)
+        except CobsError:
+            stats.cobs_errors += 1
+            return None
+        if len(inner) < MIN_INNER:
+            stats.runts += 1
+            return None
+        if binascii.crc_hqx(inner[:-2], 0xFFFF) != (inner[-2] << 8 | inner[-1]):
+            stats.crc_errors += 1
+            return None
+        version, flags, seq, msg_id = HEADER.unpack_from(inner)
+        if version != PROTOCOL_VERSION or flags & INCOMPATIBLE_FLAGS_MASK:
+            stats.incompatible += 1
+            return None
+        self._track_sequence(seq)
+        try:
+            cls = message_class(msg_id)
+        except KeyError:
+            stats.unknown_id += 1
+            return None
+        try:
+            decoded = cls.unpack(inner[HEADER.size : -2])
+        except Exception:  # a decoder must not raise on wire input, whatever a payload holds
+            stats.malformed += 1
+            return None
+        stats.frames += 1
+        return Frame(flags, seq, msg_id, decoded, inner)
+
+    def _track_sequence(self, seq: int) -> None:
+        expected = self._expected_seq
+        if expected is not None:
+            gap = (seq - expected) & 0xFFFF
+            if gap >= _SEQ_HALF:
+                self.stats.duplicates += 1
+                return
+            self.stats.lost += gap
+        self._expected_seq = (seq + 1) & 0xFFFF

@@ -1,0 +1,201 @@
+"""The message definition table: one `@message` declaration per message generates pack/unpack."""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import struct
+import typing
+from dataclasses import dataclass
+from enum import StrEnum
+from operator import attrgetter
+from typing import Any, ClassVar, Self
+
+from protocol.errors import PayloadError, UnknownMessageError
+from protocol.fields import WireType
+
+MAX_PAYLOAD = 247
+
+
+class Direction(StrEnum):
+    AGENT_TO_GROUND = "agent → ground"
+    GROUND_TO_AGENT = "ground → agent"
+    BOTH = "both"
+
+
+@dataclass(frozen=True)
+class FieldDef:
+    name: str
+    wire: WireType
+    offset: int
+    unit: str
+    doc: str
+
+
+@dataclass(frozen=True)
+class MessageDef:
+    msg_id: int
+    name: str
+    direction: Direction
+    needs_ack: bool
+    chunked: bool
+    doc: str
+    fields: tuple[FieldDef, ...]
+    fixed_size: int  # bytes before the optional variable-length tail
+    has_tail: bool
+
+
+class Message:
+    """Base of every message; subclasses are frozen dataclasses declared with `@message`."""
+
+    MSG_ID: ClassVar[int]
+    DEFINITION: ClassVar[MessageDef]
+    _struct: ClassVar[struct.Struct]
+    _getter: ClassVar[Any]
+    _text_indices: ClassVar[tuple[int, ...]]
+
+    def pack(self) -> bytes:
+        """The payload bytes, little-endian, in declaration order."""
+        definition = self.DEFINITION
+        values = self._getter(self)
+        if len(definition.fields) == 1:
+            values = (values,)
+        try:
+            if self._text_indices:
+                values = list(values)
+                for index in self._text_indices:
+                    values[index] = values[index].encode("utf-8")
+            if not definition.has_tail:
+                return self._struct.pack(*values)
+            tail = values[-1]
+            if isinstance(tail, str):
+                tail = tail.encode("utf-8")
+            body: bytes = self._struct.pack(*values[:-1]) + tail
+        except (struct.error, AttributeError, TypeError) as e:
+            raise PayloadError(f"{definition.name}: {e}") from e
+        if len(body) > MAX_PAYLOAD:
+            raise PayloadError(f"{definition.name}: payload of {len(body)} bytes exceeds {MAX_PAYLOAD}")
+        return body
+
+    @classmethod
+    def unpack(cls, payload: bytes) -> Self:
+        """Decode a payload: a short one is zero-extended, extra trailing bytes are ignored."""
+        definition = cls.DEFINITION
+        size = definition.fixed_size
+        if len(payload) < size:
+            payload = payload + bytes(size - len(payload))
+        values = cls._struct.unpack_from(payload)
+        if cls._text_indices:
+            values = _decode_texts(values, cls._text_indices)
+        if definition.has_tail:
+            tail = payload[size:]
+            values = (*values, tail.decode("utf-8", "replace") if definition.fields[-1].wire.is_text else tail)
+        return cls(*values)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Field values by name (tail bytes as hex), the JSON form used by recordings and vectors."""
+        out = {f.name: getattr(self, f.name) for f in self.DEFINITION.fields}
+        for f in self.DEFINITION.fields:
+            if isinstance(out[f.name], bytes):
+                out[f.name] = out[f.name].hex()
+        return out
+
+    @classmethod
+    def from_dict(cls, values: dict[str, Any]) -> Self:
+        converted = dict(values)
+        for f in cls.DEFINITION.fields:
+            if f.wire.spec_name == "bytes[]" and isinstance(converted.get(f.name), str):
+                converted[f.name] = bytes.fromhex(converted[f.name])
+        return cls(**converted)
+
+
+def _decode_texts(values: tuple[Any, ...], indices: tuple[int, ...]) -> tuple[Any, ...]:
+    mutable = list(values)
+    for index in indices:
+        mutable[index] = mutable[index].split(b"\x00", 1)[0].decode("utf-8", "replace")
+    return tuple(mutable)
+
+
+_BY_ID: dict[int, type[Message]] = {}
+_BY_NAME: dict[str, type[Message]] = {}
+
+
+def message(
+    msg_id: int, name: str, direction: Direction, *, ack: bool = False, chunked: bool = False
+) -> typing.Callable[[type[Any]], Any]:
+    """Declare a message: registers it in the table and generates its wire layout."""
+
+    def declare(cls: type[Any]) -> Any:
+        if msg_id in _BY_ID or name in _BY_NAME:
+            raise ValueError(f"message {name} / 0x{msg_id:02X} declared twice")
+        _check_id_range(msg_id, direction, name)
+        cls = dataclasses.dataclass(frozen=True, slots=True)(cls)
+        hints = typing.get_type_hints(cls, include_extras=True)
+        fields: list[FieldDef] = []
+        offset = 0
+        for f in dataclasses.fields(cls):
+            wire_type = next(m for m in typing.get_args(hints[f.name])[1:] if isinstance(m, WireType))
+            fields.append(FieldDef(f.name, wire_type, offset, f.metadata.get("unit", ""), f.metadata["doc"]))
+            offset += wire_type.size
+        has_tail = bool(fields) and fields[-1].wire.is_tail
+        if any(f.wire.is_tail for f in fields[:-1]):
+            raise ValueError(f"{name}: only the last field may take the rest of the payload")
+        fixed = [f for f in fields if not f.wire.is_tail]
+        cls.MSG_ID = msg_id
+        cls.DEFINITION = MessageDef(
+            msg_id, name, direction, ack, chunked, (cls.__doc__ or "").strip(), tuple(fields), offset, has_tail
+        )
+        cls._struct = struct.Struct("<" + "".join(f.wire.struct_code for f in fixed))
+        cls._getter = attrgetter(*[f.name for f in fields]) if fields else staticmethod(lambda _self: ())
+        cls._text_indices = tuple(i for i, f in enumerate(fixed) if f.wire.is_text)
+        _BY_ID[msg_id] = cls
+        _BY_NAME[name] = cls
+        return cls
+
+    return declare
+
+
+def _check_id_range(msg_id: int, direction: Direction, name: str) -> None:
+    if msg_id <= 0x1F:
+        return
+    expected = Direction.AGENT_TO_GROUND if msg_id <= 0x7F else Direction.GROUND_TO_AGENT
+    if direction != expected:
+        raise ValueError(f"{name}: id 0x{msg_id:02X} lies in the {expected} range")
+
+
+def message_class(msg_id: int) -> type[Message]:
+    try:
+        return _BY_ID[msg_id]
+    except KeyError:
+        raise UnknownMessageError(f"no message with id 0x{msg_id:02X}") from None
+
+
+def message_class_by_name(name: str) -> type[Message]:
+    try:
+        return _BY_NAME[name.upper()]
+    except KeyError:
+        raise UnknownMessageError(f"no message named {name!r}") from None
+
+
+def known_ids() -> frozenset[int]:
+    return frozenset(_BY_ID)
+
+
+def definitions() -> tuple[MessageDef, ...]:
+    """The whole table, in id order."""
+    return tuple(_BY_ID[i].DEFINITION for i in sorted(_BY_ID))
+
+
+def canonical_description() -> str:
+    """The text the definition hash is computed from: one line per message, one per field."""
+    lines = []
+    for d in definitions():
+        lines.append(f"{d.msg_id:02X} {d.name} {d.direction.name} ack={int(d.needs_ack)}")
+        lines.extend(f"  {f.offset} {f.name} {f.wire.spec_name}" for f in d.fields)
+    return "\n".join(lines) + "\n"
+
+
+def definitions_hash() -> int:
+    """First 4 bytes (little-endian u32) of SHA-256 over canonical_description(); sent in HELLO."""
+    digest = hashlib.sha256(canonical_description().encode()).digest()
+    return int.from_bytes(digest[:4], "little")
