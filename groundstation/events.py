@@ -1,0 +1,65 @@
+"""What a session hands its listeners: received messages and link life-cycle events."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from enum import StrEnum
+from typing import Any, Protocol
+
+from protocol import Frame, Message
+
+
+class EventKind(StrEnum):
+    CONNECTED = "connected"  # link up and HELLO exchanged
+    LINK_LOST = "link_lost"  # no frame for the link timeout, or the transport failed
+    LINK_RESTORED = "link_restored"  # reconnected after a loss
+    RESYNCED = "resynced"  # the agent rebooted (new boot_id): sequence and clocks reset
+    BACKFILL_DONE = "backfill_done"  # a LOG_REQUEST replay finished
+    ERROR = "error"  # anything else worth showing; the session keeps running
+    MARKER = "marker"  # a user marker (dive mark, or a key in the live run)
+
+
+@dataclass(frozen=True, slots=True)
+class Received:
+    """One frame from the agent as the session saw it."""
+
+    frame: Frame
+    host_time_ns: int  # host clock when the frame arrived
+    agent_time_ns: int | None  # the message's agent time mapped to host time, when it has one
+    backfilled: bool  # re-sent from the on-board log after a link outage
+
+    @property
+    def message(self) -> Message:
+        return self.frame.message
+
+
+@dataclass(frozen=True, slots=True)
+class Sent:
+    """One frame the ground station sent (commands are recorded too)."""
+
+    seq: int
+    message: Message
+    wire: bytes
+    host_time_ns: int
+
+
+@dataclass(frozen=True, slots=True)
+class LinkEvent:
+    kind: EventKind
+    host_time_ns: int
+    detail: str = ""
+    data: dict[str, Any] = field(default_factory=dict)
+
+
+class SessionListener(Protocol):
+    """Anything that wants the session's traffic: the recorder, the live view, the progress display.
+
+    Called from the session's reader thread; a listener must not block for long and must not raise
+    (the session catches and reports what it raises, and keeps going).
+    """
+
+    def on_received(self, received: Received) -> None: ...
+
+    def on_sent(self, sent: Sent) -> None: ...
+
+    def on_event(self, event: LinkEvent) -> None: ...
