@@ -2,15 +2,19 @@
 
 from __future__ import annotations
 
-import binascii
+from binascii import crc_hqx
+from collections.abc import Mapping
 from dataclasses import dataclass, field, fields
 
 from protocol.cobs import cobs_decode
+from protocol.crc import CRC_INIT
 from protocol.enums import INCOMPATIBLE_FLAGS_MASK, PROTOCOL_VERSION
 from protocol.errors import CobsError
 from protocol.frame import HEADER, MAX_CHUNK, MIN_INNER
-from protocol.registry import Message, message_class
+from protocol.registry import Message, message_classes
 
+HEADER_SIZE = HEADER.size
+unpack_header = HEADER.unpack_from
 _SEQ_HALF = 0x8000  # a seq this far or more behind the expected one is late/duplicate, not a gap
 
 
@@ -67,6 +71,7 @@ class StreamDecoder:
     _buffer: bytes = b""
     _discarding: bool = False  # inside a chunk already over MAX_CHUNK: drop bytes until the next 0x00
     _expected_seq: int | None = None
+    _classes: Mapping[int, type[Message]] = field(default_factory=message_classes, repr=False)
 
     def feed(self, data: bytes) -> list[Frame]:
         stats = self.stats
@@ -114,21 +119,20 @@ class StreamDecoder:
         if len(inner) < MIN_INNER:
             stats.runts += 1
             return None
-        if binascii.crc_hqx(inner[:-2], 0xFFFF) != (inner[-2] << 8 | inner[-1]):
+        if crc_hqx(inner[:-2], CRC_INIT) != (inner[-2] << 8 | inner[-1]):
             stats.crc_errors += 1
             return None
-        version, flags, seq, msg_id = HEADER.unpack_from(inner)
+        version, flags, seq, msg_id = unpack_header(inner)
         if version != PROTOCOL_VERSION or flags & INCOMPATIBLE_FLAGS_MASK:
             stats.incompatible += 1
             return None
         self._track_sequence(seq)
-        try:
-            cls = message_class(msg_id)
-        except KeyError:
+        cls = self._classes.get(msg_id)
+        if cls is None:
             stats.unknown_id += 1
             return None
         try:
-            decoded = cls.unpack(inner[HEADER.size : -2])
+            decoded = cls.unpack(inner[HEADER_SIZE:-2])
         except Exception:  # a decoder must not raise on wire input, whatever a payload holds
             stats.malformed += 1
             return None

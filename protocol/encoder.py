@@ -4,8 +4,9 @@ from __future__ import annotations
 
 from typing import NamedTuple
 
+from protocol.cobs import cobs_encode
 from protocol.enums import FrameFlag
-from protocol.frame import build_inner, encode_wire
+from protocol.frame import DELIMITER, build_inner
 from protocol.registry import Message
 
 
@@ -31,6 +32,8 @@ class FrameEncoder:
         return self.encode_payload(message.MSG_ID, message.pack(), flags)
 
     def encode_payload(self, msg_id: int, payload: bytes, flags: int = 0) -> EncodedFrame:
+        """Frame an already packed payload (raises FrameError if it exceeds 247 bytes)."""
+        inner = build_inner(flags, self._seq, msg_id, payload)
         seq = self._seq
         self._seq = (seq + 1) & 0xFFFF
-        return EncodedFrame(seq, encode_wire(build_inner(flags, seq, msg_id, payload)))
+        return EncodedFrame(seq, cobs_encode(inner) + DELIMITER)

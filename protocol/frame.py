@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 import struct
+from binascii import crc_hqx
 from dataclasses import dataclass
 
 from protocol.cobs import cobs_encode
-from protocol.crc import crc16_ccitt_false
+from protocol.crc import CRC_INIT, crc16_ccitt_false
 from protocol.enums import INCOMPATIBLE_FLAGS_MASK, PROTOCOL_VERSION
 from protocol.errors import FrameError
 from protocol.registry import MAX_PAYLOAD
@@ -35,7 +36,7 @@ def build_inner(flags: int, seq: int, msg_id: int, payload: bytes) -> bytes:
     if len(payload) > MAX_PAYLOAD:
         raise FrameError(f"payload of {len(payload)} bytes exceeds {MAX_PAYLOAD}")
     body = HEADER.pack(PROTOCOL_VERSION, flags, seq & 0xFFFF, msg_id) + payload
-    return body + CRC.pack(crc16_ccitt_false(body))
+    return body + crc_hqx(body, CRC_INIT).to_bytes(2, "big")
 
 
 def encode_wire(inner: bytes) -> bytes:

@@ -6,9 +6,11 @@ import dataclasses
 import hashlib
 import struct
 import typing
+from collections.abc import Mapping
 from dataclasses import dataclass
 from enum import StrEnum
 from operator import attrgetter
+from types import MappingProxyType
 from typing import Any, ClassVar, Self
 
 from protocol.errors import PayloadError, UnknownMessageError
@@ -182,6 +184,11 @@ def message_class_by_name(name: str) -> type[Message]:
         return _BY_NAME[name.upper()]
     except KeyError:
         raise UnknownMessageError(f"no message named {name!r}") from None
+
+
+def message_classes() -> Mapping[int, type[Message]]:
+    """Every message class by id (a read-only view of the table)."""
+    return MappingProxyType(_BY_ID)
 
 
 def known_ids() -> frozenset[int]:
