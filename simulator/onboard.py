@@ -239,9 +239,9 @@ class OnboardProgram:
         window = self.params.action_window_deg
         cmd = min(max(self.hw.actuator_cmd_deg + step, self._center_deg - window), self._center_deg + window)
         self.hw.set_actuator_cmd_deg(cmd)
-        self._steps += 1
         self._prev_state, self._prev_action = state, action
         self._sample(action, reward, state)
+        self._steps += 1
 
     def _end_episode(self, reason: EndReason, state: int) -> None:
         self.learner.end_episode()
