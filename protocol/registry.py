@@ -129,12 +129,18 @@ _BY_ID: dict[int, type[Message]] = {}
 _BY_NAME: dict[str, type[Message]] = {}
 
 
+_M = typing.TypeVar("_M", bound=type[Message])
+
+
+# dataclass_transform tells type checkers that a `@message` class gets a dataclass __init__ (every field
+# has a default, the `wire(...)` call, so every argument is optional, as on the wire).
+@typing.dataclass_transform(frozen_default=True)
 def message(
     msg_id: int, name: str, direction: Direction, *, ack: bool = False, chunked: bool = False
-) -> typing.Callable[[type[Any]], Any]:
+) -> typing.Callable[[_M], _M]:
     """Declare a message: registers it in the table and generates its wire layout."""
 
-    def declare(cls: type[Any]) -> Any:
+    def declare(cls: Any) -> Any:
         if msg_id in _BY_ID or name in _BY_NAME:
             raise ValueError(f"message {name} / 0x{msg_id:02X} declared twice")
         _check_id_range(msg_id, direction, name)
