@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import typer
 
+from groundstation import view_cli
 from groundstation.simulator_process import run_simulator_command
 
 app = typer.Typer(
@@ -28,6 +29,9 @@ def sim(ctx: typer.Context) -> None:
 def study(ctx: typer.Context) -> None:
     """Run N trials x E episodes of a learner on the simulated plant (`dive study --help` for options)."""
     raise typer.Exit(run_simulator_command(["study", *ctx.args]))
+
+
+app.command(name="replay")(view_cli.replay)
 
 
 def main() -> None:

@@ -24,7 +24,8 @@ class WireType:
 
     @property
     def is_text(self) -> bool:
-        return self.json_type == "string"
+        # bytes[] is a JSON string too (hex), but on the wire it stays bytes: only char[N] and text[] are UTF-8
+        return self.json_type == "string" and self.spec_name != "bytes[]"
 
 
 def _int(spec: str, code: str, size: int, signed: bool) -> WireType:
