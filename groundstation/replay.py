@@ -9,7 +9,7 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
-from groundstation.mcap_io import ReadStatus, read_messages
+from groundstation.mcap_io import RecordingContents, iter_messages
 from groundstation.view_errors import ReplayError
 from groundstation.view_model import Batch, ViewModel
 from protocol import FrameError, Message, PayloadError, UnknownMessageError, message_class
@@ -81,15 +81,16 @@ def _json_item(topic: str, log_time_ns: int, data: bytes) -> Item | None:
     return Item(log_time_ns, None, None, lambda model: model.event(kind, log_time_ns, detail, data_dict))
 
 
-def read_items(path: Path, status: ReadStatus | None = None) -> Iterator[Item]:
-    """The recording's received frames and ground-station records, in file order."""
-    for record in read_messages(path, status):
+_TOPICS = {RAW_RX_TOPIC, "/link", "/event", "/marker"}  # decoded copies (/agent/...) and /dump/... add nothing
+
+
+def read_items(path: Path, info: RecordingContents | None = None) -> Iterator[Item]:
+    """The recording's received frames and ground-station records, in file order (a truncated file: up to the cut)."""
+    for record in iter_messages(path, _TOPICS, info):
         if record.topic == RAW_RX_TOPIC:
             item = _frame_item(record.log_time_ns, record.data)
-        elif record.topic in ("/link", "/event", "/marker"):
-            item = _json_item(record.topic, record.log_time_ns, record.data)
         else:
-            continue  # decoded copies (/agent/...), commands (/ground/..., /raw/tx) and dumps are shown via /raw/rx
+            item = _json_item(record.topic, record.log_time_ns, record.data)
         if item is not None:
             yield item
 
@@ -143,7 +144,7 @@ def play(items: Iterator[Item], sink: Callable[[Callable[[ViewModel], None]], No
     return count
 
 
-def check_nonempty(count: int, path: Path, status: ReadStatus) -> None:
+def check_nonempty(count: int, path: Path, info: RecordingContents) -> None:
     if count == 0:
-        cut = " (cut short before its first complete chunk)" if status.truncated else ""
+        cut = " (cut short before its first complete chunk)" if info.truncated else ""
         raise ReplayError(f"{path} holds no agent frames to show{cut}")

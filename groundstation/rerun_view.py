@@ -6,6 +6,7 @@ import os
 import shutil
 import sys
 import threading
+import time
 import uuid
 from dataclasses import dataclass
 from enum import StrEnum
@@ -192,10 +193,14 @@ class RerunView:
     `view.close()` at the end (or `with RerunView.open(...) as view:`).
     """
 
-    def __init__(self, rec: rr.RecordingStream, address: str | None) -> None:
+    def __init__(self, rec: rr.RecordingStream, address: str | None, flush_interval_s: float = 0.1) -> None:
         self._rec = rec
         self._model = ViewModel()
         self._lock = threading.Lock()  # the session's reader thread and the caller may both feed it
+        # Rows go out in columns at most every flush_interval_s: a send costs ~0.1 ms per entity, so a fast
+        # replay or a backfill burst would otherwise spend its time in per-frame sends.
+        self._flush_interval_s = flush_interval_s
+        self._last_send_s = 0.0
         self.address = address
 
     @classmethod
@@ -204,12 +209,18 @@ class RerunView:
         address = open_sinks(rec, config)
         return cls(rec, address)
 
+    def _send_if_due(self) -> None:
+        now_s = time.monotonic()
+        if now_s - self._last_send_s >= self._flush_interval_s:
+            self._last_send_s = now_s
+            send_batch(self._rec, self._model.take())
+
     def on_received(self, received: Received) -> None:
         frame = received.frame
         with self._lock:
             self._model.feed(frame.message, received.host_time_ns, flags=frame.flags,
                              backfilled=received.backfilled)
-            send_batch(self._rec, self._model.take())
+            self._send_if_due()
 
     def on_sent(self, sent: Sent) -> None:
         pass  # commands show up through their effect on the agent (mode, episodes)
@@ -217,13 +228,13 @@ class RerunView:
     def on_event(self, event: LinkEvent) -> None:
         with self._lock:
             self._model.event(event.kind.value, event.host_time_ns, event.detail, event.data)
-            send_batch(self._rec, self._model.take())
+            self._send_if_due()
 
     def feed_model(self, feed: Any) -> None:
         """Run `feed(model)` under the lock and log what it produced (the replay's paced playback)."""
         with self._lock:
             feed(self._model)
-            send_batch(self._rec, self._model.take())
+            self._send_if_due()
 
     def send(self, batch: Batch) -> None:
         """Log rows made elsewhere (a whole converted recording) in columns."""
@@ -231,10 +242,12 @@ class RerunView:
             send_batch(self._rec, batch)
 
     def flush(self) -> None:
+        with self._lock:
+            send_batch(self._rec, self._model.take())
         self._rec.flush()
 
     def close(self) -> None:
-        self._rec.flush()
+        self.flush()
         self._rec.disconnect()
 
     def __enter__(self) -> RerunView:

@@ -15,7 +15,8 @@ import typer
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
 from groundstation import replay as rp
-from groundstation.mcap_io import ReadStatus
+from groundstation.errors import GroundStationError
+from groundstation.mcap_io import RecordingContents
 from groundstation.rerun_view import RerunView, ViewConfig, Viewer
 from groundstation.view_errors import ViewError
 
@@ -95,7 +96,7 @@ def replay(
         if not file.is_file():
             raise ViewError(f"no such recording: {file}")
         config = ViewConfig(viewer=default_viewer(viewer, rrd), rrd=rrd, web_port=web_port, grpc_port=grpc_port)
-        status = ReadStatus()
+        status = RecordingContents()
         items = rp.select(rp.read_items(file, status), *bounds)
         began = time.perf_counter()
         with RerunView.open(config, name=file.stem) as view:
@@ -116,7 +117,7 @@ def replay(
                 view.flush()
                 typer.echo(f"wrote {rrd}: {count} frames in {time.perf_counter() - began:.2f} s")
             wait_for_interrupt(view.address)
-    except ViewError as e:
+    except GroundStationError as e:
         raise _fail(str(e)) from None
     except KeyboardInterrupt:
         raise typer.Exit(130) from None

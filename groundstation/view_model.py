@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from groundstation.dumps import DumpAssembler
 from protocol import Action, DumpKind, EndReason, FrameFlag, Message, Severity
 from protocol import messages as m
 
@@ -87,26 +88,6 @@ class Region:
     target_depth_m: float
     z_tol_m: float
     zdot_tol_mps: float
-
-
-class DumpAssembler:
-    """Reassembles DUMP_CHUNKs by dump_id; a snapshot is complete when every byte has arrived."""
-
-    def __init__(self, max_pending: int = 8) -> None:
-        self._pending: dict[int, tuple[bytearray, set[int]]] = {}
-        self._max_pending = max_pending  # a lost chunk must not make memory grow over a long session
-
-    def add(self, chunk: m.DumpChunk) -> bytes | None:
-        buffer, filled = self._pending.setdefault(chunk.dump_id, (bytearray(chunk.total_bytes), set()))
-        end = min(chunk.offset + len(chunk.data), len(buffer))
-        buffer[chunk.offset : end] = chunk.data[: end - chunk.offset]
-        filled.update(range(chunk.offset, end))
-        if len(filled) >= len(buffer):
-            del self._pending[chunk.dump_id]
-            return bytes(buffer)
-        while len(self._pending) > self._max_pending:
-            del self._pending[next(iter(self._pending))]
-        return None
 
 
 def _colormap(unit: NDArray[np.float64]) -> NDArray[np.uint8]:
@@ -268,14 +249,14 @@ class ViewModel:
             self._row("learning_curve/success_line_s", SUCCESS_TIME_S, host_time_ns)
 
     def _dump_chunk(self, chunk: m.DumpChunk, host_time_ns: int) -> None:
-        data = self._dumps.add(chunk)
-        if data is None:
+        dump = self._dumps.feed(chunk)
+        if dump is None:
             return
-        if chunk.kind == DumpKind.VALUES:
-            values = np.frombuffer(data, "<f4")
+        if dump.kind == DumpKind.VALUES:
+            values = np.frombuffer(dump.data, "<f4")
             self._grid_cells = len(values) - 1
             self._row("value_function/image", value_image(values, self._zdot_cells), host_time_ns)
-        elif chunk.kind == DumpKind.POLICY:
-            actions = np.frombuffer(data, np.uint8)
+        elif dump.kind == DumpKind.POLICY:
+            actions = np.frombuffer(dump.data, np.uint8)
             self._grid_cells = len(actions) - 1
             self._row("policy/image", policy_image(actions, self._zdot_cells), host_time_ns)

@@ -92,6 +92,11 @@ class StreamDecoder:
                     frames.append(frame)
         return frames
 
+    @property
+    def buffered_bytes(self) -> int:
+        """Bytes held for an unfinished chunk; never more than MAX_CHUNK."""
+        return len(self._buffer)
+
     def reset_sequence(self) -> None:
         """Forget the expected seq (the sender rebooted or the link was re-established)."""
         self._expected_seq = None

@@ -24,8 +24,8 @@ class WireType:
 
     @property
     def is_text(self) -> bool:
-        # bytes[] is a JSON string too (hex), but on the wire it stays bytes: only char[N] and text[] are UTF-8
-        return self.json_type == "string" and self.spec_name != "bytes[]"
+        # not json_type: bytes[] is a JSON string too (hex), but on the wire it is raw bytes, not UTF-8
+        return self.spec_name.startswith(("char[", "text["))
 
 
 def _int(spec: str, code: str, size: int, signed: bool) -> WireType:
@@ -44,7 +44,8 @@ I32_WIRE = _int("i32", "i", 4, signed=True)
 I64_WIRE = _int("i64", "q", 8, signed=True)
 F32_WIRE = WireType("f32", "f", 4, "number")
 F64_WIRE = WireType("f64", "d", 8, "number")
-NAME_WIRE = WireType("char[16]", "16s", 16, "string")  # UTF-8, NUL-padded, NUL-terminated if shorter
+# 24 bytes: parameter names such as `surface_on_link_loss` (20) must fit; 16 truncated them.
+NAME_WIRE = WireType("char[24]", "24s", 24, "string")  # UTF-8, NUL-padded, NUL-terminated if shorter
 TAIL_BYTES_WIRE = WireType("bytes[]", "", 0, "string")  # rest of the payload (hex in JSON)
 TAIL_TEXT_WIRE = WireType("text[]", "", 0, "string")  # rest of the payload, UTF-8
 

@@ -64,7 +64,14 @@ class Message:
             if self._text_indices:
                 values = list(values)
                 for index in self._text_indices:
-                    values[index] = values[index].encode("utf-8")
+                    encoded = values[index].encode("utf-8")
+                    # struct would cut an over-long name silently, maybe inside a UTF-8 sequence
+                    if len(encoded) > definition.fields[index].wire.size:
+                        raise PayloadError(
+                            f"{definition.name}.{definition.fields[index].name}: {len(encoded)} bytes of UTF-8 "
+                            f"exceed {definition.fields[index].wire.spec_name}"
+                        )
+                    values[index] = encoded
             if not definition.has_tail:
                 return self._struct.pack(*values)
             tail = values[-1]

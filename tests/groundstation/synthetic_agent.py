@@ -4,14 +4,16 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 from mcap.writer import CompressionType, Writer
 
-from groundstation.events import Received
-from protocol import DumpKind, EndReason, Frame, FrameFlag, Message, Mode
+from groundstation.events import EventKind, LinkEvent, Received, SessionListener
+from groundstation.recorder import Recorder, RecorderConfig
+from protocol import DumpKind, EndReason, Frame, FrameFlag, Message, Mode, definitions_hash
 from protocol import messages as m
 from protocol.frame import build_inner
 
@@ -45,6 +47,8 @@ def generate(duration_s: float, rate_hz: float = 10.0, seed: int = 1, backfill_e
         seq = (seq + 1) & 0xFFFF
         frames.append(Received(frame, START_NS + int(t_s * 1e9), None, bool(flags & FrameFlag.REPLAYED)))
 
+    add(m.Hello(protocol_version=1, node_kind=1, definitions_hash=definitions_hash(), node_id=7, boot_id=11,
+                name="synthetic"), 0.0)
     steps = int(duration_s * rate_hz)
     episode, step, episode_len, sample_in_episode = 1, 0, 20, 0
     target, depth, velocity = 0.5, 0.5, 0.0
@@ -111,3 +115,33 @@ def write_mcap(path: Path, traffic: Traffic, chunk_size: int = 64 * 1024) -> Non
                                data=received.frame.inner)
         writer.finish()
 
+
+
+def play_session(traffic: Traffic, listeners: Iterable[SessionListener]) -> None:
+    """What a session hands its listeners: CONNECTED, every frame, the 1 Hz STATS events."""
+    listeners = list(listeners)
+    events = [LinkEvent(EventKind.CONNECTED, START_NS, "synthetic")]
+    stats = iter(traffic.link)
+    pending = next(stats, None)
+    for received in traffic.frames:
+        while pending is not None and pending[0] <= received.host_time_ns:
+            events.append(LinkEvent(EventKind.STATS, pending[0], data=pending[1]))
+            pending = next(stats, None)
+        for event in events:
+            for listener in listeners:
+                listener.on_event(event)
+        events.clear()
+        for listener in listeners:
+            listener.on_received(received)
+
+
+def record(
+    traffic: Traffic, path: Path, listeners: Iterable[SessionListener] = (), flush_period_s: float = 1.0
+) -> Path:
+    """Record the traffic with the ground station's real recorder (and feed other listeners beside it)."""
+    recorder = Recorder(RecorderConfig(path=path, flush_period_s=flush_period_s))
+    try:
+        play_session(traffic, [recorder, *listeners])
+    finally:
+        recorder.close()
+    return path

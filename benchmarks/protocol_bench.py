@@ -1,0 +1,126 @@
+"""Throughput of our SAMPLE frames against pymavlink's MAVLink v2 ATTITUDE, measured in the same run.
+
+Run: `.venv/bin/python benchmarks/protocol_bench.py [--frames N]`. Not a test: it prints figures and ratios.
+Goals (issue 2): decode >= 3x pymavlink, encode >= 2x.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from collections.abc import Callable
+
+from pymavlink.dialects.v20 import common as mavlink2
+
+from groundstation.columns import message_array
+from protocol import FrameEncoder, StreamDecoder
+from protocol.columns import columns, payload_records
+from protocol.messages import Sample
+
+CHUNK = 4096  # bytes per read, as a serial or TCP link delivers them
+REPEATS = 3  # best of three: the machine is shared
+
+
+def _best_rate(count: int, run: Callable[[], object]) -> float:
+    """Frames per second of the fastest of REPEATS runs of `run`, which handles `count` frames."""
+    best = float("inf")
+    for _ in range(REPEATS):
+        start = time.perf_counter()
+        run()
+        best = min(best, time.perf_counter() - start)
+    return count / best
+
+
+def _chunks(stream: bytes) -> list[bytes]:
+    return [stream[i : i + CHUNK] for i in range(0, len(stream), CHUNK)]
+
+
+def _samples(n: int) -> list[Sample]:
+    return [
+        Sample(t_us=1_000_000 + 100_000 * i, sample=i, episode=i // 300, step=i % 300, pressure_pa=101325.0 + i,
+               depth_m=0.5 + 0.001 * (i % 97), velocity_mps=-0.01 * (i % 13), actuator_deg=65.0 + (i % 7),
+               actuator_cmd_deg=66.0, reward=-1.0 if i % 5 else 0.0, state=i % 101, action=i % 2, mode=1)
+        for i in range(n)
+    ]
+
+
+def _attitudes(n: int) -> list[mavlink2.MAVLink_attitude_message]:
+    return [
+        mavlink2.MAVLink_attitude_message(100 * i, 0.01 * (i % 50), -0.02 * (i % 30), 0.5, 0.001 * i, 0.002, -0.003)
+        for i in range(n)
+    ]
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--frames", type=int, default=20_000)
+    n = parser.parse_args().frames
+
+    samples = _samples(n)
+
+    def encode_ours() -> list[bytes]:
+        encoder = FrameEncoder()
+        return [encoder.encode(s).wire for s in samples]
+
+    ours_stream = b"".join(encode_ours())
+    ours_chunks = _chunks(ours_stream)
+
+    def decode_ours() -> int:
+        decoder = StreamDecoder()
+        count = sum(len(decoder.feed(c)) for c in ours_chunks)
+        assert count == n and decoder.stats.rejects == 0, (count, decoder.stats)
+        return count
+
+    attitudes = _attitudes(n)
+    sender = mavlink2.MAVLink(None, srcSystem=1, srcComponent=1)
+
+    def encode_mav() -> list[bytes]:
+        return [m.pack(sender) for m in attitudes]
+
+    mav_stream = b"".join(encode_mav())
+    mav_chunks = _chunks(mav_stream)
+
+    def decode_mav() -> int:
+        receiver = mavlink2.MAVLink(None)
+        count = 0
+        for c in mav_chunks:
+            count += len(receiver.parse_buffer(c) or ())
+        assert count == n, count
+        return count
+
+    inners = [f.inner for f in StreamDecoder().feed(ours_stream)]
+    definition = Sample.DEFINITION
+
+    def columns_stdlib() -> None:
+        cols = columns(payload_records(inners, definition), definition)
+        assert len(cols["depth_m"]) == n
+
+    def columns_numpy() -> None:
+        array = message_array(inners, definition)
+        assert array["depth_m"].shape == (n,)
+
+    rates = {
+        "encode ours": _best_rate(n, encode_ours),
+        "encode pymavlink": _best_rate(n, encode_mav),
+        "decode ours": _best_rate(n, decode_ours),
+        "decode pymavlink": _best_rate(n, decode_mav),
+        "columns stdlib": _best_rate(n, columns_stdlib),
+        "columns numpy": _best_rate(n, columns_numpy),
+    }
+    print(f"protocol benchmark: {n} frames, best of {REPEATS}; "
+          f"SAMPLE {len(ours_stream) // n} B/frame on the wire, ATTITUDE {len(mav_stream) // n} B/frame")
+    print(f"{'task':<44} {'ours frames/s':>14} {'pymavlink frames/s':>19} {'ratio':>7} {'goal':>6}")
+    for task, goal in (("encode", 2.0), ("decode", 3.0)):
+        ours, theirs = rates[f"{task} ours"], rates[f"{task} pymavlink"]
+        ratio = ours / theirs
+        verdict = "met" if ratio >= goal else "MISSED"
+        label = f"{task} (SAMPLE vs ATTITUDE{', 4 KiB chunks' if task == 'decode' else ''})"
+        print(f"{label:<44} {ours:>14,.0f} {theirs:>19,.0f} {ratio:>6.2f}x {goal:>4.0f}x {verdict}")
+    for label, key in (("columnar decode, inner frames -> stdlib tuples", "columns stdlib"),
+                       ("columnar decode, inner frames -> numpy array", "columns numpy")):
+        ratio = rates[key] / rates["decode pymavlink"]
+        print(f"{label:<44} {rates[key]:>14,.0f} {'':>19} {ratio:>6.2f}x")
+
+
+if __name__ == "__main__":
+    main()
