@@ -31,6 +31,7 @@ def study(ctx: typer.Context) -> None:
     raise typer.Exit(run_simulator_command(["study", *ctx.args]))
 
 
+app.command(name="view")(view_cli.view)
 app.command(name="replay")(view_cli.replay)
 
 

@@ -16,8 +16,10 @@ from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
 from groundstation import replay as rp
 from groundstation.errors import GroundStationError
+from groundstation.links import make_link
 from groundstation.mcap_io import RecordingContents
 from groundstation.rerun_view import RerunView, ViewConfig, Viewer
+from groundstation.session import Session
 from groundstation.view_errors import ViewError
 
 ViewerOption = Annotated[
@@ -55,13 +57,11 @@ def _parse_speed(text: str) -> float | None:
     return speed
 
 
-def wait_for_interrupt(address: str | None) -> None:
-    """Keep the served web viewer up until Ctrl-C or SIGTERM."""
-    if address is None:
-        return
+def wait_for_interrupt(what: str) -> None:
+    """Keep going (serving the web viewer, watching the agent) until Ctrl-C or SIGTERM."""
     stop = threading.Event()
     previous = signal.signal(signal.SIGTERM, lambda *_: stop.set())
-    typer.echo("serving the web viewer; Ctrl-C to stop", err=True)
+    typer.echo(f"{what}; Ctrl-C to stop", err=True)
     try:
         while not stop.wait(0.2):
             pass
@@ -116,7 +116,33 @@ def replay(
             if rrd is not None:
                 view.flush()
                 typer.echo(f"wrote {rrd}: {count} frames in {time.perf_counter() - began:.2f} s")
-            wait_for_interrupt(view.address)
+            if view.address:
+                wait_for_interrupt("serving the web viewer")
+    except GroundStationError as e:
+        raise _fail(str(e)) from None
+    except KeyboardInterrupt:
+        raise typer.Exit(130) from None
+
+
+def view(
+    url: Annotated[str | None, typer.Argument(help="The agent: tcp://, serial://, sim://... (default $DIVE_URL).")]
+    = None,
+    viewer: ViewerOption = None,
+    rrd: Annotated[Path | None, typer.Option("--rrd", help="Also save the stream to this .rrd file.")] = None,
+    web_port: WebPortOption = 9090,
+    grpc_port: GrpcPortOption = 9876,
+) -> None:
+    """Watch the agent live in the Rerun view, without commanding it."""
+    try:
+        link = make_link(url)
+        config = ViewConfig(viewer=default_viewer(viewer, None), rrd=rrd, web_port=web_port, grpc_port=grpc_port)
+        with RerunView.open(config, name=link.url) as live:
+            if live.address:
+                typer.echo(f"Rerun web viewer: {live.address}")
+            with Session(link, listeners=[live]) as session:
+                hello = session.agent_hello
+                typer.echo(f"watching {hello.name if hello else 'the agent'} at {link.url}")
+                wait_for_interrupt("watching")
     except GroundStationError as e:
         raise _fail(str(e)) from None
     except KeyboardInterrupt:
