@@ -5,7 +5,6 @@ from __future__ import annotations
 import os
 import signal
 import sys
-import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -57,18 +56,18 @@ def _parse_speed(text: str) -> float | None:
     return speed
 
 
+def _interrupt(signum: int, frame: object) -> None:
+    raise KeyboardInterrupt
+
+
 def wait_for_interrupt(what: str) -> None:
-    """Keep going (serving the web viewer, watching the agent) until Ctrl-C or SIGTERM."""
-    stop = threading.Event()
-    previous = signal.signal(signal.SIGTERM, lambda *_: stop.set())
+    """Keep going (serving the web viewer, watching the agent) until Ctrl-C or SIGTERM, then return."""
     typer.echo(f"{what}; Ctrl-C to stop", err=True)
     try:
-        while not stop.wait(0.2):
-            pass
+        while True:
+            time.sleep(0.2)
     except KeyboardInterrupt:
         pass
-    finally:
-        signal.signal(signal.SIGTERM, previous)
 
 
 def _progress_items(items: Iterator[rp.Item], progress: Progress, task: object) -> Iterator[rp.Item]:
@@ -90,6 +89,7 @@ def replay(
     grpc_port: GrpcPortOption = 9876,
 ) -> None:
     """Show a recording in the live view's layout, or convert it to .rrd with --rrd."""
+    signal.signal(signal.SIGTERM, _interrupt)  # a service manager's stop is a Ctrl-C: clean shutdown
     try:
         factor = _parse_speed(speed)
         bounds = (rp.parse_bound(start) if start else None, rp.parse_bound(end) if end else None)
@@ -100,7 +100,7 @@ def replay(
         items = rp.select(rp.read_items(file, status), *bounds)
         began = time.perf_counter()
         with RerunView.open(config, name=file.stem) as view:
-            if view.address:
+            if view.address and factor is not None:
                 typer.echo(f"Rerun web viewer: {view.address}")
             if factor is None:
                 with Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.completed} frames"),
@@ -117,6 +117,9 @@ def replay(
                 view.flush()
                 typer.echo(f"wrote {rrd}: {count} frames in {time.perf_counter() - began:.2f} s")
             if view.address:
+                if factor is None:
+                    view.flush()
+                    typer.echo(f"Rerun web viewer: {view.address}")
                 wait_for_interrupt("serving the web viewer")
     except GroundStationError as e:
         raise _fail(str(e)) from None
@@ -133,6 +136,7 @@ def view(
     grpc_port: GrpcPortOption = 9876,
 ) -> None:
     """Watch the agent live in the Rerun view, without commanding it."""
+    signal.signal(signal.SIGTERM, _interrupt)
     try:
         link = make_link(url)
         config = ViewConfig(viewer=default_viewer(viewer, None), rrd=rrd, web_port=web_port, grpc_port=grpc_port)

@@ -182,7 +182,10 @@ class ViewModel:
         self._row("log/events", (text, "WARN" if kind in ("link_lost", "error") else "INFO"), host_time_ns)
 
     def link_stats(self, host_time_ns: int, stats: dict[str, Any]) -> None:
-        """The ground station's link statistics (LinkStats.snapshot(): live STATS events, the /link topic)."""
+        """The ground station's link statistics: live STATS events and the /link topic carry
+        {"link": LinkStats.snapshot(), "clock": ...}; a bare snapshot is accepted too."""
+        link = stats.get("link")
+        stats = link if isinstance(link, dict) else stats
         loss = stats.get("loss_fraction")
         if isinstance(loss, int | float):
             self._row("link/loss_ratio", float(loss), host_time_ns)

@@ -7,6 +7,7 @@ import math
 from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from mcap.writer import CompressionType, Writer
@@ -26,7 +27,7 @@ class Traffic:
     """What the agent sent and the ground station recorded beside it (1 Hz link statistics)."""
 
     frames: list[Received]
-    link: list[tuple[int, dict[str, float]]]
+    link: list[tuple[int, dict[str, Any]]]
 
     @property
     def samples(self) -> int:
@@ -37,7 +38,7 @@ def generate(duration_s: float, rate_hz: float = 10.0, seed: int = 1, backfill_e
     """Episodes that get longer as the agent 'learns', a VALUES and POLICY dump after each, 1 Hz heartbeats."""
     rng = np.random.default_rng(seed)
     frames: list[Received] = []
-    link: list[tuple[int, dict[str, float]]] = []
+    link: list[tuple[int, dict[str, Any]]] = []
     seq = 0
 
     def add(message: Message, t_s: float, flags: int = 0) -> None:
@@ -70,7 +71,8 @@ def generate(duration_s: float, rate_hz: float = 10.0, seed: int = 1, backfill_e
         sample_in_episode += 1
         if i % int(rate_hz) == 0:
             add(m.Heartbeat(uptime_ms=int(t_s * 1e3), mode=Mode.LEARNING, battery_mv=3900, episode=episode), t_s)
-            link.append((START_NS + int(t_s * 1e9), {"loss_fraction": 0.01, "rtt_median_ms": 12.0 + rng.random()}))
+            link.append((START_NS + int(t_s * 1e9),
+                         {"link": {"loss_fraction": 0.01, "rtt_median_ms": 12.0 + rng.random()}, "clock": {}}))
         if sample_in_episode >= episode_len:
             success = episode_len >= 3000
             add(m.EpisodeEnd(t_us=int(t_s * 1e6), episode=episode, sample=i,
