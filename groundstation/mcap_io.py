@@ -148,7 +148,7 @@ def _records(path: Path) -> Iterator[Any]:
         raise RecordingError(f"cannot read {path}: {e.strerror or e}") from e
     with stream:
         try:
-            yield from StreamReader(stream, skip_magic=False, validate_crcs=True).records()
+            yield from StreamReader(stream, skip_magic=False, validate_crcs=True).records
         except (McapError, EOFError, ValueError, KeyError, IndexError, OSError) as e:
             if isinstance(e, OSError):
                 raise RecordingError(f"cannot read {path}: {e}") from e
