@@ -1,1 +1,20 @@
 """The paper's model-based value-function learner and its successors (numpy/numba, no I/O)."""
+
+from learning.config import LearnerConfig, ModelForm, n_states, terminal_state
+from learning.errors import LearnerConfigError, LearningError
+from learning.learner import Learner, model_memory_bytes, state_index
+from learning.presets import learner_names, learner_preset
+
+__all__ = [
+    "Learner",
+    "LearnerConfig",
+    "LearnerConfigError",
+    "LearningError",
+    "ModelForm",
+    "learner_names",
+    "learner_preset",
+    "model_memory_bytes",
+    "n_states",
+    "state_index",
+    "terminal_state",
+]

@@ -1,0 +1,79 @@
+"""The learner's configuration: grid, discounting, exploration, model form and the errata switches."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from enum import IntEnum
+
+from learning.errors import LearnerConfigError
+from learning.spec import kernel_tuple_type, to_kernel_tuple
+
+
+class ModelForm(IntEnum):
+    """How the transition counts are stored."""
+
+    DENSE = 0  # uint16 C[s, a, s']: 41 KB at 101 states, what the paper's simulation could afford
+    SPARSE = 1  # a few (uint8 successor, uint16 count) slots per (s, a): what fits the Teensy
+
+
+@dataclass(frozen=True)
+class LearnerConfig:
+    """Everything the learner of paper Section III needs; defaults are the paper's simulation values."""
+
+    z_cells: int = 10  # depth cells across the learning region (paper Fig. 2)
+    zdot_cells: int = 10  # velocity cells across the learning region (paper Fig. 2)
+    z_tol_m: float = 0.1  # half-width of the learning region in depth (paper V-A)
+    zdot_tol_mps: float = 0.04  # half-width of the learning region in velocity (paper V-A)
+    gamma: float = 0.99  # discount factor (paper V-A)
+    vi_tolerance: float = 1e-4  # value iteration stops when max |v_new - v| falls below (paper V-A)
+    terminal_reward: float = -10.0  # reward on entering the terminal state (paper V-A)
+    p_explore_start: float = 0.10  # exploration probability at episode 0 (paper V-A)
+    p_explore_end: float = 0.0  # exploration probability from explore_decay_episodes on (paper V-A)
+    explore_decay_episodes: int = 1000  # length of the linear exploration decay (paper V-A)
+    depth_only_terminal: bool = False  # authors' MATLAB/firmware: leaving in velocity does not end it
+    # Errata switches: True is the literal reading of the printed pseudo-code (diving-agent.md s. 5).
+    explore_literal_gt: bool = False  # Alg. 2 "p_rand > p_expl": explores 90 % of the time
+    policy_argmin: bool = False  # text: pi(s) = argmin_a q(a, s), wrong with negative rewards
+    alg4_printed: bool = False  # Alg. 4 applies P twice: Q = (sum_s' P)(R + gamma P v)
+    untried_q_value: float = 0.0  # Q of a pair tried fewer than known_count times; 0 = optimistic
+    known_count: int = 1  # 1: the paper; m > 1: R-MAX's "known" threshold
+    random_ties: bool = True  # False: np.argmax's habit of always picking a1 on ties
+    model_form: ModelForm = ModelForm.SPARSE
+    sparse_slots: int = 12  # successor slots per (s, a); 12 never overflows on the paper's grid
+    actuator_bins: int = 1  # > 1 adds the actuator position (relative to neutral) to the state
+    max_sweeps: int = 100_000  # safety stop of value iteration, never reached with gamma < 1
+
+    def __post_init__(self) -> None:
+        if self.z_cells < 1 or self.zdot_cells < 1 or self.actuator_bins < 1:
+            raise LearnerConfigError("grid cells and actuator bins must be at least 1")
+        if self.z_tol_m <= 0 or self.zdot_tol_mps <= 0:
+            raise LearnerConfigError("z_tol_m and zdot_tol_mps must be positive")
+        if not 0.0 <= self.gamma < 1.0:
+            raise LearnerConfigError("gamma must lie in [0, 1)")
+        if self.vi_tolerance <= 0:
+            raise LearnerConfigError("vi_tolerance must be positive")
+        for p in (self.p_explore_start, self.p_explore_end):
+            if not 0.0 <= p <= 1.0:
+                raise LearnerConfigError("exploration probabilities must lie in [0, 1]")
+        if self.explore_decay_episodes < 1 or self.known_count < 1 or self.sparse_slots < 1:
+            raise LearnerConfigError("explore_decay_episodes, known_count and sparse_slots must be >= 1")
+        if n_states(self) > 65535:
+            raise LearnerConfigError("at most 65535 states (successor indices are uint16)")
+
+
+LearnerSpec = kernel_tuple_type(LearnerConfig, "LearnerSpec")
+
+
+def kernel_spec(config: LearnerConfig) -> tuple:
+    """The config as the named tuple the numba kernels take."""
+    return to_kernel_tuple(config, LearnerSpec)
+
+
+def n_states(config: LearnerConfig) -> int:
+    """Number of states including the terminal one (101 with the defaults)."""
+    return config.z_cells * config.zdot_cells * config.actuator_bins + 1
+
+
+def terminal_state(config: LearnerConfig) -> int:
+    """Index of the terminal state, always the last one."""
+    return n_states(config) - 1

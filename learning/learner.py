@@ -1,0 +1,142 @@
+"""The paper's learner as a thin Python class over the compiled kernels the batch study also runs."""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from learning.acting import explore_probability, select_action_kernel, state_index_kernel
+from learning.config import LearnerConfig, ModelForm, kernel_spec, n_states
+from learning.errors import LearningError
+from learning.model import N_ACTIONS, allocate_model, dense_counts, export_model_kernel, record_transition
+from learning.planning import plan_kernel
+from learning.rng import new_stream
+
+_REWARD_SUM_BYTES = 4  # float32 per (s, a) on the Teensy
+_COUNT_BYTES = 2  # uint16
+
+
+def state_index(
+    depth_m: float,
+    velocity_mps: float,
+    target_depth_m: float,
+    config: LearnerConfig,
+    actuator_fraction: float = 0.0,
+) -> int:
+    """The state of (depth, velocity[, actuator position in -1..1 of its window]); S-1 is terminal."""
+    return int(
+        state_index_kernel(
+            float(depth_m), float(velocity_mps), float(target_depth_m), float(actuator_fraction),
+            kernel_spec(config),
+        )
+    )
+
+
+def model_memory_bytes(config: LearnerConfig) -> int:
+    """Bytes of the model as the Teensy holds it: counts, successor indices (sparse), reward sums."""
+    s = n_states(config)
+    pairs = s * N_ACTIONS
+    if config.model_form == ModelForm.DENSE:
+        return pairs * s * _COUNT_BYTES + pairs * _REWARD_SUM_BYTES
+    index_bytes = 1 if s <= 256 else 2
+    return pairs * config.sparse_slots * (index_bytes + _COUNT_BYTES) + pairs * _REWARD_SUM_BYTES
+
+
+class Learner:
+    """Model-based value-function learner: act, observe, end_episode (value iteration), inspect."""
+
+    def __init__(self, config: LearnerConfig, rng: np.random.Generator) -> None:
+        self._config = config
+        self._spec = kernel_spec(config)
+        self._rng_state = new_stream(rng)
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget everything: empty model, zero values, a random tie-broken policy, episode 0."""
+        s = n_states(self._config)
+        self._sparse = self._config.model_form == ModelForm.SPARSE
+        self._succ_idx, self._succ_cnt, self._reward_sum = allocate_model(
+            s, self._sparse, self._config.sparse_slots
+        )
+        self._values = np.zeros(s)
+        self._q = np.zeros((s, N_ACTIONS))
+        self._policy = np.zeros(s, dtype=np.int8)
+        self._episode = 0
+        self.last_sweeps = plan_kernel(
+            self._succ_idx, self._succ_cnt, self._reward_sum, self._values, self._q, self._policy,
+            self._spec, self._rng_state,
+        )
+
+    @property
+    def config(self) -> LearnerConfig:
+        return self._config
+
+    @property
+    def episode(self) -> int:
+        """Completed episodes."""
+        return self._episode
+
+    @property
+    def p_explore(self) -> float:
+        """Exploration probability of the current episode."""
+        return float(explore_probability(self._episode, self._spec))
+
+    def act(self, state: int) -> int:
+        """0 = a1 (decrease volume), 1 = a2 (increase volume); greedy, flipped with p_explore."""
+        self._check_state(state)
+        return int(select_action_kernel(self._policy, state, self.p_explore, self._spec, self._rng_state))
+
+    def observe(self, state: int, action: int, reward: float, next_state: int) -> None:
+        """Record one transition into the count model (Alg. 3)."""
+        self._check_state(state)
+        self._check_state(next_state, allow_terminal=True)
+        if action not in (0, 1):
+            raise LearningError(f"action must be 0 or 1, got {action}")
+        record_transition(
+            self._succ_idx, self._succ_cnt, self._reward_sum, state, action, float(reward), next_state,
+            self._sparse,
+        )
+
+    def end_episode(self) -> None:
+        """Value iteration on the updated model, warm-started from the current values; next episode."""
+        self.last_sweeps = int(
+            plan_kernel(
+                self._succ_idx, self._succ_cnt, self._reward_sum, self._values, self._q, self._policy,
+                self._spec, self._rng_state,
+            )
+        )
+        self._episode += 1
+
+    @property
+    def values(self) -> NDArray[np.float64]:
+        """v per state (terminal last, always 0); a copy."""
+        return self._values.copy()
+
+    @property
+    def q_values(self) -> NDArray[np.float64]:
+        """Q[s, a] of the last value iteration; a copy."""
+        return self._q.copy()
+
+    @property
+    def policy(self) -> NDArray[np.int64]:
+        """Greedy action per state; a copy."""
+        return self._policy.astype(np.int64)
+
+    @property
+    def counts(self) -> NDArray[np.uint16]:
+        """Transition counts C[s, s', a] (uint16), exported from whichever form is stored."""
+        return dense_counts(self._succ_idx, self._succ_cnt)
+
+    def export_model(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """P[s, s', a] and R[s, a] as dense float arrays (untried rows zero)."""
+        return export_model_kernel(self._succ_idx, self._succ_cnt, self._reward_sum)
+
+    @property
+    def memory_bytes(self) -> int:
+        """Exact bytes of the model on the Teensy (see model_memory_bytes)."""
+        return model_memory_bytes(self._config)
+
+    def _check_state(self, state: int, allow_terminal: bool = False) -> None:
+        last = self._values.shape[0] - (0 if allow_terminal else 1)
+        if not 0 <= state < last:
+            raise LearningError(f"state {state} outside 0..{last - 1}")

@@ -1,0 +1,117 @@
+"""Compiled transition-count model: allocation, recording (dense or sparse slots), export as P and R."""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+from numpy.typing import NDArray
+
+N_ACTIONS = 2
+COUNT_MAX = 65535  # uint16 counts, as on the Teensy
+
+
+@njit(cache=True)
+def allocate_model(
+    n_states: int, sparse: bool, slots: int
+) -> tuple[NDArray[np.uint16], NDArray[np.uint16], NDArray[np.float32]]:
+    """Empty (successor index, count, reward sum) arrays; dense uses one slot per successor."""
+    n_slots = slots if sparse else n_states
+    succ_idx = np.zeros((n_states, N_ACTIONS, n_slots), dtype=np.uint16)
+    if not sparse:
+        for s in range(n_states):
+            for a in range(N_ACTIONS):
+                for k in range(n_slots):
+                    succ_idx[s, a, k] = k
+    succ_cnt = np.zeros((n_states, N_ACTIONS, n_slots), dtype=np.uint16)
+    reward_sum = np.zeros((n_states, N_ACTIONS), dtype=np.float32)
+    return succ_idx, succ_cnt, reward_sum
+
+
+@njit(cache=True)
+def _row_total(succ_cnt: NDArray[np.uint16], s: int, a: int) -> int:
+    total = 0
+    for k in range(succ_cnt.shape[2]):
+        total += int(succ_cnt[s, a, k])
+    return total
+
+
+@njit(cache=True)
+def record_transition(
+    succ_idx: NDArray[np.uint16],
+    succ_cnt: NDArray[np.uint16],
+    reward_sum: NDArray[np.float32],
+    state: int,
+    action: int,
+    reward: float,
+    next_state: int,
+    sparse: bool,
+) -> None:
+    """Alg. 3: count (s, a, s') and add the reward to the (s, a) sum."""
+    n_slots = succ_cnt.shape[2]
+    slot = next_state
+    if sparse:
+        slot = -1
+        free = -1
+        for k in range(n_slots):
+            if succ_cnt[state, action, k] > 0:
+                if int(succ_idx[state, action, k]) == next_state:
+                    slot = k
+                    break
+            elif free < 0:
+                free = k
+        if slot < 0:
+            if free < 0:
+                # All slots taken: forget the rarest successor, keeping the mean reward unchanged.
+                free = 0
+                for k in range(1, n_slots):
+                    if succ_cnt[state, action, k] < succ_cnt[state, action, free]:
+                        free = k
+                total = _row_total(succ_cnt, state, action)
+                kept = total - int(succ_cnt[state, action, free])
+                reward_sum[state, action] *= kept / total
+                succ_cnt[state, action, free] = 0
+            slot = free
+            succ_idx[state, action, slot] = next_state
+    if succ_cnt[state, action, slot] == COUNT_MAX:
+        # Saturation: halve the row (rounding up keeps every seen successor), proportions survive.
+        total = _row_total(succ_cnt, state, action)
+        for k in range(n_slots):
+            succ_cnt[state, action, k] = (int(succ_cnt[state, action, k]) + 1) // 2
+        reward_sum[state, action] *= _row_total(succ_cnt, state, action) / total
+    succ_cnt[state, action, slot] += 1
+    reward_sum[state, action] += reward
+
+
+@njit(cache=True)
+def dense_counts(succ_idx: NDArray[np.uint16], succ_cnt: NDArray[np.uint16]) -> NDArray[np.uint16]:
+    """Counts C[s, s', a] as the paper writes them, whatever the storage form."""
+    n_states = succ_cnt.shape[0]
+    counts = np.zeros((n_states, n_states, N_ACTIONS), dtype=np.uint16)
+    for s in range(n_states):
+        for a in range(N_ACTIONS):
+            for k in range(succ_cnt.shape[2]):
+                c = succ_cnt[s, a, k]
+                if c > 0:
+                    counts[s, int(succ_idx[s, a, k]), a] = c
+    return counts
+
+
+@njit(cache=True)
+def export_model_kernel(
+    succ_idx: NDArray[np.uint16], succ_cnt: NDArray[np.uint16], reward_sum: NDArray[np.float32]
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """P[s, s', a] = C / sum_s' C and R[s, a] = mean reward; untried rows are all zero."""
+    counts = dense_counts(succ_idx, succ_cnt)
+    n_states = counts.shape[0]
+    p = np.zeros((n_states, n_states, N_ACTIONS))
+    r = np.zeros((n_states, N_ACTIONS))
+    for s in range(n_states):
+        for a in range(N_ACTIONS):
+            total = 0.0
+            for s2 in range(n_states):
+                total += counts[s, s2, a]
+            if total > 0:
+                for s2 in range(n_states):
+                    p[s, s2, a] = counts[s, s2, a] / total
+                r[s, a] = reward_sum[s, a] / total
+    return p, r

@@ -1,0 +1,152 @@
+"""Compiled episode logic shared by DivingEnv and the study runner: start, one learner step, reward."""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+from numpy.typing import NDArray
+
+from learning.acting import reward_kernel, state_index_kernel
+from learning.rng import uniform
+from simulator.observer import observer_update_kernel
+from simulator.plant_kernel import plant_step
+from simulator.recovery import AVG, recovery_gave_up, recovery_init, recovery_settled, recovery_update_kernel
+from simulator.sensor import depth_from_pressure_kernel, read_pressure_kernel
+
+# Layout of the environment state array: plant, command, observer, recovery, bookkeeping.
+E_Z, E_ZDOT, E_ALPHA = 0, 1, 2  # plant (same order as plant_kernel)
+E_CMD = 3  # alpha_cmd, deg
+E_CENTER = 4  # centre of the learner's actuator window (alpha_avg at hand-over), deg
+E_OBS_X1, E_OBS_X2 = 5, 6  # observer
+E_REC_AVG, E_REC_CALM, E_REC_ELAPSED = 7, 8, 9  # recovery controller
+E_STEPS = 10  # learner steps taken in the current episode
+E_DEPTH_MEAS = 11  # last measured depth, m
+E_VEL_EST = 12  # velocity the learner sees, m/s
+E_RECOVERY_S = 13  # time the recovery controller needed before this episode, s
+E_STARTED = 14  # 1 after the first reset (the plant state carries over between episodes)
+ENV_SIZE = 15
+_MAX_RECOVERY_ATTEMPTS = 20
+
+
+@njit(cache=True)
+def new_env_state(spec: tuple) -> NDArray[np.float64]:
+    """An environment before its first episode: at the surface, gear at mid-stroke."""
+    env = np.zeros(ENV_SIZE)
+    env[E_ALPHA] = spec.alpha_max_deg / 2.0
+    env[E_CMD] = env[E_ALPHA]
+    env[E_CENTER] = env[E_ALPHA]
+    env[E_REC_AVG] = env[E_ALPHA]
+    return env
+
+
+@njit(cache=True)
+def neutral_alpha_kernel(spec: tuple) -> float:
+    """Gear angle of neutral buoyancy at the surface (same formula as parameters.neutral_alpha_deg)."""
+    fixed_m3 = spec.mass_kg / spec.water_density_kgpm3 * (1.0 + spec.trim_error_fraction)
+    v_adj_m3 = spec.mass_kg / spec.water_density_kgpm3 - fixed_m3
+    return spec.alpha_max_deg * (v_adj_m3 / spec.stroke_volume_m3 + 0.5)
+
+
+@njit(cache=True)
+def _measure(env: NDArray[np.float64], dt_s: float, spec: tuple, rng_state: NDArray[np.uint64]) -> None:
+    pressure_pa = read_pressure_kernel(env[E_Z], spec, rng_state)
+    env[E_DEPTH_MEAS] = depth_from_pressure_kernel(pressure_pa, spec)
+    obs = env[E_OBS_X1:E_OBS_X2 + 1]
+    estimate = observer_update_kernel(obs, env[E_DEPTH_MEAS], dt_s, spec)
+    env[E_VEL_EST] = estimate if spec.use_observer else env[E_ZDOT]
+
+
+@njit(cache=True)
+def _recover(
+    env: NDArray[np.float64], start_depth_m: float, spec: tuple, rng_state: NDArray[np.uint64]
+) -> bool:
+    """Run the recovery controller to start_depth_m; True once settled, False if it gave up."""
+    rec = env[E_REC_AVG:E_REC_ELAPSED + 1]
+    recovery_init(rec, rec[AVG])
+    plant = env[E_Z:E_ALPHA + 1]
+    dt = spec.recovery_period_s
+    while True:
+        _measure(env, dt, spec, rng_state)
+        env[E_CMD] = recovery_update_kernel(
+            rec, env[E_DEPTH_MEAS], env[E_OBS_X2], env[E_ALPHA], start_depth_m, dt, spec
+        )
+        plant_step(plant, env[E_CMD], dt, spec)
+        env[E_RECOVERY_S] += dt
+        if recovery_settled(rec, spec):
+            return True
+        if recovery_gave_up(rec, spec):
+            return False
+
+
+@njit(cache=True)
+def episode_reset_kernel(
+    env: NDArray[np.float64], target_depth_m: float, spec: tuple, lspec: tuple, rng_state: NDArray[np.uint64]
+) -> int:
+    """Start an episode at a random depth of the learning region; returns the first state index."""
+    env[E_STEPS] = 0.0
+    env[E_RECOVERY_S] = 0.0
+    half_m = spec.start_depth_fraction * lspec.z_tol_m
+    if spec.start_with_recovery:
+        if env[E_STARTED] == 0.0:
+            env[E_OBS_X1] = env[E_Z]
+            env[E_OBS_X2] = 0.0
+        # The controller hands over within settle_depth_m of its goal: keep the goal that far inside.
+        goal_half_m = max(half_m - spec.settle_depth_m, 0.0)
+        for _ in range(_MAX_RECOVERY_ATTEMPTS):
+            start_m = target_depth_m + goal_half_m * (2.0 * uniform(rng_state) - 1.0)
+            if _recover(env, start_m, spec, rng_state):
+                break
+        env[E_CENTER] = env[E_REC_AVG] + spec.start_trim_error_deg
+        env[E_CMD] = env[E_CENTER]
+    else:
+        # The paper's simulation: restart at rest at a random depth, gear at neutral.
+        start_m = target_depth_m + half_m * (2.0 * uniform(rng_state) - 1.0)
+        env[E_Z] = start_m
+        env[E_ZDOT] = 0.0
+        env[E_CENTER] = neutral_alpha_kernel(spec) + spec.start_trim_error_deg
+        env[E_CMD] = env[E_CENTER]
+        env[E_ALPHA] = env[E_CENTER]
+        env[E_OBS_X1] = start_m
+        env[E_OBS_X2] = 0.0
+        _measure(env, 0.0, spec, rng_state)
+    env[E_STARTED] = 1.0
+    return _state(env, target_depth_m, spec, lspec)
+
+
+@njit(cache=True)
+def episode_steps(spec: tuple) -> int:
+    """Learner steps in a successful episode (3000 = 300 s at 0.1 s)."""
+    return int(np.round(spec.episode_limit_s / spec.control_period_s))
+
+
+@njit(cache=True)
+def _state(env: NDArray[np.float64], target_depth_m: float, spec: tuple, lspec: tuple) -> int:
+    fraction = (env[E_CMD] - env[E_CENTER]) / spec.action_window_deg
+    return state_index_kernel(env[E_DEPTH_MEAS], env[E_VEL_EST], target_depth_m, fraction, lspec)
+
+
+@njit(cache=True)
+def episode_step_kernel(
+    env: NDArray[np.float64],
+    action: int,
+    target_depth_m: float,
+    spec: tuple,
+    lspec: tuple,
+    rng_state: NDArray[np.uint64],
+) -> tuple[int, float, bool, bool]:
+    """Apply action (0 = less volume, 1 = more) for one control period: (state, reward, term, trunc)."""
+    step = spec.action_step_deg if action == 1 else -spec.action_step_deg
+    low = env[E_CENTER] - spec.action_window_deg
+    high = env[E_CENTER] + spec.action_window_deg
+    env[E_CMD] = min(max(env[E_CMD] + step, low), high)
+    plant_step(env[E_Z:E_ALPHA + 1], env[E_CMD], spec.control_period_s, spec)
+    env[E_STEPS] += 1.0
+    _measure(env, spec.control_period_s, spec, rng_state)
+    next_state = _state(env, target_depth_m, spec, lspec)
+    reward = reward_kernel(env[E_DEPTH_MEAS], target_depth_m, next_state, lspec)
+    terminal = lspec.z_cells * lspec.zdot_cells * lspec.actuator_bins
+    terminated = next_state == terminal
+    # Reaching the time limit is a success and a truncation, not a terminal state (no -10).
+    truncated = (not terminated) and env[E_STEPS] >= episode_steps(spec)
+    return next_state, reward, terminated, truncated
+

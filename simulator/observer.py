@@ -1,0 +1,49 @@
+"""The boundary-layer sliding mode velocity observer of the firmware (diving-agent.md s. 3)."""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+from numpy.typing import NDArray
+
+from simulator.parameters import PlantParams, kernel_params
+
+X1 = 0  # depth estimate, m
+X2 = 1  # velocity estimate, m/s
+OBSERVER_SIZE = 2
+
+
+@njit(cache=True)
+def _sat(x: float) -> float:
+    return min(max(x, -1.0), 1.0)
+
+
+@njit(cache=True)
+def observer_update_kernel(
+    state: NDArray[np.float64], measured_depth_m: float, dt_s: float, spec: tuple
+) -> float:
+    """One observer step on the measured depth; returns the velocity estimate."""
+    rho = spec.observer_rho_mps
+    phi = spec.observer_phi_m
+    state[X1] = state[X1] - dt_s * rho * _sat((state[X1] - measured_depth_m) / phi)
+    state[X2] = state[X2] + dt_s / spec.observer_tau_s * (
+        -state[X2] - rho * _sat((state[X1] - measured_depth_m) / phi)
+    )
+    return state[X2]
+
+
+class SlidingModeObserver:
+    """Estimates the velocity from depth readings with about 0.4 s of lag inside its boundary layer."""
+
+    def __init__(self, params: PlantParams) -> None:
+        self._spec = kernel_params(params)
+        self._state = np.zeros(OBSERVER_SIZE)
+
+    def reset(self, depth_m: float) -> None:
+        """Start at depth_m and rest."""
+        self._state[X1] = depth_m
+        self._state[X2] = 0.0
+
+    def update(self, measured_depth_m: float, dt_s: float) -> float:
+        """Feed one depth reading taken dt_s after the previous one; returns the velocity in m/s."""
+        return float(observer_update_kernel(self._state, float(measured_depth_m), float(dt_s), self._spec))

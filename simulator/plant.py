@@ -1,0 +1,58 @@
+"""The simulated plant as a Python object over the compiled step the study runner also uses."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from simulator.parameters import PlantParams, kernel_params, neutral_alpha_deg
+from simulator.plant_kernel import ALPHA, PLANT_SIZE, ZDOT, Z, plant_step
+
+
+class Plant:
+    """Depth, velocity and gear angle of the agent; step(dt_s) integrates holding alpha_cmd_deg."""
+
+    def __init__(self, params: PlantParams, rng: np.random.Generator | None = None) -> None:
+        self._params = params
+        self._spec = kernel_params(params)
+        # The plant itself is deterministic; rng is accepted for a uniform constructor signature.
+        self._rng = rng
+        self._state = np.zeros(PLANT_SIZE)
+        self.alpha_cmd_deg = neutral_alpha_deg(params)
+        self._state[ALPHA] = self.alpha_cmd_deg
+
+    @property
+    def params(self) -> PlantParams:
+        return self._params
+
+    @property
+    def depth_m(self) -> float:
+        return float(self._state[Z])
+
+    @property
+    def velocity_mps(self) -> float:
+        return float(self._state[ZDOT])
+
+    @property
+    def alpha_deg(self) -> float:
+        return float(self._state[ALPHA])
+
+    def set_state(
+        self,
+        depth_m: float | None = None,
+        velocity_mps: float | None = None,
+        alpha_deg: float | None = None,
+        alpha_cmd_deg: float | None = None,
+    ) -> None:
+        """Place the agent; fields left None keep their value."""
+        if depth_m is not None:
+            self._state[Z] = depth_m
+        if velocity_mps is not None:
+            self._state[ZDOT] = velocity_mps
+        if alpha_deg is not None:
+            self._state[ALPHA] = alpha_deg
+        if alpha_cmd_deg is not None:
+            self.alpha_cmd_deg = alpha_cmd_deg
+
+    def step(self, dt_s: float) -> None:
+        """Integrate dt_s seconds with fixed sub-steps, holding the current command."""
+        plant_step(self._state, float(self.alpha_cmd_deg), float(dt_s), self._spec)
