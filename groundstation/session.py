@@ -417,7 +417,7 @@ class Session:
         if isinstance(msg, m.Sample | m.LogRange):
             with self._cond:
                 self._cond.notify_all()
-        if deliver:
+        if deliver and self.agent_hello is not None:  # nothing reaches listeners from an incompatible peer
             t_us = getattr(msg, "t_us", None)
             agent_ns = self.clock.to_host_ns(t_us) if isinstance(t_us, int) and t_us else None
             received = Received(frame, host_ns, agent_ns, backfilled)
