@@ -1,0 +1,264 @@
+"""The Rerun view (the one module importing rerun): blueprint, sinks (viewer, web, .rrd) and columnar logging."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import sys
+import threading
+import time
+import uuid
+from dataclasses import dataclass
+from enum import StrEnum
+from pathlib import Path
+from types import TracebackType
+from typing import Any
+from urllib.parse import quote
+
+import numpy as np
+import rerun as rr
+import rerun.blueprint as rrb
+
+from groundstation.events import LinkEvent, Received, Sent
+from groundstation.view_errors import ViewError
+from groundstation.view_model import ENTITIES, Batch, Kind, Rows, ViewModel
+
+APPLICATION_ID = "diving_agent"
+_COLOURS: dict[str, tuple[int, int, int]] = {
+    "depth/depth_m": (40, 120, 220),
+    "depth/target_depth_m": (60, 180, 75),
+    "depth/region_min_m": (150, 150, 150),
+    "depth/region_max_m": (150, 150, 150),
+    "depth/episode_start_m": (60, 180, 75),
+    "depth/episode_success_m": (40, 200, 120),
+    "depth/episode_failure_m": (230, 60, 60),
+    "depth/episode_aborted_m": (200, 160, 40),
+    "velocity/bound_min_mps": (150, 150, 150),
+    "velocity/bound_max_mps": (150, 150, 150),
+    "actuator/actuator_cmd_deg": (150, 150, 150),
+    "learning_curve/duration_s": (40, 120, 220),
+    "learning_curve/moving_average_s": (230, 120, 30),
+    "learning_curve/success_line_s": (60, 180, 75),
+}
+
+
+class Viewer(StrEnum):
+    SPAWN = "spawn"  # the native viewer, where there is a display
+    WEB = "web"  # Rerun's web viewer served on a local port, for headless machines
+    NONE = "none"  # no viewer (an .rrd file only, or nothing)
+
+
+@dataclass(frozen=True)
+class ViewConfig:
+    """Where the view goes. Memory limits keep a long session's viewer and served buffer bounded."""
+
+    viewer: Viewer = Viewer.NONE
+    rrd: Path | None = None
+    web_port: int = 9090
+    grpc_port: int = 9876
+    viewer_memory_limit: str = "1GiB"  # the native viewer drops the oldest data past this
+    server_memory_limit: str = "256MiB"  # the gRPC server's buffer for late-connecting viewers
+
+    @property
+    def wanted(self) -> bool:
+        return self.viewer != Viewer.NONE or self.rrd is not None
+
+
+def blueprint() -> rrb.Blueprint:
+    """The shipped layout: time series on the left, heatmaps, learning curve and logs on the right."""
+    series = rrb.Vertical(
+        rrb.TimeSeriesView(origin="depth", name="Depth [m] (z down), target, learning region, episodes"),
+        rrb.TimeSeriesView(origin="velocity", name="Velocity [m/s] and bounds"),
+        rrb.TimeSeriesView(origin="actuator", name="Actuator [deg]"),
+        rrb.TimeSeriesView(origin="action", name="Action"),
+        rrb.TimeSeriesView(origin="reward", name="Reward"),
+    )
+    right = rrb.Vertical(
+        rrb.TimeSeriesView(origin="learning_curve", name="Learning curve: duration per episode [s]"),
+        rrb.Horizontal(
+            rrb.Spatial2DView(origin="value_function", name="Value function v(depth, velocity)"),
+            rrb.Spatial2DView(origin="policy", name="Policy (orange sink, blue rise, grey untried)"),
+        ),
+        rrb.TimeSeriesView(origin="link", name="Link: loss, RTT [s], backfilled samples"),
+        rrb.Tabs(
+            rrb.TextLogView(origin="log/agent", name="Agent log"),
+            rrb.TextLogView(origin="log/events", name="Episodes and link events"),
+        ),
+    )
+    return rrb.Blueprint(
+        rrb.Horizontal(series, right, column_shares=[3, 2]),
+        rrb.TimePanel(timeline="agent_time", expanded=False),
+        collapse_panels=True,
+    )
+
+
+def new_recording(name: str) -> rr.RecordingStream:
+    """A recording stream with no sink yet (set_sinks or save picks where it goes)."""
+    rec = rr.RecordingStream(APPLICATION_ID, recording_id=uuid.uuid4(), send_properties=True)
+    rec.send_recording_name(name)
+    return rec
+
+
+def send_styles(rec: rr.RecordingStream) -> None:
+    """Static series names and colours, so every source looks the same."""
+    for path, (kind, label) in ENTITIES.items():
+        colour = _COLOURS.get(path)
+        colours = [colour] if colour else None
+        if kind == Kind.SCALAR:
+            rec.log(path, rr.SeriesLines(names=[label], colors=colours), static=True)
+        elif kind == Kind.POINT:
+            rec.log(path, rr.SeriesPoints(names=[label], colors=colours, markers=["circle"], marker_sizes=[3.0]),
+                    static=True)
+
+
+def _indexes(rows: Rows) -> list[rr.TimeColumn]:
+    return [
+        rr.TimeColumn("agent_time", duration=np.asarray(rows.agent_time_s, np.float64)),
+        rr.TimeColumn("host_time", timestamp=np.asarray(rows.host_time_ns, "datetime64[ns]")),
+        rr.TimeColumn("episode", sequence=np.asarray(rows.episode, np.int64)),
+        rr.TimeColumn("step", sequence=np.asarray(rows.step, np.int64)),
+    ]
+
+
+def _set_row_time(rec: rr.RecordingStream, rows: Rows, i: int) -> None:
+    rec.set_time("agent_time", duration=rows.agent_time_s[i])
+    rec.set_time("host_time", timestamp=np.datetime64(rows.host_time_ns[i], "ns"))
+    rec.set_time("episode", sequence=rows.episode[i])
+    rec.set_time("step", sequence=rows.step[i])
+
+
+def send_batch(rec: rr.RecordingStream, batch: Batch) -> None:
+    """Log every entity's rows as columns (one `send_columns` per entity): how live and replay both log."""
+    for path, rows in batch.items():
+        if not rows:
+            continue
+        kind = ENTITIES[path][0]
+        if kind in (Kind.SCALAR, Kind.POINT):
+            rec.send_columns(path, indexes=_indexes(rows),
+                             columns=rr.Scalars.columns(scalars=np.asarray(rows.values, np.float64)))
+        elif kind == Kind.TEXT:
+            texts, levels = zip(*rows.values, strict=True)
+            rec.send_columns(path, indexes=_indexes(rows), columns=rr.TextLog.columns(text=texts, level=levels))
+        elif kind == Kind.BOX:
+            centres = np.asarray([v[:2] for v in rows.values], np.float32)
+            rec.send_columns(path, indexes=_indexes(rows), columns=rr.Boxes2D.columns(
+                centers=centres, half_sizes=np.full_like(centres, 0.5), labels=[v[2] for v in rows.values]))
+        else:  # images: one per dump, a handful per episode, so row logging costs nothing here
+            for i, image in enumerate(rows.values):
+                _set_row_time(rec, rows, i)
+                rec.log(path, rr.Image(image, color_model="RGB", magnification_filter="Nearest"))
+            rec.reset_time()
+
+
+def _has_display() -> bool:
+    return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")) or os.name == "nt"
+
+
+def open_sinks(rec: rr.RecordingStream, config: ViewConfig) -> str | None:
+    """Connect the stream to the configured viewer and file; returns the address to print, if any."""
+    sinks: list[Any] = []
+    address: str | None = None
+    try:
+        if config.viewer == Viewer.SPAWN:
+            if not _has_display():
+                raise ViewError("no display for the native viewer: use --viewer web on a headless machine")
+            executable = shutil.which("rerun") or str(Path(sys.executable).with_name("rerun"))
+            rr.spawn(port=config.grpc_port, connect=False, memory_limit=config.viewer_memory_limit,
+                     server_memory_limit=config.server_memory_limit, executable_path=executable,
+                     hide_welcome_screen=True)
+            sinks.append(rr.GrpcSink(f"rerun+http://127.0.0.1:{config.grpc_port}/proxy"))
+        elif config.viewer == Viewer.WEB:
+            server = rr.GrpcServerSink("127.0.0.1", config.grpc_port, server_memory_limit=config.server_memory_limit)
+            sinks.append(server)
+            address = f"http://127.0.0.1:{config.web_port}/?url={quote(server.uri, safe='')}"
+        if config.rrd is not None:
+            config.rrd.parent.mkdir(parents=True, exist_ok=True)
+            sinks.append(rr.FileSink(config.rrd))
+        rec.set_sinks(*sinks, default_blueprint=blueprint())
+        if config.viewer == Viewer.WEB:
+            rr.serve_web_viewer(web_port=config.web_port, open_browser=False, connect_to=sinks[0].uri)
+    except ViewError:
+        raise
+    except (OSError, RuntimeError, ValueError) as e:
+        raise ViewError(f"cannot open the {config.viewer.value} viewer: {e}") from e
+    rec.send_blueprint(blueprint(), make_active=True)
+    send_styles(rec)
+    return address
+
+
+class RerunView:
+    """The live view as a session listener: each received frame becomes rows, logged as they come.
+
+    Use: `view = RerunView.open(ViewConfig(...), name)`; `session.add_listener(view)`; print `view.address`;
+    `view.close()` at the end (or `with RerunView.open(...) as view:`).
+    """
+
+    def __init__(self, rec: rr.RecordingStream, address: str | None, flush_interval_s: float = 0.1) -> None:
+        self._rec = rec
+        self._model = ViewModel()
+        self._lock = threading.Lock()  # the session's reader thread and the caller may both feed it
+        # Rows go out in columns at most every flush_interval_s: a send costs ~0.1 ms per entity, so a fast
+        # replay or a backfill burst would otherwise spend its time in per-frame sends.
+        self._flush_interval_s = flush_interval_s
+        self._last_send_s = 0.0
+        self.address = address
+
+    @classmethod
+    def open(cls, config: ViewConfig, name: str = "live") -> RerunView:
+        rec = new_recording(name)
+        address = open_sinks(rec, config)
+        return cls(rec, address)
+
+    def _send_if_due(self) -> None:
+        now_s = time.monotonic()
+        if now_s - self._last_send_s >= self._flush_interval_s:
+            self._last_send_s = now_s
+            send_batch(self._rec, self._model.take())
+
+    def on_received(self, received: Received) -> None:
+        frame = received.frame
+        with self._lock:
+            self._model.feed(frame.message, received.host_time_ns, flags=frame.flags,
+                             backfilled=received.backfilled)
+            self._send_if_due()
+
+    def on_sent(self, sent: Sent) -> None:
+        pass  # commands show up through their effect on the agent (mode, episodes)
+
+    def on_event(self, event: LinkEvent) -> None:
+        with self._lock:
+            self._model.event(event.kind.value, event.host_time_ns, event.detail, event.data)
+            self._send_if_due()
+
+    def feed_model(self, feed: Any) -> None:
+        """Run `feed(model)` under the lock and log what it produced (the replay's paced playback)."""
+        with self._lock:
+            feed(self._model)
+            self._send_if_due()
+
+    def send(self, batch: Batch) -> None:
+        """Log rows made elsewhere (a whole converted recording) in columns."""
+        with self._lock:
+            send_batch(self._rec, batch)
+
+    def flush(self) -> None:
+        with self._lock:
+            send_batch(self._rec, self._model.take())
+        self._rec.flush()
+
+    def close(self) -> None:
+        self.flush()
+        self._rec.disconnect()
+
+    def __enter__(self) -> RerunView:
+        return self
+
+    def __exit__(
+        self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
+    ) -> None:
+        self.close()
+
+
+def attach_view(config: ViewConfig, name: str = "live") -> RerunView | None:
+    """What `dive run` calls: a listener to add to the session, or None when neither viewer nor file is wanted."""
+    return RerunView.open(config, name) if config.wanted else None
