@@ -87,7 +87,9 @@ class Session:
         self.link = link
         self.config = config or SessionConfig()
         self.listeners: list[SessionListener] = list(listeners)
-        self.encoder = FrameEncoder()
+        # A random first seq: an agent that remembers the last 16 (msg_id, seq) it ACKed must not take a new
+        # session's first commands for retries of the previous session's.
+        self.encoder = FrameEncoder(first_seq=int.from_bytes(os.urandom(2), "little"))
         self.decoder = StreamDecoder()
         self.stats = LinkStats()
         self.clock = ClockModel()
@@ -341,10 +343,11 @@ class Session:
             data = {"link": self.stats.snapshot(rx), "clock": self.clock.as_dict()}
             self._emit(LinkEvent(EventKind.STATS, time.time_ns(), "", data))
         self._retransmit(now_s)
-        if self.config.backfill and self.link_up and now_s >= self._next_backfill_s:
+        if self.link_up and now_s >= self._next_backfill_s:
             self._next_backfill_s = now_s + 0.5
-            for start, end in self.backfill.due(now_s):
-                self.send(m.LogRequest(first_sample=start, end_sample=end), wait=False)
+            if self.config.backfill:
+                for start, end in self.backfill.due(now_s):
+                    self.send(m.LogRequest(first_sample=start, end_sample=end), wait=False)
             self._rerequest_dump_chunks(now_s)
 
     def _retransmit(self, now_s: float) -> None:
