@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import typer
 
+from simulator.study_cli import study
+
 app = typer.Typer(
     name="simulator",
     help="The virtual diving agent and the batch study runner.",
@@ -16,6 +18,9 @@ app = typer.Typer(
 @app.callback()
 def _root() -> None:
     """The virtual diving agent and the batch study runner."""
+
+
+app.command(name="study")(study)
 
 
 def main() -> None:

@@ -39,7 +39,7 @@ def new_env_state(spec: tuple) -> NDArray[np.float64]:
     return env
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def neutral_alpha_kernel(spec: tuple) -> float:
     """Gear angle of neutral buoyancy at the surface (same formula as parameters.neutral_alpha_deg)."""
     fixed_m3 = spec.mass_kg / spec.water_density_kgpm3 * (1.0 + spec.trim_error_fraction)
@@ -47,7 +47,7 @@ def neutral_alpha_kernel(spec: tuple) -> float:
     return spec.alpha_max_deg * (v_adj_m3 / spec.stroke_volume_m3 + 0.5)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _measure(env: NDArray[np.float64], dt_s: float, spec: tuple, rng_state: NDArray[np.uint64]) -> None:
     pressure_pa = read_pressure_kernel(env[E_Z], spec, rng_state)
     env[E_DEPTH_MEAS] = depth_from_pressure_kernel(pressure_pa, spec)
@@ -113,13 +113,13 @@ def episode_reset_kernel(
     return _state(env, target_depth_m, spec, lspec)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def episode_steps(spec: tuple) -> int:
     """Learner steps in a successful episode (3000 = 300 s at 0.1 s)."""
     return int(np.round(spec.episode_limit_s / spec.control_period_s))
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _state(env: NDArray[np.float64], target_depth_m: float, spec: tuple, lspec: tuple) -> int:
     fraction = (env[E_CMD] - env[E_CENTER]) / spec.action_window_deg
     return state_index_kernel(env[E_DEPTH_MEAS], env[E_VEL_EST], target_depth_m, fraction, lspec)
