@@ -6,7 +6,7 @@ from dataclasses import dataclass
 from enum import IntEnum
 
 from learning.errors import LearnerConfigError
-from learning.spec import kernel_tuple_type, to_kernel_tuple
+from learning.spec import KernelSpec, kernel_tuple_type, to_kernel_tuple
 
 
 class ModelForm(IntEnum):
@@ -65,7 +65,7 @@ class LearnerConfig:
 LearnerSpec = kernel_tuple_type(LearnerConfig, "LearnerSpec")
 
 
-def kernel_spec(config: LearnerConfig) -> tuple:
+def kernel_spec(config: LearnerConfig) -> KernelSpec:
     """The config as the named tuple the numba kernels take."""
     return to_kernel_tuple(config, LearnerSpec)
 

@@ -7,6 +7,7 @@ from numba import njit
 from numpy.typing import NDArray
 
 from learning.rng import uniform
+from learning.spec import KernelSpec
 
 
 @njit(cache=True)
@@ -14,7 +15,7 @@ def _compile_rows(
     succ_idx: NDArray[np.uint16],
     succ_cnt: NDArray[np.uint16],
     reward_sum: NDArray[np.float32],
-    spec: tuple,
+    spec: KernelSpec,
 ) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]:
     """P and R once per planning call as compressed rows: value iteration then touches only non-zeros."""
     n_states, n_actions, n_slots = succ_cnt.shape
@@ -59,7 +60,7 @@ def _action_value(
     mean_reward: NDArray[np.float64],
     known: NDArray[np.bool_],
     values: NDArray[np.float64],
-    spec: tuple,
+    spec: KernelSpec,
 ) -> float:
     if not known[row]:
         return 0.0 if spec.alg4_printed else spec.untried_q_value
@@ -81,7 +82,7 @@ def plan_kernel(
     values: NDArray[np.float64],
     q: NDArray[np.float64],
     policy: NDArray[np.int8],
-    spec: tuple,
+    spec: KernelSpec,
     rng_state: NDArray[np.uint64],
 ) -> int:
     """Value iteration from the current values until max |change| < tolerance; returns sweeps.

@@ -6,6 +6,8 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from learning.spec import KernelSpec
+
 # Layout of the plant state array.
 Z = 0  # depth, m, positive down
 ZDOT = 1  # velocity, m/s, positive down
@@ -14,7 +16,7 @@ PLANT_SIZE = 3
 
 
 @njit(cache=True, inline="always")
-def force_coefficients(spec: tuple) -> tuple[float, float, float, float]:
+def force_coefficients(spec: KernelSpec) -> tuple[float, float, float, float]:
     """(a0, a_alpha, a_z, a_drag) with z'' = a0 + a_alpha alpha + a_z z - a_drag z'|z'|.
 
     From (m + m_a) z'' = m g - rho g (V0 + V_adj(alpha) - chi z) - k z'|z'|, z down, where
@@ -33,14 +35,14 @@ def force_coefficients(spec: tuple) -> tuple[float, float, float, float]:
 
 
 @njit(cache=True)
-def acceleration_mps2(depth_m: float, velocity_mps: float, alpha_deg: float, spec: tuple) -> float:
+def acceleration_mps2(depth_m: float, velocity_mps: float, alpha_deg: float, spec: KernelSpec) -> float:
     """z'' at the given depth, velocity and gear angle (see force_coefficients)."""
     a0, a_alpha, a_z, a_drag = force_coefficients(spec)
     return a0 + a_alpha * alpha_deg + a_z * depth_m - a_drag * velocity_mps * abs(velocity_mps)
 
 
 @njit(cache=True, inline="always")
-def plant_step(state: NDArray[np.float64], alpha_cmd_deg: float, dt_s: float, spec: tuple) -> None:
+def plant_step(state: NDArray[np.float64], alpha_cmd_deg: float, dt_s: float, spec: KernelSpec) -> None:
     """Advance the plant by dt_s in fixed sub-steps of at most spec.substep_s, command held."""
     n_sub = max(1, int(np.ceil(dt_s / spec.substep_s - 1e-9)))
     h = dt_s / n_sub

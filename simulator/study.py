@@ -54,7 +54,8 @@ def run_study(
     """Run the trials in parallel; on_progress(episodes done over all trials) is called as they go."""
     if trials <= 0 or episodes <= 0:
         raise StudyError(f"trials and episodes must be positive (got {trials} and {episodes})")
-    threads = max(1, min(threads or os.cpu_count() or 1, numba.config.NUMBA_NUM_THREADS, trials))
+    numba_threads: int = numba.config.NUMBA_NUM_THREADS  # type: ignore[attr-defined]
+    threads = max(1, min(threads or os.cpu_count() or 1, numba_threads, trials))
     streams = [trial_streams(seed, t) for t in range(trials)]
     learner_streams = np.array([s[0] for s in streams])
     env_streams = np.array([s[1] for s in streams])

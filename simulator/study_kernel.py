@@ -9,6 +9,7 @@ from numpy.typing import NDArray
 from learning.acting import explore_probability, select_action_kernel
 from learning.model import N_ACTIONS, allocate_model, record_transition
 from learning.planning import plan_kernel
+from learning.spec import KernelSpec
 from simulator.episode import E_STEPS, episode_reset_kernel, episode_step_kernel, new_env_state
 
 
@@ -17,8 +18,8 @@ def run_trial(
     learner_stream: NDArray[np.uint64],
     env_stream: NDArray[np.uint64],
     target_depth_m: float,
-    spec: tuple,
-    lspec: tuple,
+    spec: KernelSpec,
+    lspec: KernelSpec,
     durations_s: NDArray[np.float64],
     values: NDArray[np.float64],
     policy: NDArray[np.int8],
@@ -55,8 +56,8 @@ def run_trials(
     learner_streams: NDArray[np.uint64],
     env_streams: NDArray[np.uint64],
     target_depth_m: float,
-    spec: tuple,
-    lspec: tuple,
+    spec: KernelSpec,
+    lspec: KernelSpec,
     durations_s: NDArray[np.float64],
     values: NDArray[np.float64],
     policy: NDArray[np.int8],
