@@ -6,7 +6,7 @@ from dataclasses import dataclass
 from enum import IntEnum
 
 from learning.errors import LearnerConfigError
-from learning.spec import kernel_tuple_type, to_kernel_tuple
+from learning.spec import KernelSpec, kernel_tuple_type, to_kernel_tuple
 
 
 class ModelForm(IntEnum):
@@ -41,6 +41,7 @@ class LearnerConfig:
     model_form: ModelForm = ModelForm.SPARSE
     sparse_slots: int = 12  # successor slots per (s, a); 12 never overflows on the paper's grid
     actuator_bins: int = 1  # > 1 adds the actuator position (relative to neutral) to the state
+    in_place_sweeps: bool = False  # Gauss-Seidel value iteration: same fixed point, fewer sweeps
     max_sweeps: int = 100_000  # safety stop of value iteration, never reached with gamma < 1
 
     def __post_init__(self) -> None:
@@ -64,7 +65,7 @@ class LearnerConfig:
 LearnerSpec = kernel_tuple_type(LearnerConfig, "LearnerSpec")
 
 
-def kernel_spec(config: LearnerConfig) -> tuple:
+def kernel_spec(config: LearnerConfig) -> KernelSpec:
     """The config as the named tuple the numba kernels take."""
     return to_kernel_tuple(config, LearnerSpec)
 

@@ -7,38 +7,71 @@ from numba import njit
 from numpy.typing import NDArray
 
 from learning.rng import uniform
+from learning.spec import KernelSpec
 
 
 @njit(cache=True)
-def _action_values(
+def _compile_rows(
     succ_idx: NDArray[np.uint16],
     succ_cnt: NDArray[np.uint16],
-    totals: NDArray[np.int64],
+    reward_sum: NDArray[np.float32],
+    spec: KernelSpec,
+) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]:
+    """P and R once per planning call as compressed rows: value iteration then touches only non-zeros."""
+    n_states, n_actions, n_slots = succ_cnt.shape
+    row_start = np.zeros(n_states * n_actions + 1, dtype=np.int64)
+    nnz = 0
+    for s in range(n_states):
+        for a in range(n_actions):
+            for k in range(n_slots):
+                if succ_cnt[s, a, k] > 0:
+                    nnz += 1
+            row_start[s * n_actions + a + 1] = nnz
+    succ = np.empty(nnz, dtype=np.int64)
+    prob = np.empty(nnz)
+    mean_reward = np.zeros(n_states * n_actions)
+    known = np.zeros(n_states * n_actions, dtype=np.bool_)
+    for s in range(n_states):
+        for a in range(n_actions):
+            row = s * n_actions + a
+            total = 0
+            for k in range(n_slots):
+                total += int(succ_cnt[s, a, k])
+            j = row_start[row]
+            for k in range(n_slots):
+                c = succ_cnt[s, a, k]
+                if c > 0:
+                    succ[j] = int(succ_idx[s, a, k])
+                    prob[j] = c / total
+                    j += 1
+            if total > 0:
+                mean_reward[row] = reward_sum[s, a] / total
+            # The printed Alg. 4 knows no threshold: any tried row is backed up, a never-tried one is 0.
+            known[row] = total > 0 if spec.alg4_printed else total >= spec.known_count
+    return row_start, succ, prob, mean_reward, known
+
+
+@njit(cache=True, inline="always")
+def _action_value(
+    row: int,
+    row_start: NDArray[np.int64],
+    succ: NDArray[np.int64],
+    prob: NDArray[np.float64],
     mean_reward: NDArray[np.float64],
+    known: NDArray[np.bool_],
     values: NDArray[np.float64],
-    s: int,
-    a: int,
-    spec: tuple,
+    spec: KernelSpec,
 ) -> float:
-    total = totals[s, a]
-    if spec.alg4_printed:
-        # Printed form: Q = (sum_s' P)(R + gamma P v); a never-tried row sums to 0, so Q = 0.
-        if total == 0:
-            return 0.0
-    elif total < spec.known_count:
-        return spec.untried_q_value
+    if not known[row]:
+        return 0.0 if spec.alg4_printed else spec.untried_q_value
     expected = 0.0
     row_sum = 0.0
-    for k in range(succ_cnt.shape[2]):
-        c = succ_cnt[s, a, k]
-        if c > 0:
-            p = c / total
-            expected += p * values[int(succ_idx[s, a, k])]
-            row_sum += p
-    backup = mean_reward[s, a] + spec.gamma * expected
-    if spec.alg4_printed:
-        return row_sum * backup
-    return backup
+    for j in range(row_start[row], row_start[row + 1]):
+        expected += prob[j] * values[succ[j]]
+        row_sum += prob[j]
+    backup = mean_reward[row] + spec.gamma * expected
+    # Printed form: Q = (sum_s' P)(R + gamma P v), equal to the standard backup when the row sums to 1.
+    return row_sum * backup if spec.alg4_printed else backup
 
 
 @njit(cache=True)
@@ -49,46 +82,44 @@ def plan_kernel(
     values: NDArray[np.float64],
     q: NDArray[np.float64],
     policy: NDArray[np.int8],
-    spec: tuple,
+    spec: KernelSpec,
     rng_state: NDArray[np.uint64],
 ) -> int:
-    """Jacobi value iteration from the current values until max |change| < tolerance; returns sweeps.
+    """Value iteration from the current values until max |change| < tolerance; returns sweeps.
+
+    Jacobi sweeps as Alg. 4 prints them, or in-place (Gauss-Seidel) sweeps, which reach the same fixed
+    point in about half the sweeps.
 
     Fills q and the greedy policy (argmax, or argmin under the errata switch), ties broken at random.
     """
     n_states, n_actions = q.shape
     terminal = n_states - 1
-    totals = np.zeros((n_states, n_actions), dtype=np.int64)
-    mean_reward = np.zeros((n_states, n_actions))
-    for s in range(n_states):
-        for a in range(n_actions):
-            t = 0
-            for k in range(succ_cnt.shape[2]):
-                t += int(succ_cnt[s, a, k])
-            totals[s, a] = t
-            if t > 0:
-                mean_reward[s, a] = reward_sum[s, a] / t
+    row_start, succ, prob, mean_reward, known = _compile_rows(succ_idx, succ_cnt, reward_sum, spec)
     values[terminal] = 0.0
     new_values = values.copy()
     sweeps = 0
     while sweeps < spec.max_sweeps:
         delta = 0.0
         for s in range(terminal):
-            best = _action_values(succ_idx, succ_cnt, totals, mean_reward, values, s, 0, spec)
-            for a in range(1, n_actions):
-                best = max(best, _action_values(succ_idx, succ_cnt, totals, mean_reward, values, s, a, spec))
+            best = -np.inf
+            for a in range(n_actions):
+                row = s * n_actions + a
+                best = max(best, _action_value(row, row_start, succ, prob, mean_reward, known, values, spec))
             delta = max(delta, abs(best - values[s]))
             new_values[s] = best
-        values[:] = new_values
+            if spec.in_place_sweeps:
+                values[s] = best
+        if not spec.in_place_sweeps:
+            values[:] = new_values
         sweeps += 1
         if delta < spec.vi_tolerance:
             break
+    sign = -1.0 if spec.policy_argmin else 1.0
     for s in range(n_states):
         for a in range(n_actions):
-            q[s, a] = 0.0 if s == terminal else _action_values(
-                succ_idx, succ_cnt, totals, mean_reward, values, s, a, spec
+            q[s, a] = 0.0 if s == terminal else _action_value(
+                s * n_actions + a, row_start, succ, prob, mean_reward, known, values, spec
             )
-        sign = -1.0 if spec.policy_argmin else 1.0
         d = sign * (q[s, 1] - q[s, 0])
         if d > 0.0:
             policy[s] = 1

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import replace
+from typing import Any
 
 from learning.config import LearnerConfig
 from learning.errors import LearnerConfigError
@@ -24,7 +25,7 @@ def learner_names() -> list[str]:
     return sorted(_PRESETS)
 
 
-def learner_preset(name: str, **overrides: object) -> LearnerConfig:
+def learner_preset(name: str, **overrides: Any) -> LearnerConfig:
     """The named learner configuration, optionally with fields replaced."""
     try:
         config = _PRESETS[name]

@@ -6,6 +6,10 @@ import dataclasses
 from collections import namedtuple
 from typing import Any
 
+# What kernels take: a namedtuple built from a config dataclass (field access is checked by the
+# dataclass it mirrors, not by mypy, which cannot see dynamically built namedtuple fields).
+KernelSpec = Any
+
 _CASTS = {"float": float, "int": int, "bool": bool}
 
 

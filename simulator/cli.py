@@ -5,6 +5,7 @@ from __future__ import annotations
 import typer
 
 from simulator.serve_cli import serve
+from simulator.study_cli import study
 
 app = typer.Typer(
     name="simulator",
@@ -21,6 +22,9 @@ app.command()(serve)
 @app.callback()
 def _root() -> None:
     """The virtual diving agent and the batch study runner."""
+
+
+app.command(name="study")(study)
 
 
 def main() -> None:

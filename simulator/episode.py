@@ -8,6 +8,7 @@ from numpy.typing import NDArray
 
 from learning.acting import reward_kernel, state_index_kernel
 from learning.rng import uniform
+from learning.spec import KernelSpec
 from simulator.observer import observer_update_kernel
 from simulator.plant_kernel import plant_step
 from simulator.recovery import AVG, recovery_gave_up, recovery_init, recovery_settled, recovery_update_kernel
@@ -29,7 +30,7 @@ _MAX_RECOVERY_ATTEMPTS = 20
 
 
 @njit(cache=True)
-def new_env_state(spec: tuple) -> NDArray[np.float64]:
+def new_env_state(spec: KernelSpec) -> NDArray[np.float64]:
     """An environment before its first episode: at the surface, gear at mid-stroke."""
     env = np.zeros(ENV_SIZE)
     env[E_ALPHA] = spec.alpha_max_deg / 2.0
@@ -39,16 +40,16 @@ def new_env_state(spec: tuple) -> NDArray[np.float64]:
     return env
 
 
-@njit(cache=True)
-def neutral_alpha_kernel(spec: tuple) -> float:
+@njit(cache=True, inline="always")
+def neutral_alpha_kernel(spec: KernelSpec) -> float:
     """Gear angle of neutral buoyancy at the surface (same formula as parameters.neutral_alpha_deg)."""
     fixed_m3 = spec.mass_kg / spec.water_density_kgpm3 * (1.0 + spec.trim_error_fraction)
     v_adj_m3 = spec.mass_kg / spec.water_density_kgpm3 - fixed_m3
     return spec.alpha_max_deg * (v_adj_m3 / spec.stroke_volume_m3 + 0.5)
 
 
-@njit(cache=True)
-def _measure(env: NDArray[np.float64], dt_s: float, spec: tuple, rng_state: NDArray[np.uint64]) -> None:
+@njit(cache=True, inline="always")
+def _measure(env: NDArray[np.float64], dt_s: float, spec: KernelSpec, rng_state: NDArray[np.uint64]) -> None:
     pressure_pa = read_pressure_kernel(env[E_Z], spec, rng_state)
     env[E_DEPTH_MEAS] = depth_from_pressure_kernel(pressure_pa, spec)
     obs = env[E_OBS_X1:E_OBS_X2 + 1]
@@ -58,7 +59,7 @@ def _measure(env: NDArray[np.float64], dt_s: float, spec: tuple, rng_state: NDAr
 
 @njit(cache=True)
 def _recover(
-    env: NDArray[np.float64], start_depth_m: float, spec: tuple, rng_state: NDArray[np.uint64]
+    env: NDArray[np.float64], start_depth_m: float, spec: KernelSpec, rng_state: NDArray[np.uint64]
 ) -> bool:
     """Run the recovery controller to start_depth_m; True once settled, False if it gave up."""
     rec = env[E_REC_AVG:E_REC_ELAPSED + 1]
@@ -80,7 +81,11 @@ def _recover(
 
 @njit(cache=True)
 def episode_reset_kernel(
-    env: NDArray[np.float64], target_depth_m: float, spec: tuple, lspec: tuple, rng_state: NDArray[np.uint64]
+    env: NDArray[np.float64],
+    target_depth_m: float,
+    spec: KernelSpec,
+    lspec: KernelSpec,
+    rng_state: NDArray[np.uint64],
 ) -> int:
     """Start an episode at a random depth of the learning region; returns the first state index."""
     env[E_STEPS] = 0.0
@@ -113,14 +118,14 @@ def episode_reset_kernel(
     return _state(env, target_depth_m, spec, lspec)
 
 
-@njit(cache=True)
-def episode_steps(spec: tuple) -> int:
+@njit(cache=True, inline="always")
+def episode_steps(spec: KernelSpec) -> int:
     """Learner steps in a successful episode (3000 = 300 s at 0.1 s)."""
     return int(np.round(spec.episode_limit_s / spec.control_period_s))
 
 
-@njit(cache=True)
-def _state(env: NDArray[np.float64], target_depth_m: float, spec: tuple, lspec: tuple) -> int:
+@njit(cache=True, inline="always")
+def _state(env: NDArray[np.float64], target_depth_m: float, spec: KernelSpec, lspec: KernelSpec) -> int:
     fraction = (env[E_CMD] - env[E_CENTER]) / spec.action_window_deg
     return state_index_kernel(env[E_DEPTH_MEAS], env[E_VEL_EST], target_depth_m, fraction, lspec)
 
@@ -130,8 +135,8 @@ def episode_step_kernel(
     env: NDArray[np.float64],
     action: int,
     target_depth_m: float,
-    spec: tuple,
-    lspec: tuple,
+    spec: KernelSpec,
+    lspec: KernelSpec,
     rng_state: NDArray[np.uint64],
 ) -> tuple[int, float, bool, bool]:
     """Apply action (0 = less volume, 1 = more) for one control period: (state, reward, term, trunc)."""

@@ -6,6 +6,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from learning.spec import KernelSpec
 from simulator.parameters import PlantParams, kernel_params
 
 X1 = 0  # depth estimate, m
@@ -13,14 +14,14 @@ X2 = 1  # velocity estimate, m/s
 OBSERVER_SIZE = 2
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _sat(x: float) -> float:
     return min(max(x, -1.0), 1.0)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def observer_update_kernel(
-    state: NDArray[np.float64], measured_depth_m: float, dt_s: float, spec: tuple
+    state: NDArray[np.float64], measured_depth_m: float, dt_s: float, spec: KernelSpec
 ) -> float:
     """One observer step on the measured depth; returns the velocity estimate."""
     rho = spec.observer_rho_mps

@@ -10,7 +10,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
-from learning.spec import kernel_tuple_type, to_kernel_tuple
+from learning.spec import KernelSpec, kernel_tuple_type, to_kernel_tuple
 from simulator.errors import ParamsError
 
 
@@ -146,7 +146,7 @@ def validate(params: PlantParams) -> PlantParams:
     return params
 
 
-def kernel_params(params: PlantParams) -> tuple:
+def kernel_params(params: PlantParams) -> KernelSpec:
     """The parameters as the named tuple the numba kernels take."""
     return to_kernel_tuple(params, PlantSpec)
 

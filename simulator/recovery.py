@@ -6,6 +6,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from learning.spec import KernelSpec
 from simulator.parameters import PlantParams, kernel_params
 
 AVG = 0  # learned neutral angle alpha_avg, deg
@@ -34,7 +35,7 @@ def recovery_update_kernel(
     alpha_deg: float,
     target_depth_m: float,
     dt_s: float,
-    spec: tuple,
+    spec: KernelSpec,
 ) -> float:
     """One controller period; returns alpha_cmd_deg. Deeper than the target (s > 0) means more volume."""
     error_m = depth_m - target_depth_m
@@ -50,13 +51,13 @@ def recovery_update_kernel(
 
 
 @njit(cache=True)
-def recovery_settled(state: NDArray[np.float64], spec: tuple) -> bool:
+def recovery_settled(state: NDArray[np.float64], spec: KernelSpec) -> bool:
     """Calm for settle_time_s: hand over to the learner."""
     return state[CALM_S] >= spec.settle_time_s
 
 
 @njit(cache=True)
-def recovery_gave_up(state: NDArray[np.float64], spec: tuple) -> bool:
+def recovery_gave_up(state: NDArray[np.float64], spec: KernelSpec) -> bool:
     """Not settled within give_up_s."""
     return state[ELAPSED_S] >= spec.give_up_s and state[CALM_S] < spec.settle_time_s
 

@@ -7,11 +7,12 @@ from numba import njit
 from numpy.typing import NDArray
 
 from learning.rng import new_stream, normal
+from learning.spec import KernelSpec
 from simulator.parameters import PlantParams, kernel_params
 
 
-@njit(cache=True)
-def read_pressure_kernel(depth_m: float, spec: tuple, rng_state: NDArray[np.uint64]) -> float:
+@njit(cache=True, inline="always")
+def read_pressure_kernel(depth_m: float, spec: KernelSpec, rng_state: NDArray[np.uint64]) -> float:
     """Absolute pressure in Pa as the sensor reports it at depth_m."""
     pressure_pa = spec.surface_pressure_pa + spec.water_density_kgpm3 * spec.gravity_mps2 * depth_m
     pressure_pa += spec.pressure_noise_pa * normal(rng_state)
@@ -19,8 +20,8 @@ def read_pressure_kernel(depth_m: float, spec: tuple, rng_state: NDArray[np.uint
     return min(max(pressure_pa, spec.pressure_min_pa), spec.pressure_max_pa)
 
 
-@njit(cache=True)
-def depth_from_pressure_kernel(pressure_pa: float, spec: tuple) -> float:
+@njit(cache=True, inline="always")
+def depth_from_pressure_kernel(pressure_pa: float, spec: KernelSpec) -> float:
     """z = (P - P0) / (rho g), as the firmware computes it."""
     return (pressure_pa - spec.surface_pressure_pa) / (spec.water_density_kgpm3 * spec.gravity_mps2)
 

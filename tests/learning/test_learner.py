@@ -42,9 +42,10 @@ def _policy_iteration(p: np.ndarray, r: np.ndarray, gamma: float) -> tuple[np.nd
         policy = new
 
 
+@pytest.mark.parametrize("in_place", [False, True])
 @pytest.mark.parametrize("seed", [0, 1, 2])
-def test_values_and_policy_match_an_independent_mdp_solver(seed: int) -> None:
-    config = replace(SMALL, vi_tolerance=1e-11)
+def test_values_and_policy_match_an_independent_mdp_solver(seed: int, in_place: bool) -> None:
+    config = replace(SMALL, vi_tolerance=1e-11, in_place_sweeps=in_place)
     learner = Learner(config, np.random.default_rng(seed))
     _feed_random_model(learner, np.random.default_rng(100 + seed), 2000)
     learner.end_episode()

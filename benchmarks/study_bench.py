@@ -1,0 +1,74 @@
+"""Wall time of the compiled study next to a plain per-step Python loop of the same learner and plant."""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+from learning import Learner, learner_preset
+from simulator.env import DivingEnv
+from simulator.parameters import preset
+from simulator.study import run_study
+
+
+def python_loop(preset_name: str, learner: str, trial: int, episodes: int, seed: int) -> tuple[float, int]:
+    """One trial driven step by step through Learner and DivingEnv; returns (seconds, learner steps)."""
+    params, config = preset(preset_name), learner_preset(learner)
+    agent = Learner(config, np.random.default_rng([seed, trial, 0]))
+    env = DivingEnv(params, config, np.random.default_rng([seed, trial, 1]))
+    steps = 0
+    start = time.perf_counter()
+    for _ in range(episodes):
+        _, info = env.reset()
+        state = info["state"]
+        while True:
+            action = agent.act(state)
+            _, reward, terminated, truncated, info = env.step(action)
+            agent.observe(state, action, reward, info["state"])
+            state = info["state"]
+            steps += 1
+            if terminated or truncated:
+                break
+        agent.end_episode()
+    return time.perf_counter() - start, steps
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--preset", default="paper")
+    parser.add_argument("--learner", default="paper")
+    parser.add_argument("--trials", type=int, default=100)
+    parser.add_argument("--episodes", type=int, default=400)
+    parser.add_argument("--python-trials", type=int, default=2, help="trials run in the Python loop")
+    parser.add_argument("--seed", type=int, default=0)
+    args = parser.parse_args()
+
+    params, config = preset(args.preset), learner_preset(args.learner)
+    run_study(params, config, 2, 2, args.seed)  # compile or load the cache outside the timing
+    python_loop(args.preset, args.learner, 0, 1, args.seed)
+    start = time.perf_counter()
+    result = run_study(params, config, args.trials, args.episodes, args.seed)
+    study_s = time.perf_counter() - start
+    study_steps = int(np.round(result.durations_s.sum() / params.control_period_s))
+
+    loop_s, loop_steps = 0.0, 0
+    for trial in range(args.python_trials):
+        seconds, steps = python_loop(args.preset, args.learner, trial, args.episodes, args.seed)
+        loop_s += seconds
+        loop_steps += steps
+    per_step_s = loop_s / loop_steps
+    scaled_s = per_step_s * study_steps  # same work as the study, one core, per-step Python loop
+
+    print(f"study {args.trials} x {args.episodes} ({args.preset}/{args.learner}), "
+          f"{result.threads} threads: {study_s:.2f} s wall, {study_steps / 1e6:.1f} M learner steps, "
+          f"{study_s / study_steps * 1e9 * result.threads:.0f} ns/step/thread")
+    print(f"python loop: {args.python_trials} trials, {loop_steps / 1e6:.2f} M steps in {loop_s:.1f} s "
+          f"({per_step_s * 1e6:.2f} us/step); scaled to the study: {scaled_s:.0f} s")
+    print(f"ratio python loop / study: {scaled_s / study_s:.0f}x "
+          f"(per thread: {scaled_s / study_s / result.threads:.0f}x)")
+
+
+if __name__ == "__main__":
+    main()

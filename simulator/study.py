@@ -1,0 +1,92 @@
+"""The batch study: N seeded trials x E episodes of a learner on a preset, both cores, with progress."""
+
+from __future__ import annotations
+
+import os
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+from numpy.typing import NDArray
+
+from learning import LearnerConfig, model_memory_bytes, n_states
+from learning.config import kernel_spec
+from learning.rng import new_stream
+from simulator.errors import StudyError
+from simulator.parameters import PlantParams, kernel_params
+from simulator.study_kernel import run_trials
+
+_POLL_S = 0.1
+
+
+@dataclass(frozen=True)
+class StudyResult:
+    """Everything a study produced, one row per trial."""
+
+    durations_s: NDArray[np.float64]  # [trials, episodes] time in the region per episode
+    values: NDArray[np.float64]  # [trials, states] value function after the last episode
+    policy: NDArray[np.int8]  # [trials, states] greedy policy after the last episode
+    wall_s: float  # wall time of the compiled run (compilation excluded when cached)
+    memory_bytes: int  # the learner's model size on the Teensy
+    threads: int  # threads the trials ran on
+    seed: int
+
+
+def trial_streams(seed: int, trial: int) -> tuple[NDArray[np.uint64], NDArray[np.uint64]]:
+    """The learner's and the environment's random streams of one trial (what a Python loop reuses)."""
+    learner_rng = np.random.default_rng([seed, trial, 0])
+    env_rng = np.random.default_rng([seed, trial, 1])
+    return new_stream(learner_rng), new_stream(env_rng)
+
+
+def run_study(
+    params: PlantParams,
+    config: LearnerConfig,
+    trials: int,
+    episodes: int,
+    seed: int = 0,
+    on_progress: Callable[[int], None] | None = None,
+    threads: int | None = None,
+) -> StudyResult:
+    """Run the trials in parallel; on_progress(episodes done over all trials) is called as they go."""
+    if trials <= 0 or episodes <= 0:
+        raise StudyError(f"trials and episodes must be positive (got {trials} and {episodes})")
+    numba_threads: int = numba.config.NUMBA_NUM_THREADS  # type: ignore[attr-defined]
+    threads = max(1, min(threads or os.cpu_count() or 1, numba_threads, trials))
+    streams = [trial_streams(seed, t) for t in range(trials)]
+    learner_streams = np.array([s[0] for s in streams])
+    env_streams = np.array([s[1] for s in streams])
+    s_count = n_states(config)
+    durations = np.zeros((trials, episodes))
+    values = np.zeros((trials, s_count))
+    policy = np.zeros((trials, s_count), dtype=np.int8)
+    progress = np.zeros(trials, dtype=np.int64)
+    args = (
+        learner_streams, env_streams, params.target_depth_m, kernel_params(params), kernel_spec(config),
+        durations, values, policy, progress,
+    )
+    failure: list[BaseException] = []
+
+    def work() -> None:
+        try:
+            numba.set_num_threads(threads)
+            # Trials differ in length: hand them out one at a time so neither core idles at the end.
+            with numba.parallel_chunksize(1):
+                run_trials(*args)
+        except BaseException as e:  # re-raised in the caller's thread below
+            failure.append(e)
+
+    start = time.perf_counter()
+    worker = threading.Thread(target=work, name="study-trials", daemon=True)
+    worker.start()
+    while worker.is_alive():
+        worker.join(_POLL_S)
+        if on_progress is not None:
+            on_progress(int(progress.sum()))
+    wall_s = time.perf_counter() - start
+    if failure:
+        raise StudyError(f"study failed: {failure[0]}") from failure[0]
+    return StudyResult(durations, values, policy, wall_s, model_memory_bytes(config), threads, seed)

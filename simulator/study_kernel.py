@@ -1,0 +1,71 @@
+"""Compiled trial loop of the batch study: the same episode and learner kernels, one trial per thread."""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, prange
+from numpy.typing import NDArray
+
+from learning.acting import explore_probability, select_action_kernel
+from learning.model import N_ACTIONS, allocate_model, record_transition
+from learning.planning import plan_kernel
+from learning.spec import KernelSpec
+from simulator.episode import E_STEPS, episode_reset_kernel, episode_step_kernel, new_env_state
+
+
+@njit(cache=True, nogil=True)
+def run_trial(
+    learner_stream: NDArray[np.uint64],
+    env_stream: NDArray[np.uint64],
+    target_depth_m: float,
+    spec: KernelSpec,
+    lspec: KernelSpec,
+    durations_s: NDArray[np.float64],
+    values: NDArray[np.float64],
+    policy: NDArray[np.int8],
+    progress: NDArray[np.int64],
+    trial: int,
+) -> None:
+    """One learning trial: len(durations_s) episodes; fills durations, final values and policy."""
+    n_states = values.shape[0]
+    sparse = lspec.model_form == 1
+    succ_idx, succ_cnt, reward_sum = allocate_model(n_states, sparse, lspec.sparse_slots)
+    q = np.zeros((n_states, N_ACTIONS))
+    values[:] = 0.0
+    plan_kernel(succ_idx, succ_cnt, reward_sum, values, q, policy, lspec, learner_stream)
+    env = new_env_state(spec)
+    for episode in range(durations_s.shape[0]):
+        state = episode_reset_kernel(env, target_depth_m, spec, lspec, env_stream)
+        p_explore = explore_probability(episode, lspec)
+        while True:
+            action = select_action_kernel(policy, state, p_explore, lspec, learner_stream)
+            next_state, reward, terminated, truncated = episode_step_kernel(
+                env, action, target_depth_m, spec, lspec, env_stream
+            )
+            record_transition(succ_idx, succ_cnt, reward_sum, state, action, reward, next_state, sparse)
+            state = next_state
+            if terminated or truncated:
+                break
+        durations_s[episode] = env[E_STEPS] * spec.control_period_s
+        plan_kernel(succ_idx, succ_cnt, reward_sum, values, q, policy, lspec, learner_stream)
+        progress[trial] = episode + 1
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def run_trials(
+    learner_streams: NDArray[np.uint64],
+    env_streams: NDArray[np.uint64],
+    target_depth_m: float,
+    spec: KernelSpec,
+    lspec: KernelSpec,
+    durations_s: NDArray[np.float64],
+    values: NDArray[np.float64],
+    policy: NDArray[np.int8],
+    progress: NDArray[np.int64],
+) -> None:
+    """All trials in parallel; row t of every output belongs to trial t."""
+    for t in prange(durations_s.shape[0]):
+        run_trial(
+            learner_streams[t], env_streams[t], target_depth_m, spec, lspec,
+            durations_s[t], values[t], policy[t], progress, t,
+        )

@@ -1,0 +1,119 @@
+"""Statistics of a study: learning curves, their 50-episode moving average, stable episodes, bootstrap."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+WINDOW = 50  # paper V-A: the ALC is the moving average of the LC over 50 episodes
+BOOTSTRAP_SAMPLES = 1000
+_EPS_S = 1e-6
+
+
+def moving_average(durations_s: NDArray[np.float64], window: int = WINDOW) -> NDArray[np.float64]:
+    """Trailing moving average along the last axis: entry e averages episodes e-window+1..e; NaN before."""
+    x = np.asarray(durations_s, dtype=float)
+    out = np.full(x.shape, np.nan)
+    if x.shape[-1] < window:
+        return out
+    c = np.cumsum(x, axis=-1)
+    c = np.concatenate([np.zeros((*x.shape[:-1], 1)), c], axis=-1)
+    out[..., window - 1:] = (c[..., window:] - c[..., :-window]) / window
+    return out
+
+
+def stable_from(curve: NDArray[np.float64], limit_s: float) -> int | None:
+    """First episode from which the curve stays at the limit to the end; None if it ends below it."""
+    ok = np.nan_to_num(curve, nan=-1.0) >= limit_s - _EPS_S
+    if not ok[-1]:
+        return None
+    bad = np.nonzero(~ok)[0]
+    return int(bad[-1] + 1) if bad.size else 0
+
+
+def _stable_batch(curves: NDArray[np.float64], limit_s: float) -> NDArray[np.float64]:
+    """stable_from for every row; NaN where a row never settles."""
+    ok = np.nan_to_num(curves, nan=-1.0) >= limit_s - _EPS_S
+    n = curves.shape[-1]
+    last_bad = n - 1 - np.argmax(~ok[..., ::-1], axis=-1)
+    result = np.where(ok.all(axis=-1), 0, last_bad + 1).astype(float)
+    return np.where(ok[..., -1], result, np.nan)
+
+
+def per_trial(durations_s: NDArray[np.float64], limit_s: float) -> list[dict[str, int | None]]:
+    """First success, last failure and ALC-stable episode of each trial (episodes counted from 0)."""
+    alc = moving_average(durations_s)
+    rows = []
+    for trial, row in enumerate(durations_s):
+        success = np.nonzero(row >= limit_s - _EPS_S)[0]
+        failure = np.nonzero(row < limit_s - _EPS_S)[0]
+        rows.append({
+            "trial": trial,
+            "first_success": int(success[0]) if success.size else None,
+            "last_failure": int(failure[-1]) if failure.size else None,
+            "alc_stable_from": stable_from(alc[trial], limit_s),
+        })
+    return rows
+
+
+def _spread(values: list[int | None]) -> dict[str, Any]:
+    known = np.array([v for v in values if v is not None], dtype=float)
+    never = 1.0 - known.size / len(values)
+    if known.size == 0:
+        return {"median": None, "q25": None, "q75": None, "fraction_never": never}
+    q25, med, q75 = np.percentile(known, [25, 50, 75])
+    return {"median": float(med), "q25": float(q25), "q75": float(q75), "fraction_never": never}
+
+
+def curve_statistic(alc: NDArray[np.float64], q: float, limit_s: float) -> int | None:
+    """Episode from which the q-th percentile (over trials) of the ALC reaches the limit and stays."""
+    return stable_from(np.percentile(alc, q, axis=0), limit_s)
+
+
+def bootstrap_interval(
+    alc: NDArray[np.float64], q: float, limit_s: float, seed: int, levels: tuple[float, ...] = (80.0, 95.0)
+) -> dict[str, Any]:
+    """Bootstrap over trials of curve_statistic; samples that never settle count as the last episode + 1."""
+    rng = np.random.default_rng(seed)
+    n_trials, n_episodes = alc.shape
+    valid = alc[:, WINDOW - 1:] if n_episodes >= WINDOW else alc
+    stats = np.empty(BOOTSTRAP_SAMPLES)
+    for start in range(0, BOOTSTRAP_SAMPLES, 100):
+        idx = rng.integers(0, n_trials, size=(min(100, BOOTSTRAP_SAMPLES - start), n_trials))
+        curves = np.percentile(valid[idx], q, axis=1)
+        stats[start:start + len(idx)] = _stable_batch(curves, limit_s) + (n_episodes - valid.shape[1])
+    censored = np.isnan(stats)
+    stats[censored] = n_episodes
+    out: dict[str, Any] = {"samples": BOOTSTRAP_SAMPLES, "fraction_never": float(censored.mean())}
+    for level in levels:
+        lo, hi = np.percentile(stats, [50 - level / 2, 50 + level / 2])
+        out[f"ci{int(level)}"] = [float(lo), float(hi)]
+    return out
+
+
+def summarise(durations_s: NDArray[np.float64], limit_s: float, seed: int) -> dict[str, Any]:
+    """The summary.json statistics (without run metadata)."""
+    alc = moving_average(durations_s)
+    trials = per_trial(durations_s, limit_s)
+    curve = {}
+    for label, q in (("median", 50.0), ("best_quarter_q75", 75.0), ("worst_quarter_q25", 25.0)):
+        curve[label] = {
+            "stable_from": curve_statistic(alc, q, limit_s),
+            "bootstrap": bootstrap_interval(alc, q, limit_s, seed),
+        }
+    return {
+        "convention": (
+            f"ALC = trailing {WINDOW}-episode moving average of the episode durations (entry e averages "
+            f"episodes e-{WINDOW - 1}..e, episodes counted from 0); 'stable_from' is the first episode from "
+            f"which a curve stays at {limit_s:g} s to the end of the run"
+        ),
+        "across_trials": {
+            key: _spread([t[key] for t in trials])
+            for key in ("first_success", "last_failure", "alc_stable_from")
+        },
+        "alc_curves": curve,
+        "success_rate_last_50": float(np.mean(durations_s[:, -WINDOW:] >= limit_s - _EPS_S)),
+        "trials": trials,
+    }
