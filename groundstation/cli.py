@@ -99,10 +99,10 @@ def run_command(
         if value is not None:
             values[name] = str(value)
     for item in param or []:
-        name, sep, value = item.partition("=")
+        name, sep, raw = item.partition("=")
         if not sep:
             raise typer.BadParameter(f"expected NAME=VALUE, got {item!r}", param_hint="--param")
-        values[name.strip()] = value.strip()
+        values[name.strip()] = raw.strip()
     if out_path is not None and out_path.suffix == ".mcap":
         recorder = RecorderConfig(directory=out_path.parent, path=out_path)
     else:

@@ -149,7 +149,8 @@ class AgentLink:
                 return
         handler = self._handlers.get(type(frame.message))
         if handler is None:
-            (result, reason), replies = (AckResult.UNSUPPORTED, "command not implemented"), []
+            replies: list[Message | bytes] = []
+            result, reason = AckResult.UNSUPPORTED, "command not implemented"
         else:
             (result, reason), replies = handler(frame.message)
         self._answered.append((frame.msg_id, frame.seq, int(result), reason))
