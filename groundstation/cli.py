@@ -21,6 +21,7 @@ from groundstation import view_cli
 from groundstation.errors import GroundStationError
 from groundstation.links import default_url, make_link
 from groundstation.recorder import RecorderConfig
+from groundstation.rerun_view import Viewer
 from groundstation.runner import RunConfig, RunStatus, add_marker, load_params_file, run
 from groundstation.session import Session, SessionConfig
 from groundstation.simulator_process import run_simulator_command
@@ -80,6 +81,13 @@ def run_command(
     episodes: Annotated[int, typer.Option(help="stop after this many episodes (0 = until Ctrl-C)")] = 0,
     speed: Annotated[str | None, typer.Option(help="built-in virtual agent only: time factor or 'max'")] = None,
     seed: Annotated[int | None, typer.Option(help="built-in virtual agent only: random seed")] = None,
+    preset: Annotated[str | None, typer.Option(
+        help="built-in virtual agent only: plant preset, paper (default) or hardware")] = None,
+    learner: Annotated[str | None, typer.Option(
+        help="built-in virtual agent only: learner, paper (default), actuator3, rmax or literal")] = None,
+    viewer: view_cli.ViewerOption = None,
+    rrd: Annotated[Path | None, typer.Option(help="also save the live Rerun stream to this .rrd file")] = None,
+    web_port: view_cli.WebPortOption = 9090,
     target_depth: Annotated[float | None, typer.Option(help="target depth z_d [m]")] = None,
     z_tol: Annotated[float | None, typer.Option(help="half-height of the learning region [m]")] = None,
     zdot_tol: Annotated[float | None, typer.Option(help="velocity bound of the learning region [m/s]")] = None,
@@ -92,7 +100,7 @@ def run_command(
     reconnect: Annotated[bool, typer.Option(help="reconnect after a link loss and backfill the gap")] = True,
 ) -> None:
     """Connect, set parameters, start learning and record everything to MCAP until N episodes or Ctrl-C."""
-    url = _with_sim_options(url, speed, seed)
+    url = _with_sim_options(url, speed=speed, seed=seed, preset=preset, learner=learner)
     values: dict[str, str] = load_params_file(params) if params else {}
     for name, value in (("target_depth_m", target_depth), ("z_tol_m", z_tol), ("zdot_tol_mps", zdot_tol),
                         ("success_time_s", success_time)):
@@ -111,8 +119,10 @@ def run_command(
     config = RunConfig(url=url, episodes=episodes, params=values, recorder=recorder,
                        session=SessionConfig(reconnect=reconnect))
     err.print(f"connecting to {url}", style="dim")
-    with Progress(SpinnerColumn(), TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
-                  TimeElapsedColumn(), console=err, transient=False) as bar:
+    view = view_cli.open_live_view(viewer, rrd, web_port, name=url, headless_default=Viewer.NONE)
+    columns = (SpinnerColumn(), TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
+               TimeElapsedColumn())
+    with view_cli.closing_view(view), Progress(*columns, console=err, transient=False) as bar:
         task = bar.add_task("episodes", total=episodes or None)
         shown = 0
 
@@ -123,9 +133,11 @@ def run_command(
             shown = len(status.messages)
             bar.update(task, completed=status.episodes, description=_describe(status))
 
-        result = run(config, show)
+        result = run(config, show, listeners=[view] if view is not None else [])
     for path in result.paths:
         typer.echo(str(path))
+    if result.paths:
+        err.print(f"next: dive log info {result.paths[-1]}\n      dive replay {result.paths[-1]}", style="dim")
     if result.interrupted:
         err.print("stopped by Ctrl-C; the recording is complete", style="dim")
     if result.still_missing:
@@ -143,13 +155,15 @@ def _describe(s: RunStatus) -> str:
     return f"episodes: {s.successes} ok / {s.failures} failed, last {last}, {quality}{state}"
 
 
-def _with_sim_options(url: str | None, speed: str | None, seed: int | None) -> str:
+def _with_sim_options(url: str | None, **sim_options: object) -> str:
+    """Add the built-in agent's options (`--speed`, `--seed`, ...) to a sim:// URL as query parameters."""
     url = url or default_url()
-    options = {k: str(v) for k, v in (("speed", speed), ("seed", seed)) if v is not None}
+    options = {k: str(v) for k, v in sim_options.items() if v is not None}
     if not options:
         return url
     if not url.startswith("sim://"):
-        raise typer.BadParameter("--speed and --seed apply to the built-in virtual agent (sim://) only")
+        flags = ", ".join(f"--{k}" for k in options)
+        raise typer.BadParameter(f"{flags} apply to the built-in virtual agent (sim://) only")
     return url + ("&" if "?" in url else "?") + urlencode(options)
 
 

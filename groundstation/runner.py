@@ -5,14 +5,14 @@ from __future__ import annotations
 import json
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 from urllib.parse import parse_qsl, urlsplit
 
 from groundstation.errors import CommandError, GroundStationError, LinkError, ParameterError
-from groundstation.events import EventKind, LinkEvent, Received, Sent
+from groundstation.events import EventKind, LinkEvent, Received, Sent, SessionListener
 from groundstation.links import make_link
 from groundstation.params import cache_dir
 from groundstation.recorder import Recorder, RecorderConfig
@@ -160,14 +160,17 @@ def session_info(url: str) -> dict[str, str]:
 
 
 def run(config: RunConfig, on_progress: Callable[[RunStatus], None] | None = None,
-        stop: threading.Event | None = None) -> RunResult:
-    """Run the main job; Ctrl-C (KeyboardInterrupt) or `stop` ends it early with a complete recording."""
+        stop: threading.Event | None = None, listeners: Sequence[SessionListener] = ()) -> RunResult:
+    """Run the main job; Ctrl-C (KeyboardInterrupt) or `stop` ends it early with a complete recording.
+
+    `listeners` get the session's traffic too (the live Rerun view is one).
+    """
     stop = stop or threading.Event()
     link = make_link(config.url)
     status = RunStatus()
     progress = _Progress(status)
     recorder = Recorder(config.recorder, session_info(link.url))
-    session = Session(link, config.session, [recorder, progress])
+    session = Session(link, config.session, [recorder, progress, *listeners])
     markers = MarkerWatcher(marker_file())
     interrupted = False
     missing = 0

@@ -7,6 +7,7 @@ import signal
 import sys
 import time
 from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Annotated
 
@@ -17,7 +18,7 @@ from groundstation import replay as rp
 from groundstation.errors import GroundStationError
 from groundstation.links import make_link
 from groundstation.mcap_io import RecordingContents
-from groundstation.rerun_view import RerunView, ViewConfig, Viewer
+from groundstation.rerun_view import RerunView, ViewConfig, Viewer, attach_view
 from groundstation.session import Session
 from groundstation.view_errors import ViewError
 
@@ -35,12 +36,38 @@ def _fail(message: str) -> typer.Exit:
     return typer.Exit(1)
 
 
-def default_viewer(viewer: Viewer | None, rrd: Path | None) -> Viewer:
+def default_viewer(viewer: Viewer | None, rrd: Path | None, headless_default: Viewer = Viewer.WEB) -> Viewer:
+    """The viewer asked for; else none when only --rrd is given, else spawn with a display, else the given one."""
     if viewer is not None:
         return viewer
     if rrd is not None:
         return Viewer.NONE
-    return Viewer.SPAWN if os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY") else Viewer.WEB
+    return Viewer.SPAWN if os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY") else headless_default
+
+
+def open_live_view(viewer: Viewer | None, rrd: Path | None, web_port: int, name: str,
+                   headless_default: Viewer = Viewer.WEB) -> RerunView | None:
+    """The live view `dive run` attaches to its session, or None when neither a viewer nor a file is wanted."""
+    chosen = default_viewer(viewer, rrd, headless_default)
+    if chosen == Viewer.NONE and rrd is None:
+        typer.echo("no display: add --viewer web to watch in a browser, or --rrd FILE to save the view", err=True)
+        return None
+    live = attach_view(ViewConfig(viewer=chosen, rrd=rrd, web_port=web_port), name=name)
+    if live is not None and live.address:
+        typer.echo(f"Rerun web viewer: {live.address}", err=True)
+    return live
+
+
+@contextmanager
+def closing_view(live: RerunView | None) -> Iterator[None]:
+    """Close the live view however the run ends; a served web viewer stays up until Ctrl-C first."""
+    try:
+        yield
+    finally:
+        if live is not None:
+            if live.address:
+                wait_for_interrupt(f"the run is over; the web viewer stays at {live.address}")
+            live.close()
 
 
 def _parse_speed(text: str) -> float | None:

@@ -53,6 +53,9 @@ class AgentLink:
         self._answered: deque[tuple[int, int, int, str]] = deque(maxlen=ACK_MEMORY)
         self._hello_sent = False
         self._next_heartbeat_us = 0
+        # While a command runs, what the program sends waits here: SPEC s. 5 puts the ACK first, so a
+        # client sees e.g. CMD_START's ACK before the EPISODE_START it causes.
+        self._deferred: list[Callable[[], None]] | None = None
         self._handlers: dict[type[Message], Handler] = {
             messages.StartLearning: self._start, messages.Stop: self._simple("stop"),
             messages.Pause: self._simple("pause"), messages.SetTarget: self._set_target,
@@ -77,10 +80,16 @@ class AgentLink:
         return inner
 
     def send(self, message: Message, flags: int = 0) -> None:
+        if self._deferred is not None:
+            self._deferred.append(lambda: self.send(message, flags))
+            return
         self.write(encode_wire(self._frame(message.MSG_ID, message.pack(), flags)))
 
     def log_frame(self, message: Message, sample: int, is_sample: bool) -> None:
         """A SAMPLE or EPISODE frame: into the on-board log, then onto the link."""
+        if self._deferred is not None:
+            self._deferred.append(lambda: self.log_frame(message, sample, is_sample))
+            return
         inner = self._frame(message.MSG_ID, message.pack())
         self.ring.append(sample, inner, is_sample)
         self.write(encode_wire(inner))
@@ -148,13 +157,18 @@ class AgentLink:
                 self._ack(frame, AckResult(result), reason)  # a retry: answer again, do not act again
                 return
         handler = self._handlers.get(type(frame.message))
-        if handler is None:
-            replies: list[Message | bytes] = []
-            result, reason = AckResult.UNSUPPORTED, "command not implemented"
-        else:
-            (result, reason), replies = handler(frame.message)
+        replies: list[Message | bytes] = []
+        result, reason = AckResult.UNSUPPORTED, "command not implemented"
+        self._deferred = []
+        try:
+            if handler is not None:
+                (result, reason), replies = handler(frame.message)
+        finally:
+            deferred, self._deferred = self._deferred, None
         self._answered.append((frame.msg_id, frame.seq, int(result), reason))
         self._ack(frame, result, reason)
+        for action in deferred:
+            action()
         for reply in replies:
             if isinstance(reply, bytes):
                 # Re-sent as logged (same msg_id and payload), flagged REPLAYED, with a new seq.

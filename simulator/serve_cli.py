@@ -86,7 +86,9 @@ def serve(
     pty: Annotated[bool, typer.Option("--pty", help="Serve on a new pseudo-terminal instead of TCP.")] = False,
     speed: Annotated[str, typer.Option(help="Times real time, or 'max'. Agent time is in every frame.")] = "1",
     seed: Annotated[int | None, typer.Option(help="Seed of every random stream (default: random).")] = None,
-    preset_name: Annotated[str, typer.Option("--preset", help="Plant preset: hardware or paper.")] = "hardware",
+    preset_name: Annotated[str, typer.Option("--preset", help=(
+        "Plant preset: paper (learns, as in the paper's simulation) or hardware (firmware figures, observer in "
+        "the loop: much harder)."))] = "paper",
     learner: Annotated[str, typer.Option(help=f"Learner preset: {', '.join(learner_names())}.")] = "paper",
     params: Annotated[Path | None, typer.Option(help="TOML/JSON table of agent parameters and plant figures.")] = None,
     drop: Annotated[float, typer.Option(help="Probability of losing a whole frame, each direction.")] = 0.0,

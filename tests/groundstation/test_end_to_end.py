@@ -47,7 +47,8 @@ def test_dive_run_on_the_builtin_agent_records_every_message_valid(tmp_path: Pat
     path = Path(result.stdout.strip().splitlines()[-1])
     assert path.exists() and path.parent == tmp_path
     counts = validate_with_mcap_library(path)
-    assert counts["/agent/EPISODE_END"] >= 3 and counts["/agent/SAMPLE"] > 100
+    # three short episodes (5 s success time) plus the recovery between them: tens of samples at least
+    assert counts["/agent/EPISODE_END"] >= 3 and counts["/agent/SAMPLE"] > 50
     info = CliRunner().invoke(app, ["log", "info", str(path), "--json"])
     summary = json.loads(info.stdout)
     assert summary["complete"] and len(summary["episodes"]) >= 3 and summary["samples_missing"] == 0
