@@ -48,16 +48,18 @@ def main() -> None:
     params, config = preset(args.preset), learner_preset(args.learner)
     run_study(params, config, 2, 2, args.seed)  # compile or load the cache outside the timing
     python_loop(args.preset, args.learner, 0, 1, args.seed)
-    start = time.perf_counter()
+    start, cpu_start = time.perf_counter(), time.process_time()
     result = run_study(params, config, args.trials, args.episodes, args.seed)
-    study_s = time.perf_counter() - start
+    study_s, study_cpu_s = time.perf_counter() - start, time.process_time() - cpu_start
     study_steps = int(np.round(result.durations_s.sum() / params.control_period_s))
 
     loop_s, loop_steps = 0.0, 0
+    loop_cpu_start = time.process_time()
     for trial in range(args.python_trials):
         seconds, steps = python_loop(args.preset, args.learner, trial, args.episodes, args.seed)
         loop_s += seconds
         loop_steps += steps
+    loop_cpu_s = time.process_time() - loop_cpu_start
     per_step_s = loop_s / loop_steps
     scaled_s = per_step_s * study_steps  # same work as the study, one core, per-step Python loop
 
@@ -66,8 +68,13 @@ def main() -> None:
           f"{study_s / study_steps * 1e9 * result.threads:.0f} ns/step/thread")
     print(f"python loop: {args.python_trials} trials, {loop_steps / 1e6:.2f} M steps in {loop_s:.1f} s "
           f"({per_step_s * 1e6:.2f} us/step); scaled to the study: {scaled_s:.0f} s")
-    print(f"ratio python loop / study: {scaled_s / study_s:.0f}x "
+    print(f"ratio python loop / study: {scaled_s / study_s:.0f}x wall "
           f"(per thread: {scaled_s / study_s / result.threads:.0f}x)")
+    # CPU time is what a shared machine distorts least: work per learner step, all threads summed.
+    cpu_ratio = (loop_cpu_s / loop_steps) / (study_cpu_s / study_steps)
+    print(f"cpu per learner step: python loop {loop_cpu_s / loop_steps * 1e6:.2f} us, "
+          f"study {study_cpu_s / study_steps * 1e9:.0f} ns; ratio {cpu_ratio:.0f}x; "
+          f"study cpu {study_cpu_s:.1f} s = {study_cpu_s / result.threads:.1f} s per thread")
 
 
 if __name__ == "__main__":

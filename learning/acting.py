@@ -10,13 +10,13 @@ from learning.rng import uniform
 from learning.spec import KernelSpec
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def _cell(x: float, half_width: float, cells: int) -> int:
     i = int(np.floor((x + half_width) / (2.0 * half_width) * cells))
     return min(max(i, 0), cells - 1)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def state_index_kernel(
     depth_m: float, velocity_mps: float, target_depth_m: float, actuator_fraction: float, spec: KernelSpec
 ) -> int:
@@ -34,7 +34,7 @@ def state_index_kernel(
     return (ib * spec.z_cells + iz) * spec.zdot_cells + iv
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def reward_kernel(depth_m: float, target_depth_m: float, next_state: int, spec: KernelSpec) -> float:
     """The paper's reward (eq. 2): -|z - z_d| per step, the terminal reward on leaving the region."""
     if next_state == spec.z_cells * spec.zdot_cells * spec.actuator_bins:
@@ -42,14 +42,14 @@ def reward_kernel(depth_m: float, target_depth_m: float, next_state: int, spec: 
     return -abs(depth_m - target_depth_m)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def explore_probability(episode: int, spec: KernelSpec) -> float:
     """Linear decay from p_explore_start at episode 0 to p_explore_end at explore_decay_episodes."""
     frac = min(episode / spec.explore_decay_episodes, 1.0)
     return spec.p_explore_start + (spec.p_explore_end - spec.p_explore_start) * frac
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def select_action_kernel(
     policy: NDArray[np.int8], state: int, p_explore: float, spec: KernelSpec, rng_state: NDArray[np.uint64]
 ) -> int:

@@ -10,7 +10,7 @@ N_ACTIONS = 2
 COUNT_MAX = 65535  # uint16 counts, as on the Teensy
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def allocate_model(
     n_states: int, sparse: bool, slots: int
 ) -> tuple[NDArray[np.uint16], NDArray[np.uint16], NDArray[np.float32]]:
@@ -27,7 +27,7 @@ def allocate_model(
     return succ_idx, succ_cnt, reward_sum
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _row_total(succ_cnt: NDArray[np.uint16], s: int, a: int) -> int:
     total = 0
     for k in range(succ_cnt.shape[2]):
@@ -35,7 +35,7 @@ def _row_total(succ_cnt: NDArray[np.uint16], s: int, a: int) -> int:
     return total
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def record_transition(
     succ_idx: NDArray[np.uint16],
     succ_cnt: NDArray[np.uint16],
@@ -82,7 +82,7 @@ def record_transition(
     reward_sum[state, action] += reward
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def dense_counts(succ_idx: NDArray[np.uint16], succ_cnt: NDArray[np.uint16]) -> NDArray[np.uint16]:
     """Counts C[s, s', a] as the paper writes them, whatever the storage form."""
     n_states = succ_cnt.shape[0]
@@ -96,7 +96,7 @@ def dense_counts(succ_idx: NDArray[np.uint16], succ_cnt: NDArray[np.uint16]) -> 
     return counts
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def export_model_kernel(
     succ_idx: NDArray[np.uint16], succ_cnt: NDArray[np.uint16], reward_sum: NDArray[np.float32]
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:

@@ -10,7 +10,7 @@ from learning.rng import uniform
 from learning.spec import KernelSpec
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _compile_rows(
     succ_idx: NDArray[np.uint16],
     succ_cnt: NDArray[np.uint16],
@@ -51,7 +51,7 @@ def _compile_rows(
     return row_start, succ, prob, mean_reward, known
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def _action_value(
     row: int,
     row_start: NDArray[np.int64],
@@ -74,7 +74,7 @@ def _action_value(
     return row_sum * backup if spec.alg4_printed else backup
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def plan_kernel(
     succ_idx: NDArray[np.uint16],
     succ_cnt: NDArray[np.uint16],

@@ -23,7 +23,7 @@ def new_stream(rng: np.random.Generator) -> NDArray[np.uint64]:
     return rng.integers(0, np.iinfo(np.uint64).max, size=1, dtype=np.uint64, endpoint=True)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def stream_from_seed(seed: int) -> NDArray[np.uint64]:
     """A stream state from an integer seed (used inside compiled trial loops)."""
     state = np.empty(1, dtype=np.uint64)
@@ -31,7 +31,7 @@ def stream_from_seed(seed: int) -> NDArray[np.uint64]:
     return state
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def next_uint64(state: NDArray[np.uint64]) -> np.uint64:
     """Advance the stream and return 64 random bits."""
     state[0] = state[0] + _GOLDEN_GAMMA
@@ -41,13 +41,13 @@ def next_uint64(state: NDArray[np.uint64]) -> np.uint64:
     return z ^ (z >> _S31)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def uniform(state: NDArray[np.uint64]) -> float:
     """A double uniform on [0, 1)."""
     return float(next_uint64(state) >> _S11) * _TWO_POW_MINUS_53
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def normal(state: NDArray[np.uint64]) -> float:
     """A standard normal draw (Box-Muller; the second variate is dropped to keep the state single)."""
     u1 = 1.0 - uniform(state)

@@ -29,7 +29,7 @@ ENV_SIZE = 15
 _MAX_RECOVERY_ATTEMPTS = 20
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def new_env_state(spec: KernelSpec) -> NDArray[np.float64]:
     """An environment before its first episode: at the surface, gear at mid-stroke."""
     env = np.zeros(ENV_SIZE)
@@ -40,7 +40,7 @@ def new_env_state(spec: KernelSpec) -> NDArray[np.float64]:
     return env
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def neutral_alpha_kernel(spec: KernelSpec) -> float:
     """Gear angle of neutral buoyancy at the surface (same formula as parameters.neutral_alpha_deg)."""
     fixed_m3 = spec.mass_kg / spec.water_density_kgpm3 * (1.0 + spec.trim_error_fraction)
@@ -48,7 +48,7 @@ def neutral_alpha_kernel(spec: KernelSpec) -> float:
     return spec.alpha_max_deg * (v_adj_m3 / spec.stroke_volume_m3 + 0.5)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def _measure(env: NDArray[np.float64], dt_s: float, spec: KernelSpec, rng_state: NDArray[np.uint64]) -> None:
     pressure_pa = read_pressure_kernel(env[E_Z], spec, rng_state)
     env[E_DEPTH_MEAS] = depth_from_pressure_kernel(pressure_pa, spec)
@@ -57,7 +57,7 @@ def _measure(env: NDArray[np.float64], dt_s: float, spec: KernelSpec, rng_state:
     env[E_VEL_EST] = estimate if spec.use_observer else env[E_ZDOT]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _recover(
     env: NDArray[np.float64], start_depth_m: float, spec: KernelSpec, rng_state: NDArray[np.uint64]
 ) -> bool:
@@ -79,7 +79,7 @@ def _recover(
             return False
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def episode_reset_kernel(
     env: NDArray[np.float64],
     target_depth_m: float,
@@ -118,19 +118,19 @@ def episode_reset_kernel(
     return _state(env, target_depth_m, spec, lspec)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def episode_steps(spec: KernelSpec) -> int:
     """Learner steps in a successful episode (3000 = 300 s at 0.1 s)."""
     return int(np.round(spec.episode_limit_s / spec.control_period_s))
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def _state(env: NDArray[np.float64], target_depth_m: float, spec: KernelSpec, lspec: KernelSpec) -> int:
     fraction = (env[E_CMD] - env[E_CENTER]) / spec.action_window_deg
     return state_index_kernel(env[E_DEPTH_MEAS], env[E_VEL_EST], target_depth_m, fraction, lspec)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def episode_step_kernel(
     env: NDArray[np.float64],
     action: int,

@@ -14,12 +14,12 @@ X2 = 1  # velocity estimate, m/s
 OBSERVER_SIZE = 2
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def _sat(x: float) -> float:
     return min(max(x, -1.0), 1.0)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def observer_update_kernel(
     state: NDArray[np.float64], measured_depth_m: float, dt_s: float, spec: KernelSpec
 ) -> float:

@@ -15,7 +15,7 @@ ALPHA = 2  # gear output angle, deg
 PLANT_SIZE = 3
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def force_coefficients(spec: KernelSpec) -> tuple[float, float, float, float]:
     """(a0, a_alpha, a_z, a_drag) with z'' = a0 + a_alpha alpha + a_z z - a_drag z'|z'|.
 
@@ -34,14 +34,14 @@ def force_coefficients(spec: KernelSpec) -> tuple[float, float, float, float]:
     return a0, a_alpha, a_z, a_drag
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def acceleration_mps2(depth_m: float, velocity_mps: float, alpha_deg: float, spec: KernelSpec) -> float:
     """z'' at the given depth, velocity and gear angle (see force_coefficients)."""
     a0, a_alpha, a_z, a_drag = force_coefficients(spec)
     return a0 + a_alpha * alpha_deg + a_z * depth_m - a_drag * velocity_mps * abs(velocity_mps)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def plant_step(state: NDArray[np.float64], alpha_cmd_deg: float, dt_s: float, spec: KernelSpec) -> None:
     """Advance the plant by dt_s in fixed sub-steps of at most spec.substep_s, command held."""
     n_sub = max(1, int(np.ceil(dt_s / spec.substep_s - 1e-9)))

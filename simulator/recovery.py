@@ -19,7 +19,7 @@ RECOVERY_SIZE = 3
 _AVERAGING_BAND_FACTOR = 2.0
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def recovery_init(state: NDArray[np.float64], alpha_avg_deg: float) -> None:
     """Begin a recovery, keeping the neutral angle learned so far."""
     state[AVG] = alpha_avg_deg
@@ -27,7 +27,7 @@ def recovery_init(state: NDArray[np.float64], alpha_avg_deg: float) -> None:
     state[ELAPSED_S] = 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def recovery_update_kernel(
     state: NDArray[np.float64],
     depth_m: float,
@@ -50,13 +50,13 @@ def recovery_update_kernel(
     return min(max(state[AVG] + spec.recovery_gain_deg * sat, 0.0), spec.alpha_max_deg)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def recovery_settled(state: NDArray[np.float64], spec: KernelSpec) -> bool:
     """Calm for settle_time_s: hand over to the learner."""
     return state[CALM_S] >= spec.settle_time_s
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def recovery_gave_up(state: NDArray[np.float64], spec: KernelSpec) -> bool:
     """Not settled within give_up_s."""
     return state[ELAPSED_S] >= spec.give_up_s and state[CALM_S] < spec.settle_time_s

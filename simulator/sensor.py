@@ -11,7 +11,7 @@ from learning.spec import KernelSpec
 from simulator.parameters import PlantParams, kernel_params
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def read_pressure_kernel(depth_m: float, spec: KernelSpec, rng_state: NDArray[np.uint64]) -> float:
     """Absolute pressure in Pa as the sensor reports it at depth_m."""
     pressure_pa = spec.surface_pressure_pa + spec.water_density_kgpm3 * spec.gravity_mps2 * depth_m
@@ -20,7 +20,7 @@ def read_pressure_kernel(depth_m: float, spec: KernelSpec, rng_state: NDArray[np
     return min(max(pressure_pa, spec.pressure_min_pa), spec.pressure_max_pa)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def depth_from_pressure_kernel(pressure_pa: float, spec: KernelSpec) -> float:
     """z = (P - P0) / (rho g), as the firmware computes it."""
     return (pressure_pa - spec.surface_pressure_pa) / (spec.water_density_kgpm3 * spec.gravity_mps2)

@@ -13,7 +13,7 @@ from learning.spec import KernelSpec
 from simulator.episode import E_STEPS, episode_reset_kernel, episode_step_kernel, new_env_state
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, error_model="numpy", nogil=True)
 def run_trial(
     learner_stream: NDArray[np.uint64],
     env_stream: NDArray[np.uint64],
@@ -51,7 +51,7 @@ def run_trial(
         progress[trial] = episode + 1
 
 
-@njit(cache=True, nogil=True, parallel=True)
+@njit(cache=True, error_model="numpy", nogil=True, parallel=True)
 def run_trials(
     learner_streams: NDArray[np.uint64],
     env_streams: NDArray[np.uint64],

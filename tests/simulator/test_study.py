@@ -39,6 +39,7 @@ def _python_loop_trial(config: LearnerConfig, seed: int, trial: int, episodes: i
     return durations
 
 
+@pytest.mark.slow  # compiles the parallel trial loop on a cold numba cache (~7 s)
 def test_the_compiled_study_replays_the_python_api_exactly() -> None:
     config = learner_preset("paper")
     result = run_study(PAPER, config, trials=2, episodes=8, seed=11)
