@@ -137,7 +137,9 @@ def run_command(
     for path in result.paths:
         typer.echo(str(path))
     if result.paths:
-        err.print(f"next: dive log info {result.paths[-1]}\n      dive replay {result.paths[-1]}", style="dim")
+        err.print(f"next: dive log info {result.paths[-1]}\n      dive replay {result.paths[-1]}"
+                  + ("" if view is not None else "\n      (dive run --viewer web shows the run live in a browser)"),
+                  style="dim")
     if result.interrupted:
         err.print("stopped by Ctrl-C; the recording is complete", style="dim")
     if result.still_missing:

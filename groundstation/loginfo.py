@@ -27,7 +27,8 @@ class RecordingSummary:
     complete: bool  # finished with a footer (not cut short)
     sessions: int = 0  # connections (HELLO exchanges) recorded
     link_losses: int = 0
-    duration_s: float = 0.0
+    duration_s: float = 0.0  # host time from the first to the last message recorded
+    agent_duration_s: float = 0.0  # agent time spanned by the samples (differs from host time at --speed)
     messages: int = 0
     samples: int = 0
     samples_backfilled: int = 0
@@ -49,6 +50,7 @@ def summarize(path: Path) -> RecordingSummary:
     summary = RecordingSummary(str(path), complete=True)
     held = SampleRanges()
     first_ns = last_ns = None
+    first_us = last_us = None
     for msg in iter_messages(path, None, info):
         summary.messages += 1
         summary.topics[msg.topic] = summary.topics.get(msg.topic, 0) + 1
@@ -56,6 +58,8 @@ def summarize(path: Path) -> RecordingSummary:
         last_ns = msg.log_time_ns if last_ns is None else max(last_ns, msg.log_time_ns)
         if msg.topic == "/agent/SAMPLE":
             body = msg.json()
+            first_us = body["t_us"] if first_us is None else min(first_us, body["t_us"])
+            last_us = body["t_us"] if last_us is None else max(last_us, body["t_us"])
             if held.add(body["sample"]):
                 summary.samples += 1
                 summary.samples_backfilled += bool(body.get("_backfilled"))
@@ -78,6 +82,8 @@ def summarize(path: Path) -> RecordingSummary:
     summary.successes = sum(e.outcome == "success" for e in summary.episodes)
     summary.samples_missing = sum(b - a for a, b in held.missing())
     summary.duration_s = (last_ns - first_ns) / 1e9 if first_ns is not None and last_ns is not None else 0.0
+    if first_us is not None and last_us is not None:
+        summary.agent_duration_s = (last_us - first_us) / 1e6
     for name, key in (("agent_hello", "agent"), ("parameters", "parameters")):
         if info.metadata.get(name):
             setattr(summary, key, info.metadata[name][-1])
@@ -89,7 +95,7 @@ def format_summary(s: RecordingSummary) -> str:
     lines = [
         f"{s.path}{'' if s.complete else '  (truncated: run `dive log recover`)'}",
         f"  agent {agent} id {s.agent.get('node_id', '?')}, {s.sessions} session(s), {s.link_losses} link loss(es), "
-        f"{s.duration_s:.1f} s, {s.messages} messages",
+        f"{s.duration_s:.1f} s host time ({s.agent_duration_s:.1f} s agent time), {s.messages} messages",
         f"  samples {s.samples} ({s.samples_backfilled} backfilled, {s.samples_missing} still missing), "
         f"frames lost {s.frames_lost}, rejects {s.rejects}",
         f"  episodes {len(s.episodes)} ({s.successes} successes)",

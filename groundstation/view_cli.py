@@ -50,7 +50,6 @@ def open_live_view(viewer: Viewer | None, rrd: Path | None, web_port: int, name:
     """The live view `dive run` attaches to its session, or None when neither a viewer nor a file is wanted."""
     chosen = default_viewer(viewer, rrd, headless_default)
     if chosen == Viewer.NONE and rrd is None:
-        typer.echo("no display: add --viewer web to watch in a browser, or --rrd FILE to save the view", err=True)
         return None
     live = attach_view(ViewConfig(viewer=chosen, rrd=rrd, web_port=web_port), name=name)
     if live is not None and live.address:
