@@ -2,9 +2,29 @@
 
 from __future__ import annotations
 
-import typer
+import functools
+import json
+import sys
+import time
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from enum import StrEnum
+from pathlib import Path
+from typing import Annotated, Any, TypeVar
+from urllib.parse import urlencode
 
+import typer
+from rich.console import Console
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
+
+from groundstation.errors import GroundStationError
+from groundstation.links import default_url, make_link
+from groundstation.recorder import RecorderConfig
+from groundstation.runner import RunConfig, RunStatus, add_marker, load_params_file, run
+from groundstation.session import Session, SessionConfig
 from groundstation.simulator_process import run_simulator_command
+from protocol import DumpKind, Mode
+from protocol import messages as m
 
 app = typer.Typer(
     name="dive",
@@ -14,10 +34,277 @@ app = typer.Typer(
     pretty_exceptions_enable=False,
     rich_markup_mode="rich",
 )
+log_app = typer.Typer(help="Inspect, export and repair recordings.", no_args_is_help=True)
+app.add_typer(log_app, name="log")
 
 _FORWARD = {"allow_extra_args": True, "ignore_unknown_options": True, "help_option_names": []}
+F = TypeVar("F", bound=Callable[..., Any])
+err = Console(stderr=True, highlight=False)
+out = Console(highlight=False)
 
 
+def _one_line_errors(func: F) -> F:
+    """Our errors (and a bad file) become one line on stderr and exit code 1; Ctrl-C exits 130."""
+
+    @functools.wraps(func)
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
+        try:
+            return func(*args, **kwargs)
+        except (GroundStationError, OSError) as e:
+            message = str(e).replace("\n", " ") or type(e).__name__
+            err.print(f"[bold red]dive:[/] {message}", markup=True, soft_wrap=True)
+            raise typer.Exit(1) from None
+        except KeyboardInterrupt:
+            raise typer.Exit(130) from None
+
+    return wrapper  # type: ignore[return-value]
+
+
+@contextmanager
+def _session(url: str | None) -> Iterator[Session]:
+    session = Session(make_link(url), SessionConfig(reconnect=False, backfill=False))
+    with session:
+        yield session
+
+
+_URL_HELP = "tcp://HOST:PORT, serial:///dev/ttyUSB0?baud=115200, sim://?speed=max (default: $DIVE_URL or sim://)"
+UrlArg = Annotated[str | None, typer.Argument(help=_URL_HELP, show_default=False)]
+
+
+# ---------------------------------------------------------------------- the main job
+@app.command("run")
+@_one_line_errors
+def run_command(
+    url: UrlArg = None,
+    episodes: Annotated[int, typer.Option(help="stop after this many episodes (0 = until Ctrl-C)")] = 0,
+    speed: Annotated[str | None, typer.Option(help="built-in virtual agent only: time factor or 'max'")] = None,
+    seed: Annotated[int | None, typer.Option(help="built-in virtual agent only: random seed")] = None,
+    target_depth: Annotated[float | None, typer.Option(help="target depth z_d [m]")] = None,
+    z_tol: Annotated[float | None, typer.Option(help="half-height of the learning region [m]")] = None,
+    zdot_tol: Annotated[float | None, typer.Option(help="velocity bound of the learning region [m/s]")] = None,
+    success_time: Annotated[float | None, typer.Option(help="time in the region that counts as success [s]")] = None,
+    param: Annotated[list[str] | None, typer.Option(help="NAME=VALUE, any agent parameter (repeatable)")] = None,
+    params: Annotated[Path | None, typer.Option(help="file of parameters: JSON or `name = value` lines")] = None,
+    out_path: Annotated[Path | None, typer.Option("--out", help="recording directory, or a .mcap file name")] = None,
+    split_mb: Annotated[float, typer.Option(help="start a new file after this many MB (0 = never)")] = 0.0,
+    split_minutes: Annotated[float, typer.Option(help="start a new file after this many minutes (0 = never)")] = 0.0,
+    reconnect: Annotated[bool, typer.Option(help="reconnect after a link loss and backfill the gap")] = True,
+) -> None:
+    """Connect, set parameters, start learning and record everything to MCAP until N episodes or Ctrl-C."""
+    url = _with_sim_options(url, speed, seed)
+    values: dict[str, str] = load_params_file(params) if params else {}
+    for name, value in (("target_depth_m", target_depth), ("z_tol_m", z_tol), ("zdot_tol_mps", zdot_tol),
+                        ("success_time_s", success_time)):
+        if value is not None:
+            values[name] = str(value)
+    for item in param or []:
+        name, sep, value = item.partition("=")
+        if not sep:
+            raise typer.BadParameter(f"expected NAME=VALUE, got {item!r}", param_hint="--param")
+        values[name.strip()] = value.strip()
+    if out_path is not None and out_path.suffix == ".mcap":
+        recorder = RecorderConfig(directory=out_path.parent, path=out_path)
+    else:
+        recorder = RecorderConfig(directory=out_path or Path("recordings"))
+    recorder = RecorderConfig(recorder.directory, recorder.path, int(split_mb * 1e6), split_minutes * 60.0)
+    config = RunConfig(url=url, episodes=episodes, params=values, recorder=recorder,
+                       session=SessionConfig(reconnect=reconnect))
+    err.print(f"connecting to {url}", style="dim")
+    with Progress(SpinnerColumn(), TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
+                  TimeElapsedColumn(), console=err, transient=False) as bar:
+        task = bar.add_task("episodes", total=episodes or None)
+        shown = 0
+
+        def show(status: RunStatus) -> None:
+            nonlocal shown
+            for line in status.messages[shown:]:
+                bar.console.print(f"[yellow]{line}[/]")
+            shown = len(status.messages)
+            bar.update(task, completed=status.episodes, description=_describe(status))
+
+        result = run(config, show)
+    for path in result.paths:
+        out.print(str(path))
+    if result.interrupted:
+        err.print("stopped by Ctrl-C; the recording is complete", style="dim")
+    if result.still_missing:
+        err.print(f"{result.still_missing} samples could not be backfilled (no longer in the agent's log)",
+                  style="yellow")
+
+
+def _describe(s: RunStatus) -> str:
+    link = s.link
+    last = f"{s.last_duration_s:.1f} s {s.last_reason}" if s.last_duration_s is not None else "-"
+    rtt = link.get("rtt_median_ms")
+    quality = (f"loss {100 * link.get('loss_fraction', 0.0):.1f}%"
+               + (f" rtt {rtt:.1f} ms" if rtt is not None else "")) if link else "link -"
+    state = "" if s.link_up else " [red]link down[/]"
+    return f"episodes: {s.successes} ok / {s.failures} failed, last {last}, {quality}{state}"
+
+
+def _with_sim_options(url: str | None, speed: str | None, seed: int | None) -> str:
+    url = url or default_url()
+    options = {k: str(v) for k, v in (("speed", speed), ("seed", seed)) if v is not None}
+    if not options:
+        return url
+    if not url.startswith("sim://"):
+        raise typer.BadParameter("--speed and --seed apply to the built-in virtual agent (sim://) only")
+    return url + ("&" if "?" in url else "?") + urlencode(options)
+
+
+# ---------------------------------------------------------------------- commanding
+@app.command()
+@_one_line_errors
+def status(url: UrlArg = None) -> None:
+    """Show the agent's identity, mode, battery, on-board log and link quality."""
+    with _session(url) as s:
+        deadline = time.monotonic() + 2.5
+        while s.last_heartbeat is None and time.monotonic() < deadline:
+            time.sleep(0.05)
+        hello, hb = s.agent_hello, s.last_heartbeat
+        assert hello is not None
+        out.print(f"agent {hello.name!r} id {hello.node_id:08x} firmware "
+                  f"{hello.firmware_major}.{hello.firmware_minor}.{hello.firmware_patch} boot {hello.boot_id:08x}")
+        if hb is not None:
+            mode = Mode(hb.mode).name if hb.mode in Mode._value2member_map_ else str(hb.mode)
+            out.print(f"mode {mode}, battery {hb.battery_mv / 1000:.2f} V, uptime {hb.uptime_ms / 1000:.0f} s, "
+                      f"episode {hb.episode}, log samples [{hb.log_first_sample}, {hb.log_next_sample})")
+        snap = s.stats.snapshot(s.decoder.stats)
+        rtt = snap["rtt_median_ms"]
+        out.print(f"{len(s.params)} parameters; link: {snap['rx_frames']} frames, {snap['rx_lost']} lost, "
+                  f"{snap['rx_rejects']} rejected" + (f", rtt {rtt:.1f} ms" if rtt is not None else ""))
+
+
+class ParamAction(StrEnum):
+    get = "get"
+    set = "set"
+
+
+@app.command("params")
+@_one_line_errors
+def params_command(
+    url: Annotated[str, typer.Argument(help="the agent's URL")],
+    action: Annotated[ParamAction | None, typer.Argument(help="get NAME | set NAME VALUE")] = None,
+    name: Annotated[str | None, typer.Argument(show_default=False)] = None,
+    value: Annotated[str | None, typer.Argument(show_default=False)] = None,
+) -> None:
+    """List the agent's parameters, or get / set one."""
+    with _session(url) as s:
+        if action is None:
+            for p in s.params:
+                out.print(f"{p.index:3d} {p.name:24s} {p.display_value:>12s}   [{p.minimum:g} .. {p.maximum:g}]")
+            return
+        if name is None:
+            raise typer.BadParameter("give a parameter NAME", param_hint="NAME")
+        if action == ParamAction.get:
+            p = s.get_param(name)
+        else:
+            if value is None:
+                raise typer.BadParameter("give a VALUE to set", param_hint="VALUE")
+            p = s.set_param(name, value)
+        out.print(f"{p.name} = {p.display_value}")
+
+
+@app.command()
+@_one_line_errors
+def surface(url: UrlArg = None) -> None:
+    """Emergency surface: maximum volume now, in any mode."""
+    with _session(url) as s:
+        s.command(m.Surface())
+    out.print("surfacing")
+
+
+@app.command()
+@_one_line_errors
+def hover(url: Annotated[str, typer.Argument(help="the agent's URL")],
+          depth: Annotated[float, typer.Argument(help="depth to hold [m]")]) -> None:
+    """Hold a depth with the recovery controller (no learning)."""
+    with _session(url) as s:
+        s.command(m.Hover(depth_m=depth))
+    out.print(f"hovering at {depth:g} m")
+
+
+class DumpChoice(StrEnum):
+    values = "values"
+    policy = "policy"
+    q = "q"
+    counts = "counts"
+
+
+_DUMP_KINDS = {DumpChoice.values: DumpKind.VALUES, DumpChoice.policy: DumpKind.POLICY,
+               DumpChoice.q: DumpKind.Q_VALUES, DumpChoice.counts: DumpKind.COUNTS}
+
+
+@app.command()
+@_one_line_errors
+def dump(url: UrlArg = None, kind: Annotated[DumpChoice, typer.Option(help="what to dump")] = DumpChoice.values
+         ) -> None:
+    """Fetch the value function, policy, Q values or model counts and print them as JSON."""
+    with _session(url) as s:
+        snapshot = s.dump(_DUMP_KINDS[kind], timeout_s=10.0)
+    out.print_json(json.dumps(snapshot.as_dict()))
+
+
+@app.command()
+@_one_line_errors
+def mark(text: Annotated[str, typer.Argument(help="what happened (recorded on /marker by a running `dive run`)")]
+         ) -> None:
+    """Put a marker into the recording of the `dive run` running on this machine."""
+    add_marker(text)
+
+
+# ---------------------------------------------------------------------- recordings
+def _existing(path: Path) -> Path:
+    if not path.is_file():
+        raise GroundStationError(f"no such recording: {path}")
+    return path
+
+
+@log_app.command("info")
+@_one_line_errors
+def log_info(file: Path, as_json: Annotated[bool, typer.Option("--json", help="machine-readable")] = False) -> None:
+    """Sessions, duration, episodes with outcome and length, samples, loss, backfill and missing samples."""
+    from groundstation.loginfo import format_summary, summarize
+
+    summary = summarize(_existing(file))
+    if as_json:
+        out.print_json(json.dumps(summary.as_dict()))
+    else:
+        out.print(format_summary(summary))
+
+
+class ExportFormat(StrEnum):
+    csv = "csv"
+    npz = "npz"
+
+
+@log_app.command("export")
+@_one_line_errors
+def log_export(file: Path, format: Annotated[ExportFormat, typer.Option(help="csv: samples; npz: offline-RL dataset")]
+               = ExportFormat.csv,
+               out_path: Annotated[Path | None, typer.Option("--out", help="output file")] = None) -> None:
+    """Export samples as CSV, or (s, a, r, s', terminated, truncated) transitions per episode as .npz."""
+    from groundstation.export import export_csv, export_npz
+
+    target = out_path or _existing(file).with_suffix(f".{format.value}")
+    rows = (export_csv if format == ExportFormat.csv else export_npz)(_existing(file), target)
+    out.print(f"{target} ({rows} rows)")
+
+
+@log_app.command("recover")
+@_one_line_errors
+def log_recover(file: Path, out_path: Annotated[Path | None, typer.Option("--out", help="output file")] = None
+                ) -> None:
+    """Rewrite a truncated recording (after a crash or kill) into a finished, indexed one."""
+    from groundstation.mcap_io import recover
+
+    target = out_path or _existing(file).with_name(file.stem + "-recovered.mcap")
+    count, truncated = recover(_existing(file), target)
+    note = "was truncated" if truncated else "was already complete"
+    out.print(f"{target} ({count} messages; the original {note})")
+
+
+# ---------------------------------------------------------------------- the simulator process
 @app.command(context_settings=_FORWARD, add_help_option=False)
 def sim(ctx: typer.Context) -> None:
     """Serve a virtual diving agent over TCP or a pseudo-terminal (`dive sim --help` for options)."""
@@ -31,4 +318,7 @@ def study(ctx: typer.Context) -> None:
 
 
 def main() -> None:
-    app()
+    try:
+        app()
+    except KeyboardInterrupt:
+        sys.exit(130)

@@ -17,6 +17,7 @@ class EventKind(StrEnum):
     BACKFILL_DONE = "backfill_done"  # a LOG_REQUEST replay finished
     ERROR = "error"  # anything else worth showing; the session keeps running
     MARKER = "marker"  # a user marker (dive mark, or a key in the live run)
+    STATS = "stats"  # 1 Hz link statistics (data: LinkStats.snapshot(), clock model)
 
 
 @dataclass(frozen=True, slots=True)

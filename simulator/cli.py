@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import typer
 
+from simulator.serve_cli import serve
+
 app = typer.Typer(
     name="simulator",
     help="The virtual diving agent and the batch study runner.",
@@ -11,6 +13,9 @@ app = typer.Typer(
     add_completion=False,
     pretty_exceptions_enable=False,
 )
+
+
+app.command()(serve)
 
 
 @app.callback()

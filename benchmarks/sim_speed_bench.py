@@ -1,0 +1,96 @@
+"""How fast the virtual agent runs with --speed max while streaming to a client, against the bare plant.
+
+Run: python benchmarks/sim_speed_bench.py [--seconds 8] [--preset hardware]
+Prints agent seconds per wall second of (a) `python -m simulator serve --speed max` with a TCP client
+that decodes every frame, learning from CMD_START on, and (b) the plant stepping alone at the same
+control periods (no program, no protocol, no server) as the anchor measured in this run, and their ratio.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+
+import numpy as np
+
+from protocol import FrameEncoder, StreamDecoder, messages
+from simulator.parameters import preset
+from simulator.plant import Plant
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+
+def plant_alone(preset_name: str, wall_s: float) -> float:
+    """Agent seconds per wall second of Plant.step at the learner's and the recovery controller's periods."""
+    params = preset(preset_name)
+    plant = Plant(params, np.random.default_rng(0))
+    dt_learn, dt_recover = params.control_period_s, params.recovery_period_s
+    plant.step(dt_learn)
+    simulated = 0.0
+    start = time.perf_counter()
+    while time.perf_counter() - start < wall_s:
+        for _ in range(100):  # the agent's mix: 4 recovery periods for each learner period
+            plant.step(dt_learn)
+            for _ in range(4):
+                plant.step(dt_recover)
+        simulated += 100 * (dt_learn + 4 * dt_recover)
+    return simulated / (time.perf_counter() - start)
+
+
+def served(preset_name: str, wall_s: float) -> tuple[float, int]:
+    """Agent seconds per wall second seen by a client of `serve --speed max`, and frames decoded."""
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "simulator", "serve", "--tcp", "127.0.0.1:0", "--speed", "max", "--seed", "1",
+         "--preset", preset_name], stdout=subprocess.PIPE, text=True, cwd=ROOT,
+    )
+    try:
+        assert proc.stdout is not None
+        host, port = proc.stdout.readline().strip().removeprefix("tcp://").rsplit(":", 1)
+        sock = socket.create_connection((host, int(port)))
+        decoder = StreamDecoder()
+        sock.sendall(FrameEncoder().encode(messages.StartLearning()).wire)
+        first: tuple[float, int] | None = None
+        last_t_us = 0
+        frames = 0
+        while True:
+            data = sock.recv(1 << 20)
+            if not data:
+                break
+            now = time.perf_counter()
+            for frame in decoder.feed(data):
+                frames += 1
+                t_us = getattr(frame.message, "t_us", None)
+                if t_us is not None:
+                    last_t_us = t_us
+                    if first is None:
+                        first = (now, t_us)
+            if first is not None and now - first[0] >= wall_s:
+                break
+        sock.close()
+        assert first is not None, "no frame with agent time arrived"
+        return (last_t_us - first[1]) / 1e6 / (time.perf_counter() - first[0]), frames
+    finally:
+        proc.send_signal(signal.SIGTERM)
+        proc.wait(timeout=10)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seconds", type=float, default=8.0, help="wall seconds per measurement")
+    parser.add_argument("--preset", default="hardware")
+    args = parser.parse_args()
+    anchor = plant_alone(args.preset, min(args.seconds, 3.0))
+    factor, frames = served(args.preset, args.seconds)
+    print(f"plant alone (anchor)          : {anchor:10.0f} x real time")
+    print(f"serve --speed max + TCP client: {factor:10.0f} x real time ({frames} frames decoded)")
+    print(f"ratio served / plant alone    : {factor / anchor:10.3f}")
+    print(f"target 2000x                  : {'met' if factor >= 2000 else 'NOT met'}")
+
+
+if __name__ == "__main__":
+    main()

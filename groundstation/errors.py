@@ -1,0 +1,39 @@
+"""The ground station's exception base and its specific errors (the CLI maps each to one line)."""
+
+from __future__ import annotations
+
+
+class GroundStationError(Exception):
+    """Base of every error the ground station raises on purpose."""
+
+
+class LinkError(GroundStationError, ConnectionError):
+    """The link could not be opened, or failed while in use."""
+
+
+class LinkTimeout(LinkError, TimeoutError):
+    """The peer did not answer in time (no HELLO, link timeout)."""
+
+
+class UnknownSchemeError(LinkError, ValueError):
+    """A link URL whose scheme no backend handles."""
+
+
+class IncompatibleAgentError(LinkError):
+    """The agent speaks another protocol version or another message table."""
+
+
+class CommandError(GroundStationError):
+    """A command was refused (NACK) by the agent."""
+
+
+class CommandTimeout(CommandError, TimeoutError):
+    """No ACK after every retry."""
+
+
+class ParameterError(GroundStationError, ValueError):
+    """An unknown parameter name or a value outside its range."""
+
+
+class RecordingError(GroundStationError, OSError):
+    """A recording that cannot be written, read or recovered."""

@@ -1,0 +1,115 @@
+"""Which SAMPLE indices the ground holds, as merged half-open ranges, and which are missing."""
+
+from __future__ import annotations
+
+import bisect
+
+
+class SampleRanges:
+    """A set of integers kept as sorted, disjoint [start, end) ranges (samples arrive mostly in order)."""
+
+    def __init__(self) -> None:
+        self._starts: list[int] = []
+        self._ends: list[int] = []
+
+    def __len__(self) -> int:
+        return sum(e - s for s, e in zip(self._starts, self._ends, strict=True))
+
+    def __contains__(self, index: int) -> bool:
+        i = bisect.bisect_right(self._starts, index) - 1
+        return i >= 0 and index < self._ends[i]
+
+    @property
+    def first(self) -> int | None:
+        return self._starts[0] if self._starts else None
+
+    @property
+    def end(self) -> int | None:
+        """One past the highest index held."""
+        return self._ends[-1] if self._ends else None
+
+    def add(self, index: int) -> bool:
+        """Add one index; False if it was already held."""
+        if self._ends and index == self._ends[-1]:  # the common case: the next sample in order
+            self._ends[-1] += 1
+            return True
+        i = bisect.bisect_right(self._starts, index) - 1
+        if i >= 0 and index < self._ends[i]:
+            return False
+        if i >= 0 and index == self._ends[i]:
+            self._ends[i] += 1
+        else:
+            i += 1
+            self._starts.insert(i, index)
+            self._ends.insert(i, index + 1)
+        if i + 1 < len(self._starts) and self._ends[i] == self._starts[i + 1]:
+            self._ends[i] = self._ends.pop(i + 1)
+            self._starts.pop(i + 1)
+        return True
+
+    def missing(self, start: int | None = None, end: int | None = None) -> list[tuple[int, int]]:
+        """Missing [start, end) ranges between start (default: first held) and end (default: end held)."""
+        if not self._starts:
+            return [(start, end)] if start is not None and end is not None and end > start else []
+        lo = self._starts[0] if start is None else start
+        hi = self._ends[-1] if end is None else end
+        gaps: list[tuple[int, int]] = []
+        cursor = lo
+        for s, e in zip(self._starts, self._ends, strict=True):
+            if s > cursor:
+                gaps.append((cursor, min(s, hi)))
+            cursor = max(cursor, e)
+            if cursor >= hi:
+                break
+        if cursor < hi:
+            gaps.append((cursor, hi))
+        return [(a, b) for a, b in gaps if b > a]
+
+
+class BackfillPlanner:
+    """Decides which LOG_REQUEST ranges to send: gaps the agent still holds, each retried a few times.
+
+    `known_end` comes from the agent's HEARTBEAT (log_next_sample): every sample below it was sent
+    before that heartbeat, so on an in-order stream a hole below it is a real loss, not a frame in flight.
+    """
+
+    def __init__(self, retry_after_s: float = 3.0, attempts: int = 3, merge_below: int = 16) -> None:
+        self.held = SampleRanges()
+        self.known_end = 0
+        self.log_first = 0
+        self._requested: dict[tuple[int, int], tuple[int, float]] = {}  # range -> (attempts, when)
+        self._retry_after_s = retry_after_s
+        self._attempts = attempts
+        self._merge_below = merge_below
+
+    def reset(self) -> None:
+        """The agent rebooted: sample indices start again from 0."""
+        self.__init__(self._retry_after_s, self._attempts, self._merge_below)  # type: ignore[misc]
+
+    def saw_log_window(self, first_sample: int, next_sample: int) -> None:
+        self.log_first = first_sample
+        self.known_end = max(self.known_end, next_sample)
+
+    def missing(self) -> list[tuple[int, int]]:
+        if self.held.first is None:
+            return []
+        return self.held.missing(end=max(self.known_end, self.held.end or 0))
+
+    def due(self, now_s: float) -> list[tuple[int, int]]:
+        """Ranges to request now (merged when close, clipped to what the on-board log still holds)."""
+        merged: list[tuple[int, int]] = []
+        for start, end in self.missing():
+            start = max(start, self.log_first)
+            if end <= start:
+                continue
+            if merged and start - merged[-1][1] < self._merge_below:
+                merged[-1] = (merged[-1][0], end)
+            else:
+                merged.append((start, end))
+        due = []
+        for rng in merged:
+            attempts, when = self._requested.get(rng, (0, -1e9))
+            if attempts < self._attempts and now_s - when >= self._retry_after_s:
+                self._requested[rng] = (attempts + 1, now_s)
+                due.append(rng)
+        return due

@@ -1,0 +1,226 @@
+"""MCAP files: a crash-safe writer and a reader that tolerates truncation. The only module importing `mcap`."""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from types import TracebackType
+from typing import IO, Any, Self
+
+from mcap.exceptions import McapError
+from mcap.records import Attachment, Channel, Message, Metadata, Schema
+from mcap.stream_reader import StreamReader
+from mcap.writer import CompressionType, Writer
+
+from groundstation.errors import RecordingError
+
+PROFILE = "diving-agent"
+JSON = "json"
+JSONSCHEMA = "jsonschema"
+RAW_ENCODING = "diving-agent-frame-v1"
+
+
+def mcap_library_version() -> str:
+    from importlib.metadata import version
+
+    return version("mcap")
+
+
+class McapFileWriter:
+    """One MCAP file. Chunks are closed and the file flushed and fsynced every `flush_period_s`,
+    so a killed process loses at most that much and leaves a file `RecordingReader` reads.
+
+    The mcap Writer has no context manager: this one has, and close() always runs finish().
+    """
+
+    def __init__(self, path: Path, flush_period_s: float = 1.0) -> None:
+        self.path = path
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            self._file: IO[bytes] = open(path, "wb")  # noqa: SIM115 closed in close()
+        except OSError as e:
+            raise RecordingError(f"cannot write {path}: {e.strerror or e}") from e
+        self._writer = Writer(self._file, chunk_size=256 * 1024, compression=CompressionType.ZSTD)
+        self._writer.start(profile=PROFILE, library=f"dive (mcap {mcap_library_version()})")
+        self._schemas: dict[str, int] = {}
+        self._channels: dict[str, int] = {}
+        self._flush_period_s = flush_period_s
+        self._last_flush_s = time.monotonic()
+        self._closed = False
+        self.bytes_written = 0
+        self.messages = 0
+
+    def channel(self, topic: str, encoding: str = JSON, schema_name: str = "",
+                schema: dict[str, Any] | None = None) -> int:
+        channel_id = self._channels.get(topic)
+        if channel_id is None:
+            schema_id = 0
+            if schema is not None:
+                schema_id = self._schemas.get(schema_name, 0)
+                if not schema_id:
+                    schema_id = self._writer.register_schema(schema_name, JSONSCHEMA, json.dumps(schema).encode())
+                    self._schemas[schema_name] = schema_id
+            channel_id = self._writer.register_channel(topic, encoding, schema_id)
+            self._channels[topic] = channel_id
+        return channel_id
+
+    def has_channel(self, topic: str) -> bool:
+        return topic in self._channels
+
+    def write(self, channel_id: int, data: bytes, log_time_ns: int, publish_time_ns: int | None = None) -> None:
+        self._writer.add_message(channel_id, log_time=log_time_ns, data=data,
+                                 publish_time=log_time_ns if publish_time_ns is None else publish_time_ns)
+        self.bytes_written += len(data) + 40
+        self.messages += 1
+        self.maybe_flush()
+
+    def metadata(self, name: str, values: dict[str, Any]) -> None:
+        self._writer.add_metadata(name, {k: v if isinstance(v, str) else json.dumps(v) for k, v in values.items()})
+
+    def attachment(self, name: str, data: bytes, media_type: str = "application/json") -> None:
+        now = time.time_ns()
+        self._writer.add_attachment(now, now, name, media_type, data)
+
+    def maybe_flush(self) -> None:
+        if time.monotonic() - self._last_flush_s >= self._flush_period_s:
+            self.flush()
+
+    def flush(self) -> None:
+        self._last_flush_s = time.monotonic()
+        self._writer.flush()  # closes the chunk in progress
+        try:
+            os.fsync(self._file.fileno())
+        except OSError:
+            pass
+
+    def close(self) -> None:
+        if self._closed:
+            return
+        self._closed = True
+        try:
+            self._writer.finish()
+        finally:
+            self._file.close()
+
+    def __enter__(self) -> Self:
+        return self
+
+    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
+                 tb: TracebackType | None) -> None:
+        self.close()
+
+
+@dataclass(frozen=True, slots=True)
+class RecordedMessage:
+    topic: str
+    log_time_ns: int
+    publish_time_ns: int
+    data: bytes
+    encoding: str
+    schema_name: str
+
+    def json(self) -> Any:
+        return json.loads(self.data)
+
+
+@dataclass
+class RecordingContents:
+    """Everything a tolerant read found; `truncated` says the file ended early (crash, copy cut short)."""
+
+    messages: list[RecordedMessage] = field(default_factory=list)
+    metadata: dict[str, list[dict[str, str]]] = field(default_factory=dict)
+    schemas: dict[str, dict[str, Any]] = field(default_factory=dict)  # topic -> JSON schema
+    attachments: list[tuple[str, bytes]] = field(default_factory=list)
+    truncated: bool = False
+
+
+def _records(path: Path) -> Iterator[Any]:
+    """Every record in file order; stops quietly at a truncated or corrupt tail (raises _Truncated after)."""
+    try:
+        stream = open(path, "rb")  # noqa: SIM115
+    except FileNotFoundError as e:
+        raise RecordingError(f"no such recording: {path}") from e
+    except OSError as e:
+        raise RecordingError(f"cannot read {path}: {e.strerror or e}") from e
+    with stream:
+        try:
+            yield from StreamReader(stream, skip_magic=False, validate_crcs=True).records
+        except (McapError, EOFError, ValueError, KeyError, IndexError, OSError) as e:
+            if isinstance(e, OSError):
+                raise RecordingError(f"cannot read {path}: {e}") from e
+            raise _Truncated(str(e)) from e
+        except Exception as e:  # noqa: BLE001 a damaged tail can break the parser in many ways
+            raise _Truncated(str(e)) from e
+
+
+class _Truncated(Exception):
+    pass
+
+
+def iter_messages(path: Path, topics: set[str] | None = None,
+                  info: RecordingContents | None = None) -> Iterator[RecordedMessage]:
+    """Messages in file order (optionally only some topics). Fills `info` with metadata and schemas."""
+    info = info if info is not None else RecordingContents()
+    schemas: dict[int, Schema] = {}
+    channels: dict[int, Channel] = {}
+    seen = 0
+    try:
+        for record in _records(path):
+            seen += 1
+            if isinstance(record, Schema):
+                schemas[record.id] = record
+            elif isinstance(record, Channel):
+                channels[record.id] = record
+                schema = schemas.get(record.schema_id)
+                if schema is not None and schema.encoding == JSONSCHEMA:
+                    info.schemas[record.topic] = json.loads(schema.data)
+            elif isinstance(record, Message):
+                channel = channels.get(record.channel_id)
+                if channel is None or (topics is not None and channel.topic not in topics):
+                    continue
+                schema = schemas.get(channel.schema_id)
+                yield RecordedMessage(channel.topic, record.log_time, record.publish_time, bytes(record.data),
+                                      channel.message_encoding, schema.name if schema else "")
+            elif isinstance(record, Metadata):
+                info.metadata.setdefault(record.name, []).append(dict(record.metadata))
+            elif isinstance(record, Attachment):
+                info.attachments.append((record.name, bytes(record.data)))
+    except _Truncated:
+        info.truncated = True
+        if seen == 0:
+            raise RecordingError(f"{path} is not an MCAP recording") from None
+
+
+def read_recording(path: Path, topics: set[str] | None = None) -> RecordingContents:
+    info = RecordingContents()
+    info.messages = list(iter_messages(path, topics, info))
+    return info
+
+
+def is_complete(path: Path) -> bool:
+    """True if the file ends with a footer (it was finished, not cut short)."""
+    info = RecordingContents()
+    for _ in iter_messages(path, set(), info):
+        pass
+    return not info.truncated
+
+
+def recover(source: Path, target: Path) -> tuple[int, bool]:
+    """Rewrite a (possibly truncated) recording into a finished, indexed one; (messages copied, was truncated)."""
+    info = RecordingContents()
+    count = 0
+    with McapFileWriter(target, flush_period_s=3600) as out:
+        for msg in iter_messages(source, None, info):
+            channel_id = out.channel(msg.topic, msg.encoding, msg.schema_name, info.schemas.get(msg.topic))
+            out.write(channel_id, msg.data, msg.log_time_ns, msg.publish_time_ns)
+            count += 1
+        for name, entries in info.metadata.items():
+            for entry in entries:
+                out.metadata(name, entry)
+        for name, data in info.attachments:
+            out.attachment(name, data)
+    return count, info.truncated

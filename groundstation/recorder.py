@@ -1,0 +1,211 @@
+"""The MCAP recorder: a session listener writing every frame, command, event, dump and marker (TEAM.md format)."""
+
+from __future__ import annotations
+
+import json
+import math
+import platform
+import socket
+import sys
+import threading
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from groundstation.dumps import DumpAssembler
+from groundstation.events import EventKind, LinkEvent, Received, Sent
+from groundstation.mcap_io import RAW_ENCODING, McapFileWriter, mcap_library_version
+from groundstation.session import tool_version
+from protocol import Message, messages
+from protocol.cobs import cobs_decode
+from protocol.jsonschema import message_json_schema
+
+ENVELOPE = {
+    "_seq": {"type": "integer", "description": "frame sequence number", "minimum": 0, "maximum": 65535},
+    "_flags": {"type": "integer", "description": "frame flags (FrameFlag)", "minimum": 0, "maximum": 255},
+    "_backfilled": {"type": "boolean", "description": "re-sent from the agent's on-board log after an outage"},
+}
+_OBJECT = {"$schema": "https://json-schema.org/draft/2020-12/schema", "type": "object"}
+LINK_SCHEMA = {**_OBJECT, "title": "link statistics (1 Hz)", "properties": {
+    "link": {"type": "object", "description": "frames, bytes, loss, rejects by cause; rtt_*_ms in ms"},
+    "clock": {"type": "object", "description": "clock model: offset_us [us], drift_ppm [ppm]"}}}
+EVENT_SCHEMA = {**_OBJECT, "title": "link event", "required": ["kind", "detail"], "properties": {
+    "kind": {"type": "string"}, "detail": {"type": "string"}, "data": {"type": "object"}}}
+MARKER_SCHEMA = {**_OBJECT, "title": "user marker", "required": ["text"], "properties": {"text": {"type": "string"}}}
+DUMP_SCHEMA = {**_OBJECT, "title": "reassembled dump", "required": ["dump_id", "episode", "kind", "values"],
+               "properties": {"dump_id": {"type": "integer"}, "episode": {"type": "integer"},
+                              "kind": {"type": "string"},
+                              "values": {"type": "array", "description": "state-major array (SPEC.md section 10)"}}}
+
+
+def message_schema(message_type: type[Message]) -> dict[str, Any]:
+    """The channel schema: the message's JSON Schema (units included) plus the frame envelope."""
+    schema = message_json_schema(message_type.DEFINITION)
+    schema["properties"] = {**schema["properties"], **ENVELOPE}
+    return schema
+
+
+def _clean(value: Any) -> Any:
+    """JSON has no NaN or infinity: they become null."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
+def message_json(message: Message, seq: int, flags: int, backfilled: bool) -> bytes:
+    body = {k: _clean(v) for k, v in message.to_dict().items()}
+    body.update(_seq=seq, _flags=flags, _backfilled=backfilled)
+    return json.dumps(body, separators=(",", ":")).encode()
+
+
+@dataclass(frozen=True, slots=True)
+class RecorderConfig:
+    directory: Path = Path("recordings")
+    path: Path | None = None  # an exact file name instead of one made from time and agent id
+    split_bytes: int = 0  # 0 = never split
+    split_s: float = 0.0
+    flush_period_s: float = 1.0
+
+
+class Recorder:
+    """Opens its file at the agent's first HELLO (the name holds the agent id); thread-safe."""
+
+    def __init__(self, config: RecorderConfig | None = None, session_info: dict[str, Any] | None = None) -> None:
+        self.config = config or RecorderConfig()
+        self.session_info = session_info or {}
+        self.paths: list[Path] = []
+        self._writer: McapFileWriter | None = None
+        self._opened_s = 0.0
+        self._lock = threading.Lock()
+        self._early: list[tuple[str, Any]] = []
+        self._agent_id = 0
+        self._stamp = time.strftime("%Y%m%d-%H%M%S")
+        self._hello: dict[str, Any] = {}
+        self._parameters: dict[str, Any] = {}
+        self._dumps = DumpAssembler()
+
+    @property
+    def path(self) -> Path | None:
+        return self.paths[-1] if self.paths else None
+
+    # ------------------------------------------------------------------ listener
+    def on_received(self, received: Received) -> None:
+        with self._lock:
+            msg = received.message
+            if self._writer is None and isinstance(msg, messages.Hello):
+                self._hello = msg.to_dict()
+                self._agent_id = msg.node_id
+                self._open()
+            if self._writer is None:
+                self._early.append(("rx", received))
+                return
+            self._rotate_if_due()
+            self._write_received(received)
+
+    def on_sent(self, sent: Sent) -> None:
+        with self._lock:
+            if self._writer is None:
+                self._early.append(("tx", sent))
+                return
+            self._write_sent(sent)
+
+    def on_event(self, event: LinkEvent) -> None:
+        with self._lock:
+            if self._writer is None:
+                self._early.append(("event", event))
+                return
+            self._write_event(event)
+
+    def set_parameters(self, values: dict[str, Any]) -> None:
+        with self._lock:
+            self._parameters = dict(values)
+            if self._writer is not None:
+                self._writer.metadata("parameters", self._parameters)
+
+    def close(self) -> None:
+        with self._lock:
+            if self._writer is not None:
+                self._writer.close()
+                self._writer = None
+
+    # ------------------------------------------------------------------ internals
+    def _file_name(self) -> Path:
+        if self.config.path is not None and not self.paths:
+            return self.config.path
+        base = self.config.path.with_suffix("") if self.config.path else \
+            self.config.directory / f"{self._stamp}-agent{self._agent_id:08x}"
+        return base.parent / (f"{base.name}-part{len(self.paths) + 1}.mcap" if self.paths else f"{base.name}.mcap")
+
+    def _open(self) -> None:
+        path = self._file_name()
+        self._writer = McapFileWriter(path, self.config.flush_period_s)
+        self.paths.append(path)
+        self._opened_s = time.monotonic()
+        w = self._writer
+        w.metadata("agent_hello", self._hello)
+        w.metadata("host", {"hostname": socket.gethostname(), "platform": platform.platform(),
+                            "python": sys.version.split()[0], "dive": tool_version(),
+                            "mcap": mcap_library_version()})
+        w.metadata("session", {**self.session_info, "part": str(len(self.paths)),
+                               "started_ns": str(time.time_ns())})
+        if self._parameters:
+            w.metadata("parameters", self._parameters)
+        early, self._early = self._early, []
+        for kind, item in early:
+            if kind == "rx":
+                self._write_received(item)
+            elif kind == "tx":
+                self._write_sent(item)
+            else:
+                self._write_event(item)
+
+    def _rotate_if_due(self) -> None:
+        w = self._writer
+        assert w is not None
+        too_big = self.config.split_bytes and w.bytes_written >= self.config.split_bytes
+        too_old = self.config.split_s and time.monotonic() - self._opened_s >= self.config.split_s
+        if too_big or too_old:
+            w.close()
+            self._open()
+
+    def _write_received(self, received: Received) -> None:
+        w = self._writer
+        assert w is not None
+        frame, msg = received.frame, received.message
+        name = msg.DEFINITION.name
+        topic = f"/agent/{name}"
+        channel = w.channel(topic, "json", f"diving_agent.{name}", message_schema(type(msg)))
+        data = message_json(msg, frame.seq, frame.flags, received.backfilled)
+        w.write(channel, data, received.host_time_ns, received.agent_time_ns)
+        w.write(w.channel("/raw/rx", RAW_ENCODING), frame.inner, received.host_time_ns, received.agent_time_ns)
+        if isinstance(msg, messages.DumpChunk):
+            dump = self._dumps.feed(msg)
+            if dump is not None:
+                topic = f"/dump/{dump.kind.name}"
+                body = json.dumps(dump.as_dict(), separators=(",", ":")).encode()
+                w.write(w.channel(topic, "json", "diving_agent.dump", DUMP_SCHEMA), body, received.host_time_ns)
+
+    def _write_sent(self, sent: Sent) -> None:
+        w = self._writer
+        assert w is not None
+        name = sent.message.DEFINITION.name
+        inner = cobs_decode(sent.wire[:-1])
+        channel = w.channel(f"/ground/{name}", "json", f"diving_agent.{name}", message_schema(type(sent.message)))
+        w.write(channel, message_json(sent.message, sent.seq, inner[1], False), sent.host_time_ns)
+        w.write(w.channel("/raw/tx", RAW_ENCODING), inner, sent.host_time_ns)
+
+    def _write_event(self, event: LinkEvent) -> None:
+        w = self._writer
+        assert w is not None
+        if event.kind == EventKind.STATS:
+            channel = w.channel("/link", "json", "diving_agent.link", LINK_SCHEMA)
+            body: dict[str, Any] = event.data
+        elif event.kind == EventKind.MARKER:
+            channel = w.channel("/marker", "json", "diving_agent.marker", MARKER_SCHEMA)
+            body = {"text": event.detail}
+        else:
+            channel = w.channel("/event", "json", "diving_agent.event", EVENT_SCHEMA)
+            body = {"kind": str(event.kind), "detail": event.detail, "data": event.data}
+        w.write(channel, json.dumps(body, default=str, separators=(",", ":")).encode(), event.host_time_ns)
+

@@ -1,0 +1,202 @@
+"""The main job behind `dive run`: connect, set parameters, start learning, record, stop after N episodes."""
+
+from __future__ import annotations
+
+import json
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+from urllib.parse import parse_qsl, urlsplit
+
+from groundstation.errors import CommandError, GroundStationError, LinkError, ParameterError
+from groundstation.events import EventKind, LinkEvent, Received, Sent
+from groundstation.links import make_link
+from groundstation.params import cache_dir
+from groundstation.recorder import Recorder, RecorderConfig
+from groundstation.session import Session, SessionConfig
+from protocol import EndReason
+from protocol import messages as m
+
+
+def marker_file() -> Path:
+    """Where `dive mark` appends and a running `dive run` looks (one JSON line per marker)."""
+    return cache_dir() / "markers.jsonl"
+
+
+def add_marker(text: str) -> Path:
+    path = marker_file()
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with path.open("a") as f:
+            f.write(json.dumps({"text": text, "host_time_ns": time.time_ns()}) + "\n")
+    except OSError as e:
+        raise GroundStationError(f"cannot write the marker file {path}: {e.strerror or e}") from e
+    return path
+
+
+class MarkerWatcher:
+    """Reads markers appended to the marker file since this run started."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+        self._offset = path.stat().st_size if path.exists() else 0
+
+    def poll(self) -> list[str]:
+        try:
+            with self.path.open() as f:
+                f.seek(self._offset)
+                lines = f.readlines()
+                self._offset = f.tell()
+        except OSError:
+            return []
+        texts = []
+        for line in lines:
+            try:
+                texts.append(str(json.loads(line)["text"]))
+            except (ValueError, KeyError, TypeError):
+                continue
+        return texts
+
+
+def load_params_file(path: Path) -> dict[str, str]:
+    """Parameters from a JSON object or `name = value` lines (# comments allowed)."""
+    try:
+        text = path.read_text()
+    except OSError as e:
+        raise ParameterError(f"cannot read parameter file {path}: {e.strerror or e}") from e
+    if text.lstrip().startswith("{"):
+        try:
+            return {str(k): str(v).lower() if isinstance(v, bool) else str(v) for k, v in json.loads(text).items()}
+        except ValueError as e:
+            raise ParameterError(f"{path}: not valid JSON ({e})") from e
+    values = {}
+    for number, line in enumerate(text.splitlines(), 1):
+        line = line.split("#", 1)[0].strip()
+        if not line:
+            continue
+        if "=" not in line:
+            raise ParameterError(f"{path}:{number}: expected `name = value`")
+        name, value = (part.strip() for part in line.split("=", 1))
+        values[name] = value
+    return values
+
+
+@dataclass(frozen=True, slots=True)
+class RunConfig:
+    url: str | None = None
+    episodes: int = 0  # 0 = until stopped
+    params: dict[str, str] = field(default_factory=dict)
+    recorder: RecorderConfig = field(default_factory=RecorderConfig)
+    session: SessionConfig = field(default_factory=SessionConfig)
+    backfill_wait_s: float = 10.0
+
+
+@dataclass
+class RunStatus:
+    """What the progress display shows; updated from the session's reader thread."""
+
+    episodes: int = 0
+    successes: int = 0
+    failures: int = 0
+    last_duration_s: float | None = None
+    last_reason: str = ""
+    samples: int = 0
+    link_up: bool = False
+    link: dict[str, Any] = field(default_factory=dict)
+    messages: list[str] = field(default_factory=list)
+
+
+class _Progress:
+    """A session listener that counts episodes and keeps the latest link statistics."""
+
+    def __init__(self, status: RunStatus) -> None:
+        self.status = status
+        self.changed = threading.Event()
+        self._episodes: set[int] = set()
+
+    def on_received(self, received: Received) -> None:
+        msg = received.message
+        if isinstance(msg, m.Sample):
+            self.status.samples += 1
+        elif isinstance(msg, m.EpisodeEnd) and msg.episode not in self._episodes:
+            self._episodes.add(msg.episode)
+            s = self.status
+            s.episodes += 1
+            s.successes += msg.reason == EndReason.SUCCESS
+            s.failures += msg.reason == EndReason.FAILURE
+            s.last_duration_s = msg.duration_s
+            s.last_reason = EndReason(msg.reason).name.lower() if msg.reason in (1, 2, 3) else str(msg.reason)
+            self.changed.set()
+
+    def on_sent(self, sent: Sent) -> None:
+        pass
+
+    def on_event(self, event: LinkEvent) -> None:
+        if event.kind == EventKind.STATS:
+            self.status.link = event.data.get("link", {})
+        elif event.kind in (EventKind.LINK_LOST, EventKind.LINK_RESTORED, EventKind.RESYNCED, EventKind.ERROR):
+            self.status.messages.append(f"{event.kind}: {event.detail}")
+        self.status.link_up = event.kind != EventKind.LINK_LOST if event.kind != EventKind.STATS else \
+            self.status.link_up
+        self.changed.set()
+
+
+@dataclass(frozen=True, slots=True)
+class RunResult:
+    paths: list[Path]
+    status: RunStatus
+    interrupted: bool
+    still_missing: int
+
+
+def session_info(url: str) -> dict[str, str]:
+    info = {"url": url, "started": time.strftime("%Y-%m-%dT%H:%M:%S%z")}
+    if url.startswith("sim://"):
+        info.update({f"sim_{k}": v for k, v in parse_qsl(urlsplit(url).query)})
+    return info
+
+
+def run(config: RunConfig, on_progress: Callable[[RunStatus], None] | None = None,
+        stop: threading.Event | None = None) -> RunResult:
+    """Run the main job; Ctrl-C (KeyboardInterrupt) or `stop` ends it early with a complete recording."""
+    stop = stop or threading.Event()
+    link = make_link(config.url)
+    status = RunStatus()
+    progress = _Progress(status)
+    recorder = Recorder(config.recorder, session_info(link.url))
+    session = Session(link, config.session, [recorder, progress])
+    markers = MarkerWatcher(marker_file())
+    interrupted = False
+    missing = 0
+    try:
+        session.connect()
+        status.link_up = True
+        for name, value in config.params.items():
+            session.set_param(name, value)
+        recorder.set_parameters(session.params.values())
+        session.command(m.StartLearning(max_episodes=config.episodes))
+        try:
+            while not stop.is_set() and not (config.episodes and status.episodes >= config.episodes):
+                progress.changed.wait(0.2)
+                progress.changed.clear()
+                for text in markers.poll():
+                    session.mark(text)
+                if on_progress is not None:
+                    on_progress(status)
+        except KeyboardInterrupt:
+            interrupted = True
+        if interrupted or stop.is_set():
+            try:
+                session.command(m.Stop())
+            except (CommandError, LinkError):
+                pass  # the recording is what matters now; the agent surfaces on link loss anyway
+        missing = session.request_backfill(config.backfill_wait_s)
+    finally:
+        session.close()
+        recorder.close()
+    if on_progress is not None:
+        on_progress(status)
+    return RunResult(list(recorder.paths), status, interrupted, missing)

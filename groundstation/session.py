@@ -1,0 +1,535 @@
+"""A session with one agent: HELLO, heartbeats, TIMESYNC, commands with ACK and retry, params, dumps, backfill.
+
+One reader thread owns the link's receive side and every timer; it never dies: transport errors become
+LinkEvents (link lost / restored / resynced) and it reconnects with backoff; a listener's exception is
+caught and reported as an ERROR event. Commands may be sent from any thread except listeners' callbacks
+(their ACK arrives on the reader thread); send(..., wait=False) is the form for those.
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+import time
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field
+from importlib.metadata import PackageNotFoundError, version
+
+from groundstation.clock import ClockModel
+from groundstation.dumps import Dump, DumpAssembler
+from groundstation.errors import (
+    CommandError,
+    CommandTimeout,
+    IncompatibleAgentError,
+    LinkError,
+    LinkTimeout,
+    ParameterError,
+)
+from groundstation.events import EventKind, LinkEvent, Received, Sent, SessionListener
+from groundstation.gaps import BackfillPlanner
+from groundstation.links import Link
+from groundstation.params import Parameter, ParamTable, load_cached, parse_value, save_cached
+from groundstation.stats import LinkStats
+from protocol import (
+    PROTOCOL_VERSION,
+    AckResult,
+    DumpKind,
+    Frame,
+    FrameEncoder,
+    FrameFlag,
+    Message,
+    NodeKind,
+    StreamDecoder,
+    definitions_hash,
+)
+from protocol import messages as m
+
+
+def tool_version() -> str:
+    try:
+        return version("diving-agent")
+    except PackageNotFoundError:
+        return "0.0.0"
+
+
+@dataclass(frozen=True, slots=True)
+class SessionConfig:
+    hello_timeout_s: float = 5.0
+    period_s: float = 1.0  # heartbeat, TIMESYNC and statistics period
+    link_timeout_s: float = 3.0  # no frame for this long: the link is lost
+    ack_timeout_s: float = 0.5  # first wait for an ACK (3 x measured RTT when that is longer)
+    retries: int = 3
+    reconnect: bool = True
+    backoff_s: tuple[float, float] = (0.2, 5.0)  # first and longest wait between reconnect attempts
+    backfill: bool = True
+    fetch_params: bool = True
+    node_id: int = field(default_factory=lambda: int.from_bytes(os.urandom(4), "little"))
+
+
+@dataclass
+class _Pending:
+    message: Message
+    seq: int
+    wire: bytes
+    first_sent_s: float
+    deadline_s: float
+    attempts: int = 1
+    ack: m.Ack | None = None
+    done: threading.Event = field(default_factory=threading.Event)
+
+
+_SEQUENCED = (m.EpisodeStart, m.EpisodeEnd)
+
+
+class Session:
+    def __init__(self, link: Link, config: SessionConfig | None = None,
+                 listeners: Iterable[SessionListener] = ()) -> None:
+        self.link = link
+        self.config = config or SessionConfig()
+        self.listeners: list[SessionListener] = list(listeners)
+        self.encoder = FrameEncoder()
+        self.decoder = StreamDecoder()
+        self.stats = LinkStats()
+        self.clock = ClockModel()
+        self.params = ParamTable()
+        self.backfill = BackfillPlanner()
+        self.dumps = DumpAssembler()
+        self.agent_hello: m.Hello | None = None
+        self.last_heartbeat: m.Heartbeat | None = None
+        self.link_up = False
+        self._boot_id = int.from_bytes(os.urandom(4), "little")
+        self._start_s = time.monotonic()
+        self._cond = threading.Condition()
+        self._send_lock = threading.Lock()
+        self._pending: dict[int, _Pending] = {}
+        self._episodes_seen: set[tuple[int, int, int]] = set()
+        self._completed_dumps: dict[int, Dump] = {}
+        self._dump_seen: dict[int, tuple[int, float]] = {}  # dump_id -> (kind, first chunk time)
+        self._dump_rerequests: dict[int, int] = {}
+        self._log_ranges = 0
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._last_rx_s = 0.0
+        self._next_tick_s = 0.0
+        self._next_backfill_s = 0.0
+        self._restoring = False
+        self._hello_problem: str | None = None
+        self._expected_params = 0
+        self._param_updates = 0
+
+    # ------------------------------------------------------------------ life cycle
+    def connect(self) -> m.Hello:
+        """Open the link, exchange HELLO (version and hash checked), fetch the parameter table."""
+        self.link.open()
+        self._last_rx_s = time.monotonic()
+        self._thread = threading.Thread(target=self._run, name="dive-session-reader", daemon=True)
+        self._thread.start()
+        try:
+            self._send_hello()
+            with self._cond:
+                ok = self._cond.wait_for(lambda: self.agent_hello is not None or self._hello_problem is not None,
+                                         self.config.hello_timeout_s)
+            if self._hello_problem is not None:
+                raise IncompatibleAgentError(self._hello_problem)
+            if not ok or self.agent_hello is None:
+                raise LinkTimeout(f"{self.link.url}: no HELLO from the agent within {self.config.hello_timeout_s:g} s")
+            self.link_up = True
+            self._emit(LinkEvent(EventKind.CONNECTED, time.time_ns(), self.link.url, self._hello_data()))
+            if self.config.fetch_params:
+                self.refresh_params()
+        except BaseException:
+            self.close()
+            raise
+        return self.agent_hello
+
+    def close(self) -> None:
+        self._stop.set()
+        if self._thread is not None and self._thread is not threading.current_thread():
+            self._thread.join(5.0)
+        self.link.close()
+        self.link_up = False
+        with self._cond:
+            for pending in self._pending.values():
+                pending.done.set()
+            self._pending.clear()
+            self._cond.notify_all()
+
+    def __enter__(self) -> Session:
+        self.connect()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def add_listener(self, listener: SessionListener) -> None:
+        self.listeners.append(listener)
+
+    def mark(self, text: str) -> None:
+        """A user marker: goes to every listener (the recorder writes it to /marker)."""
+        self._emit(LinkEvent(EventKind.MARKER, time.time_ns(), text, {"text": text}))
+
+    # ------------------------------------------------------------------ commands
+    def send(self, message: Message, *, wait: bool = True, timeout_s: float | None = None) -> m.Ack | None:
+        """Send a message; a command is retried with the same bytes and seq until ACKed.
+
+        With wait, returns the ACK and raises CommandError on a NACK, CommandTimeout without an ACK.
+        """
+        now = time.monotonic()
+        with self._send_lock:
+            encoded = self.encoder.encode(message)
+            pending = None
+            if message.DEFINITION.needs_ack:
+                pending = _Pending(message, encoded.seq, encoded.wire, now, now + self._ack_timeout_s())
+                with self._cond:
+                    self._pending[encoded.seq] = pending
+            self._write(message, encoded.seq, encoded.wire)
+        if pending is None or not wait:
+            return None
+        limit = timeout_s if timeout_s is not None else self._ack_timeout_s() * (self.config.retries + 1) + 1.0
+        pending.done.wait(limit)
+        with self._cond:
+            self._pending.pop(pending.seq, None)
+        name = message.DEFINITION.name
+        if pending.ack is None:
+            if not self.link_up and self._stop.is_set():
+                raise LinkError(f"{name}: the session is closed")
+            self.stats.command_timeouts += 1
+            raise CommandTimeout(f"{name}: no ACK from the agent after {pending.attempts} tries")
+        if pending.ack.result != AckResult.ACCEPTED:
+            try:
+                why = AckResult(pending.ack.result).name
+            except ValueError:
+                why = f"result {pending.ack.result}"
+            reason = f" ({pending.ack.reason})" if pending.ack.reason else ""
+            raise CommandError(f"{name} refused by the agent: {why}{reason}")
+        return pending.ack
+
+    def command(self, message: Message, timeout_s: float | None = None) -> m.Ack:
+        ack = self.send(message, wait=True, timeout_s=timeout_s)
+        assert ack is not None
+        return ack
+
+    def refresh_params(self, timeout_s: float = 3.0) -> ParamTable:
+        """PARAM_LIST, wait for the whole table; fall back to the disk cache if the agent stays silent."""
+        assert self.agent_hello is not None
+        key = (self.agent_hello.definitions_hash, self.agent_hello.node_id)
+        try:
+            self.command(m.ParamListRequest())
+            with self._cond:
+                self._cond.wait_for(lambda: self._expected_params and len(self.params) >= self._expected_params,
+                                    timeout_s)
+        except CommandError:
+            cached = load_cached(*key)
+            if cached is None:
+                raise
+            self.params = cached
+            return cached
+        save_cached(self.params, *key)
+        return self.params
+
+    def get_param(self, name: str, timeout_s: float = 2.0) -> Parameter:
+        before = self._param_updates
+        self.command(m.ParamGet(index=-1, name=name))
+        with self._cond:
+            self._cond.wait_for(lambda: self._param_updates > before and name in self.params, timeout_s)
+        return self.params.get(name)
+
+    def set_param(self, name: str, value: float | str, timeout_s: float = 2.0) -> Parameter:
+        """Set a parameter by name (checked against the table first); returns the value the agent applied."""
+        param = self.params.get(name) if len(self.params) else None
+        number = parse_value(param, str(value)) if param else float(value)
+        before = self._param_updates
+        try:
+            self.command(m.ParamSet(index=-1, value=number, name=name))
+        except CommandError as e:
+            if "BAD_VALUE" in str(e):
+                raise ParameterError(f"{name} = {value}: {e}") from e
+            raise
+        with self._cond:
+            self._cond.wait_for(lambda: self._param_updates > before, timeout_s)
+        return self.params.get(name)
+
+    def dump(self, kind: DumpKind, timeout_s: float = 5.0) -> Dump:
+        """Take a snapshot and reassemble it, re-requesting missing chunks (SPEC.md section 10)."""
+        asked = time.monotonic()
+        self.command(m.DumpRequest(kind=int(kind), dump_id=0, offset=0, length=0))
+        deadline = asked + timeout_s
+
+        def mine() -> int | None:
+            ids = [i for i, (k, t) in self._dump_seen.items() if k == kind and t >= asked]
+            return max(ids) if ids else None
+
+        with self._cond:
+            while time.monotonic() < deadline:
+                dump_id = mine()
+                if dump_id is not None and dump_id in self._completed_dumps:
+                    return self._completed_dumps[dump_id]
+                self._cond.wait(0.05)
+        raise CommandTimeout(f"CMD_DUMP {kind.name}: snapshot incomplete after {timeout_s:g} s")
+
+    def request_backfill(self, timeout_s: float = 5.0) -> int:
+        """Ask for every missing sample now and wait until none is missing; returns how many still are."""
+        self._next_backfill_s = 0.0
+        deadline = time.monotonic() + timeout_s
+        with self._cond:
+            self._cond.wait_for(lambda: not self.backfill.missing() or not self.link_up, timeout_s)
+            while self.backfill.missing() and time.monotonic() < deadline:
+                self._cond.wait(0.1)
+        return sum(b - a for a, b in self.backfill.missing())
+
+    # ------------------------------------------------------------------ the reader thread
+    def _run(self) -> None:
+        backoff = self.config.backoff_s[0]
+        while not self._stop.is_set():
+            try:
+                if not self.link.is_open:
+                    if not self.config.reconnect:
+                        self._stop.wait(0.2)
+                        continue
+                    self._stop.wait(backoff)
+                    if self._stop.is_set():
+                        break
+                    try:
+                        self._reconnect()
+                        backoff = self.config.backoff_s[0]
+                    except LinkError:
+                        backoff = min(backoff * 2, self.config.backoff_s[1])
+                    continue
+                data = self.link.recv(0.05)
+                now_ns = time.time_ns()
+                if data:
+                    self._last_rx_s = time.monotonic()
+                    for frame in self.decoder.feed(data):
+                        self._handle(frame, now_ns)
+                self._tick(time.monotonic())
+            except LinkError as e:
+                self._lost(str(e))
+            except Exception as e:  # the reader must survive anything; the user sees it as an event
+                self._emit(LinkEvent(EventKind.ERROR, time.time_ns(), f"{type(e).__name__}: {e}"))
+                self._stop.wait(0.05)
+
+    def _lost(self, reason: str) -> None:
+        was_up = self.link_up
+        self.link_up = False
+        self.link.drop()
+        if was_up:
+            self._emit(LinkEvent(EventKind.LINK_LOST, time.time_ns(), reason))
+        with self._cond:
+            self._cond.notify_all()
+
+    def _reconnect(self) -> None:
+        if self._stop.is_set():
+            return
+        self.link.reconnect()
+        self.decoder = StreamDecoder(stats=self.decoder.stats)
+        self._last_rx_s = time.monotonic()
+        self._restoring = True
+        self.stats.reconnects += 1
+        self._send_hello()
+
+    def _tick(self, now_s: float) -> None:
+        if self.agent_hello is not None and now_s - self._last_rx_s > self.config.link_timeout_s:
+            raise LinkError(f"no frame from the agent for {self.config.link_timeout_s:g} s")
+        if now_s >= self._next_tick_s and self.link_up:
+            self._next_tick_s = now_s + self.config.period_s
+            uptime_ms = int((now_s - self._start_s) * 1000) & 0xFFFFFFFF
+            rx = self.decoder.stats
+            self.send(m.Heartbeat(uptime_ms=uptime_ms, mode=0, battery_mv=0, rx_frames=rx.frames & 0xFFFFFFFF,
+                                  rx_rejects=rx.rejects & 0xFFFFFFFF, rx_lost=rx.lost & 0xFFFFFFFF,
+                                  log_first_sample=0, log_next_sample=0, episode=0, signing_rejects=0))
+            self.send(m.Timesync(origin_us=time.time_ns() // 1000, receive_us=0, transmit_us=0))
+            data = {"link": self.stats.snapshot(rx), "clock": self.clock.as_dict()}
+            self._emit(LinkEvent(EventKind.STATS, time.time_ns(), "", data))
+        self._retransmit(now_s)
+        if self.config.backfill and self.link_up and now_s >= self._next_backfill_s:
+            self._next_backfill_s = now_s + 0.5
+            for start, end in self.backfill.due(now_s):
+                self.send(m.LogRequest(first_sample=start, end_sample=end), wait=False)
+            self._rerequest_dump_chunks(now_s)
+
+    def _retransmit(self, now_s: float) -> None:
+        with self._cond:
+            late = [p for p in self._pending.values() if p.ack is None and now_s >= p.deadline_s]
+        for pending in late:
+            if pending.attempts > self.config.retries:
+                with self._cond:
+                    self._pending.pop(pending.seq, None)
+                pending.done.set()
+                continue
+            pending.attempts += 1
+            pending.deadline_s = now_s + self._ack_timeout_s()
+            with self._send_lock:  # the same bytes, the same seq: the agent ACKs again without re-executing
+                self._write(pending.message, pending.seq, pending.wire, retry=True)
+
+    def _rerequest_dump_chunks(self, now_s: float) -> None:
+        for dump_id, (kind, gaps) in self.dumps.pending().items():
+            first_seen = self._dump_seen.get(dump_id, (kind, now_s))[1]
+            tries = self._dump_rerequests.get(dump_id, 0)
+            if now_s - first_seen < 0.5 * (tries + 1) or tries >= 3:
+                continue
+            self._dump_rerequests[dump_id] = tries + 1
+            for start, end in gaps:
+                self.send(m.DumpRequest(kind=kind, dump_id=dump_id, offset=start, length=end - start), wait=False)
+
+    # ------------------------------------------------------------------ frames in
+    def _handle(self, frame: Frame, host_ns: int) -> None:
+        msg = frame.message
+        backfilled = bool(frame.flags & FrameFlag.REPLAYED)
+        deliver = True
+        if isinstance(msg, m.Sample):
+            new = self.backfill.held.add(msg.sample)
+            deliver = new or not backfilled
+            if backfilled and new:
+                self.stats.backfilled += 1
+        elif isinstance(msg, _SEQUENCED):
+            key = (msg.MSG_ID, msg.episode, msg.sample)
+            deliver = key not in self._episodes_seen
+            self._episodes_seen.add(key)
+            if backfilled and deliver:
+                self.stats.backfilled += 1
+        elif isinstance(msg, m.Ack):
+            self._on_ack(msg)
+        elif isinstance(msg, m.Hello):
+            self._on_hello(msg)
+        elif isinstance(msg, m.Heartbeat):
+            self.last_heartbeat = msg
+            self.backfill.saw_log_window(msg.log_first_sample, msg.log_next_sample)
+        elif isinstance(msg, m.Timesync):
+            self._on_timesync(msg, host_ns)
+        elif isinstance(msg, m.ParamValue):
+            with self._cond:
+                self._expected_params = msg.count
+                self.params.update(Parameter.from_message(msg))
+                self._param_updates += 1
+                self._cond.notify_all()
+        elif isinstance(msg, m.DumpChunk):
+            self._dump_seen.setdefault(msg.dump_id, (msg.kind, time.monotonic()))
+            done = self.dumps.feed(msg)
+            if done is not None:
+                with self._cond:
+                    self._completed_dumps[done.dump_id] = done
+                    self._cond.notify_all()
+        elif isinstance(msg, m.LogRange):
+            self._log_ranges += 1
+            self.backfill.saw_log_window(msg.first_sample, msg.next_sample)
+            self._emit(LinkEvent(EventKind.BACKFILL_DONE, host_ns, f"{msg.replayed} frames replayed",
+                                 msg.to_dict()))
+        if isinstance(msg, m.Sample | m.LogRange):
+            with self._cond:
+                self._cond.notify_all()
+        if deliver and self.agent_hello is not None:  # nothing reaches listeners from an incompatible peer
+            t_us = getattr(msg, "t_us", None)
+            agent_ns = self.clock.to_host_ns(t_us) if isinstance(t_us, int) and t_us else None
+            received = Received(frame, host_ns, agent_ns, backfilled)
+            for listener in list(self.listeners):
+                try:
+                    listener.on_received(received)
+                except Exception as e:  # noqa: BLE001 a listener's bug must not stop the session
+                    self._listener_failed(listener, e)
+
+    def _on_ack(self, ack: m.Ack) -> None:
+        with self._cond:
+            pending = self._pending.get(ack.cmd_seq)
+            if pending is None or pending.message.MSG_ID != ack.cmd_msg_id or pending.ack is not None:
+                return
+            pending.ack = ack
+            if pending.attempts == 1:  # Karn: a retried command's RTT is ambiguous
+                self.stats.round_trip(time.monotonic() - pending.first_sent_s)
+            if not pending.done.is_set():
+                pending.done.set()
+            self._pending.pop(ack.cmd_seq, None)
+            self._cond.notify_all()
+
+    def _on_hello(self, hello: m.Hello) -> None:
+        if hello.protocol_version != PROTOCOL_VERSION:
+            problem = (f"the agent speaks protocol version {hello.protocol_version}, this ground station speaks "
+                       f"version {PROTOCOL_VERSION}")
+        elif hello.definitions_hash != definitions_hash():
+            problem = (f"the agent's message table (hash {hello.definitions_hash:08x}, firmware "
+                       f"{hello.firmware_major}.{hello.firmware_minor}.{hello.firmware_patch}) differs from ours "
+                       f"(hash {definitions_hash():08x}, dive {tool_version()})")
+        else:
+            problem = None
+        previous = self.agent_hello
+        with self._cond:
+            if problem is not None:
+                self._hello_problem = problem
+            else:
+                self.agent_hello = hello
+            self._cond.notify_all()
+        if problem is not None or previous is None:
+            return
+        if previous.boot_id != hello.boot_id:
+            # The agent rebooted: sequence, clock and sample indices restart.
+            self.decoder.reset_sequence()
+            self.clock.reset()
+            self.backfill.reset()
+            self._episodes_seen.clear()
+            self._emit(LinkEvent(EventKind.RESYNCED, time.time_ns(), "the agent rebooted", self._hello_data()))
+        if self._restoring:
+            self._restoring = False
+            self.link_up = True
+            self._next_backfill_s = time.monotonic() + 0.3  # let a heartbeat announce the log window first
+            self._emit(LinkEvent(EventKind.LINK_RESTORED, time.time_ns(), self.link.url, self._hello_data()))
+
+    def _on_timesync(self, msg: m.Timesync, host_ns: int) -> None:
+        if msg.receive_us == 0 and msg.transmit_us == 0:  # a request from the agent: answer at once
+            now_us = time.time_ns() // 1000
+            self.send(m.Timesync(origin_us=msg.origin_us, receive_us=host_ns // 1000, transmit_us=now_us))
+            return
+        sample = self.clock.add(msg.origin_us, msg.receive_us, msg.transmit_us, host_ns // 1000)
+        self.stats.round_trip(max(0.0, sample.round_trip_us) / 1e6)
+
+    # ------------------------------------------------------------------ helpers
+    def _ack_timeout_s(self) -> float:
+        rtt = self.stats.rtt_median_s()
+        return max(self.config.ack_timeout_s, 3 * rtt) if rtt is not None else self.config.ack_timeout_s
+
+    def _send_hello(self) -> None:
+        major, minor, patch = (int(x) if x.isdigit() else 0 for x in (tool_version().split(".") + ["0"] * 3)[:3])
+        self.send(m.Hello(protocol_version=PROTOCOL_VERSION, node_kind=int(NodeKind.GROUND),
+                          definitions_hash=definitions_hash(), firmware_major=major, firmware_minor=minor,
+                          firmware_patch=patch, node_id=self.config.node_id, boot_id=self._boot_id, name="dive"))
+
+    def _write(self, message: Message, seq: int, wire: bytes, retry: bool = False) -> None:
+        self.link.send(wire)
+        self.stats.sent(len(wire), retry)
+        sent = Sent(seq, message, wire, time.time_ns())
+        for listener in list(self.listeners):
+            try:
+                listener.on_sent(sent)
+            except Exception as e:  # noqa: BLE001
+                self._listener_failed(listener, e)
+
+    def _emit(self, event: LinkEvent) -> None:
+        for listener in list(self.listeners):
+            try:
+                listener.on_event(event)
+            except Exception as e:  # noqa: BLE001
+                if event.kind != EventKind.ERROR:
+                    self._listener_failed(listener, e)
+
+    def _listener_failed(self, listener: object, error: Exception) -> None:
+        self._emit(LinkEvent(EventKind.ERROR, time.time_ns(),
+                             f"listener {type(listener).__name__} raised {type(error).__name__}: {error}"))
+
+    def _hello_data(self) -> dict[str, object]:
+        return self.agent_hello.to_dict() if self.agent_hello else {}
+
+    def rx_listener(self, callback: Callable[[Received], None]) -> SessionListener:
+        """A listener that only wants received frames (for progress displays)."""
+        return _CallbackListener(callback)
+
+
+class _CallbackListener:
+    def __init__(self, callback: Callable[[Received], None]) -> None:
+        self._callback = callback
+
+    def on_received(self, received: Received) -> None:
+        self._callback(received)
+
+    def on_sent(self, sent: Sent) -> None:
+        pass
+
+    def on_event(self, event: LinkEvent) -> None:
+        pass

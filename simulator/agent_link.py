@@ -1,0 +1,238 @@
+"""The agent's side of the protocol: HELLO, HEARTBEAT, TIMESYNC, commands with ACK/NACK, dumps, log replay."""
+
+from __future__ import annotations
+
+import os
+from collections import deque
+from collections.abc import Callable
+
+from protocol import (
+    PROTOCOL_VERSION,
+    AckResult,
+    DumpKind,
+    Frame,
+    FrameFlag,
+    NodeKind,
+    StreamDecoder,
+    definitions_hash,
+    messages,
+)
+from protocol.frame import HEADER, build_inner, encode_wire
+from protocol.registry import Message
+from simulator import agent_dumps
+from simulator.agent_dumps import DumpStore
+from simulator.errors import ParamsError
+from simulator.log_ring import LogRing
+from simulator.onboard import OnboardProgram, Verdict
+
+FIRMWARE_VERSION = (0, 1, 0)
+ACK_MEMORY = 16  # SPEC s. 5: the last 16 (msg_id, seq, result) answered
+COMMAND_IDS_FROM = 0x80
+_DUMP_KINDS = {int(k) for k in DumpKind}
+
+# A command's verdict and what follows its ACK: messages, or inner frames of the on-board log to replay.
+Outcome = tuple[Verdict, list[Message | bytes]]
+Handler = Callable[[Message], Outcome]
+
+
+class AgentLink:
+    """Turns received bytes into actions of the program and the program's messages into frames.
+
+    `write` takes wire bytes (the server passes them through fault injection to the transport).
+    """
+
+    def __init__(self, write: Callable[[bytes], None], node_id: int, ring: LogRing | None = None) -> None:
+        self.write = write
+        self.node_id = node_id
+        self.boot_id = int.from_bytes(os.urandom(4), "little") or 1
+        self.ring = ring or LogRing()
+        self.decoder = StreamDecoder()
+        self.dumps = DumpStore()
+        self.program: OnboardProgram | None = None
+        self._seq = 0
+        self._answered: deque[tuple[int, int, int, str]] = deque(maxlen=ACK_MEMORY)
+        self._hello_sent = False
+        self._next_heartbeat_us = 0
+        self._handlers: dict[type[Message], Handler] = {
+            messages.StartLearning: self._start, messages.Stop: self._simple("stop"),
+            messages.Pause: self._simple("pause"), messages.SetTarget: self._set_target,
+            messages.Surface: self._surface, messages.Hover: self._hover, messages.DumpRequest: self._dump,
+            messages.ResetModel: self._simple("reset_model"), messages.ParamListRequest: self._param_list,
+            messages.ParamGet: self._param_get, messages.ParamSet: self._param_set,
+            messages.LogRequest: self._log_request,
+        }
+
+    def attach(self, program: OnboardProgram) -> None:
+        self.program = program
+
+    @property
+    def _prog(self) -> OnboardProgram:
+        assert self.program is not None, "attach() the program first"
+        return self.program
+
+    # ------------------------------------------------------------------ sending
+    def _frame(self, msg_id: int, payload: bytes, flags: int = 0) -> bytes:
+        inner = build_inner(flags, self._seq, msg_id, payload)
+        self._seq = (self._seq + 1) & 0xFFFF
+        return inner
+
+    def send(self, message: Message, flags: int = 0) -> None:
+        self.write(encode_wire(self._frame(message.MSG_ID, message.pack(), flags)))
+
+    def log_frame(self, message: Message, sample: int, is_sample: bool) -> None:
+        """A SAMPLE or EPISODE frame: into the on-board log, then onto the link."""
+        inner = self._frame(message.MSG_ID, message.pack())
+        self.ring.append(sample, inner, is_sample)
+        self.write(encode_wire(inner))
+
+    def episode_dumps(self) -> None:
+        for kind in (DumpKind.VALUES, DumpKind.POLICY):
+            for chunk in agent_dumps.chunks(self.dumps.take(self._prog.learner, kind), 0, 0):
+                self.send(chunk)
+
+    def hello(self) -> None:
+        major, minor, patch = FIRMWARE_VERSION
+        self._hello_sent = True
+        self.send(messages.Hello(
+            protocol_version=PROTOCOL_VERSION, node_kind=int(NodeKind.AGENT), definitions_hash=definitions_hash(),
+            firmware_major=major, firmware_minor=minor, firmware_patch=patch, node_id=self.node_id,
+            boot_id=self.boot_id, name="sim-agent",
+        ))
+
+    def heartbeat(self) -> None:
+        prog, stats = self._prog, self.decoder.stats
+        self.send(messages.Heartbeat(
+            uptime_ms=(prog.t_us // 1000) & 0xFFFFFFFF, mode=int(prog.mode),
+            battery_mv=int(prog.hw.battery_v * 1000), rx_frames=stats.frames, rx_rejects=stats.rejects,
+            rx_lost=stats.lost, log_first_sample=self.ring.first_sample, log_next_sample=prog.next_sample,
+            episode=prog.episode,
+        ))
+
+    def tick(self) -> None:
+        """Called after every control step: HEARTBEAT once per second of agent time."""
+        prog = self._prog
+        if prog.t_us >= self._next_heartbeat_us:
+            self._next_heartbeat_us = prog.t_us + int(prog.mission.heartbeat_period_s * 1e6)
+            self.heartbeat()
+
+    # ------------------------------------------------------------------ receiving
+    def on_connect(self) -> None:
+        """A new link: sequence tracking starts over, and the agent introduces itself."""
+        self.decoder.reset_sequence()
+        self.hello()
+
+    def on_disconnect(self) -> None:
+        self._hello_sent = False
+
+    def receive(self, data: bytes) -> None:
+        """Whatever the link delivered; garbage is counted by the decoder and otherwise ignored."""
+        for frame in self.decoder.feed(data):
+            self._prog.last_ground_rx_us = self._prog.t_us
+            self._handle(frame)
+
+    def _handle(self, frame: Frame) -> None:
+        message = frame.message
+        if isinstance(message, messages.Hello):
+            if not self._hello_sent:
+                self.hello()
+        elif isinstance(message, messages.Timesync):
+            if message.receive_us == 0 and message.transmit_us == 0:
+                t = self._prog.t_us
+                self.send(messages.Timesync(origin_us=message.origin_us, receive_us=t, transmit_us=t))
+        elif frame.msg_id >= COMMAND_IDS_FROM:
+            self._command(frame)
+
+    def _command(self, frame: Frame) -> None:
+        for msg_id, seq, result, reason in self._answered:
+            if msg_id == frame.msg_id and seq == frame.seq:
+                self._ack(frame, AckResult(result), reason)  # a retry: answer again, do not act again
+                return
+        handler = self._handlers.get(type(frame.message))
+        if handler is None:
+            (result, reason), replies = (AckResult.UNSUPPORTED, "command not implemented"), []
+        else:
+            (result, reason), replies = handler(frame.message)
+        self._answered.append((frame.msg_id, frame.seq, int(result), reason))
+        self._ack(frame, result, reason)
+        for reply in replies:
+            if isinstance(reply, bytes):
+                # Re-sent as logged (same msg_id and payload), flagged REPLAYED, with a new seq.
+                msg_id = reply[HEADER.size - 1]
+                self.write(encode_wire(self._frame(msg_id, reply[HEADER.size : -2], FrameFlag.REPLAYED)))
+            else:
+                self.send(reply)
+
+    def _ack(self, frame: Frame, result: AckResult, reason: str) -> None:
+        self.send(messages.Ack(cmd_msg_id=frame.msg_id, cmd_seq=frame.seq, result=int(result), reason=reason))
+
+    # ------------------------------------------------------------------ command handlers
+    def _simple(self, name: str) -> Handler:
+        def handler(_: Message) -> Outcome:
+            return getattr(self._prog, name)(), []
+        return handler
+
+    def _start(self, m: Message) -> Outcome:
+        assert isinstance(m, messages.StartLearning)
+        return self._prog.start(m.max_episodes), []
+
+    def _surface(self, _: Message) -> Outcome:
+        self._prog.surface("CMD_SURFACE")
+        return (AckResult.ACCEPTED, ""), []
+
+    def _hover(self, m: Message) -> Outcome:
+        assert isinstance(m, messages.Hover)
+        return self._prog.hover(m.depth_m), []
+
+    def _set_target(self, m: Message) -> Outcome:
+        assert isinstance(m, messages.SetTarget)
+        index = self._prog.table.lookup(-1, "target_depth_m")
+        return self._prog.set_param(index, m.target_depth_m), []
+
+    def _param_list(self, _: Message) -> Outcome:
+        table = self._prog.table
+        return (AckResult.ACCEPTED, ""), [table.message(i) for i in range(len(table))]
+
+    def _param_get(self, m: Message) -> Outcome:
+        assert isinstance(m, messages.ParamGet)
+        try:
+            index = self._prog.table.lookup(m.index, m.name)
+        except ParamsError as e:
+            return (AckResult.BAD_VALUE, str(e)), []
+        return (AckResult.ACCEPTED, ""), [self._prog.table.message(index)]
+
+    def _param_set(self, m: Message) -> Outcome:
+        assert isinstance(m, messages.ParamSet)
+        table = self._prog.table
+        try:
+            index = table.lookup(m.index, m.name)
+        except ParamsError as e:
+            return (AckResult.BAD_VALUE, str(e)), []
+        verdict = self._prog.set_param(index, m.value)
+        return verdict, [table.message(index)] if verdict[0] == AckResult.ACCEPTED else []
+
+    def _dump(self, m: Message) -> Outcome:
+        assert isinstance(m, messages.DumpRequest)
+        if m.kind not in _DUMP_KINDS:
+            return (AckResult.BAD_VALUE, f"no dump kind {m.kind}"), []
+        if m.dump_id == 0:
+            snap = self.dumps.take(self._prog.learner, DumpKind(m.kind))
+        else:
+            held = self.dumps.get(m.dump_id)
+            if held is None or held.kind != m.kind:
+                return (AckResult.STALE, f"dump {m.dump_id} no longer held"), []
+            snap = held
+        if m.offset > len(snap.data):
+            return (AckResult.BAD_VALUE, f"offset {m.offset} past the {len(snap.data)}-byte snapshot"), []
+        return (AckResult.ACCEPTED, ""), list(agent_dumps.chunks(snap, m.offset, m.length))
+
+    def _log_request(self, m: Message) -> Outcome:
+        assert isinstance(m, messages.LogRequest)
+        records = self.ring.records(m.first_sample, m.end_sample)
+        replies: list[Message | bytes] = [r.inner for r in records]
+        ring = self.ring
+        replies.append(messages.LogRange(
+            first_sample=ring.first_sample, next_sample=ring.next_sample, replayed=len(records),
+            bytes_used=ring.bytes_used, capacity_bytes=ring.capacity_bytes,
+        ))
+        return (AckResult.ACCEPTED, ""), replies
+

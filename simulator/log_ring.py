@@ -1,0 +1,80 @@
+"""The on-board log: a 512 KiB ring of SAMPLE and EPISODE frames (inner bytes), keyed by sample index."""
+
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass
+from itertools import islice
+
+LOG_CAPACITY_BYTES = 512 * 1024  # paper: 2 x M24M02 EEPROM = 512 KiB
+RECORD_OVERHEAD_BYTES = 1  # the EEPROM record keeps a length byte before each inner frame
+
+
+@dataclass(frozen=True, slots=True)
+class LogRecord:
+    sample: int  # the frame's sample index (SAMPLE.sample, EPISODE_START/END.sample)
+    inner: bytes  # the inner frame as produced (ver | flags | seq | msg_id | payload | crc)
+
+
+class LogRing:
+    """Records in production order; the oldest are overwritten once `capacity_bytes` is used.
+
+    `first_sample` and `next_sample` are what HEARTBEAT and LOG_RANGE report: the oldest SAMPLE index
+    still held and the index the next SAMPLE will get.
+    """
+
+    def __init__(self, capacity_bytes: int = LOG_CAPACITY_BYTES) -> None:
+        if capacity_bytes <= 0:
+            raise ValueError("capacity_bytes must be positive")
+        self.capacity_bytes = capacity_bytes
+        self._records: deque[LogRecord] = deque()
+        self.bytes_used = 0
+        self.next_sample = 0
+
+    @property
+    def first_sample(self) -> int:
+        """The oldest sample index still held (equals next_sample when the log is empty)."""
+        return self._records[0].sample if self._records else self.next_sample
+
+    def __len__(self) -> int:
+        return len(self._records)
+
+    def append(self, sample: int, inner: bytes, is_sample: bool) -> None:
+        """Store one frame; a SAMPLE moves next_sample past its index."""
+        size = len(inner) + RECORD_OVERHEAD_BYTES
+        if size > self.capacity_bytes:
+            return
+        records = self._records
+        records.append(LogRecord(sample, inner))
+        self.bytes_used += size
+        while self.bytes_used > self.capacity_bytes:
+            self.bytes_used -= len(records.popleft().inner) + RECORD_OVERHEAD_BYTES
+        if is_sample and sample >= self.next_sample:
+            self.next_sample = sample + 1
+
+    def records(self, first_sample: int, end_sample: int) -> list[LogRecord]:
+        """Records whose sample index lies in [first_sample, end_sample), oldest first.
+
+        A list, not a view: the caller re-sends it while the program keeps logging into the ring.
+        """
+        if not self._records or end_sample <= first_sample:
+            return []
+        out: list[LogRecord] = []
+        for record in islice(self._records, self._bisect(first_sample), None):
+            if record.sample >= end_sample:
+                break
+            out.append(record)
+        return out
+
+    def _bisect(self, sample: int) -> int:
+        """Index of the first record with sample index >= sample (indices never decrease)."""
+        records = self._records
+        low, high = 0, len(records)
+        while low < high:
+            mid = (low + high) // 2
+            if records[mid].sample < sample:
+                low = mid + 1
+            else:
+                high = mid
+        return low
+

@@ -1,0 +1,337 @@
+"""The on-board program, written as the Teensy firmware: one control step per call, modes as a state table.
+
+Each step reads only the pressure sensor, estimates the velocity with the sliding mode observer and
+drives only the actuator (hardware in onboard_hw.py). Modes (SPEC.md section 6):
+
+| mode       | period     | each step                                    | leaves to (when)                          |
+|------------|------------|----------------------------------------------|-------------------------------------------|
+| IDLE       | control    | actuator at neutral; SAMPLE at 1 Hz          | RECOVERING (CMD_START); HOVER (CMD_HOVER)  |
+| RECOVERING | recovery   | recovery controller to a random start depth  | LEARNING (settled: EPISODE_START);         |
+|            |            |                                              | SURFACING (not settled after give_up_s)    |
+| LEARNING   | control    | the learner acts, observes, is rewarded      | RECOVERING (failure or success:            |
+|            |            |                                              | EPISODE_END); SURFACING (episode limit);   |
+|            |            |                                              | PAUSED (CMD_PAUSE: EPISODE_END aborted)    |
+| HOVER      | recovery   | recovery controller holds the hover depth    | RECOVERING (CMD_START); SURFACING (STOP)   |
+| PAUSED     | recovery   | recovery controller holds the paused depth   | RECOVERING (CMD_START); SURFACING (STOP)   |
+| SURFACING  | control    | actuator at maximum volume                   | IDLE (shallower than surface_depth_m)      |
+
+Periods: control = control_dt_s (0.1 s), recovery = the recovery controller's 0.025 s.
+
+In every mode but IDLE and SURFACING: battery below low_batt_v, max_dive_s away from IDLE, or link
+loss with surface_on_link -> SURFACING (an episode in progress ends ABORTED). CMD_SURFACE works in
+every mode. With the `paper` preset (start_with_recovery false) RECOVERING places the agent at rest
+at its start depth at once, as the paper's simulation restarts episodes.
+"""
+
+from __future__ import annotations
+
+from typing import Protocol
+
+import numpy as np
+
+from learning import Learner, LearnerConfig, n_states
+from learning.acting import reward_kernel, state_index_kernel
+from learning.config import kernel_spec
+from protocol import AckResult, Action, EndReason, Mode, Severity, messages
+from protocol.registry import Message
+from simulator.agent_mission import MissionConfig
+from simulator.errors import ParamsError
+from simulator.observer import SlidingModeObserver
+from simulator.onboard_hw import SimulatedHardware
+from simulator.parameters import PlantParams
+from simulator.params_table import ParamTable, Scope
+from simulator.recovery import RecoveryController
+
+Verdict = tuple[AckResult, str]
+OK: Verdict = (AckResult.ACCEPTED, "")
+_DIVING = (Mode.RECOVERING, Mode.LEARNING, Mode.HOVER, Mode.PAUSED)
+
+
+class Downlink(Protocol):
+    """Where the program's frames go (the link layer): logged frames also enter the on-board log."""
+
+    def log_frame(self, message: Message, sample: int, is_sample: bool) -> None: ...
+
+    def send(self, message: Message) -> None: ...
+
+    def episode_dumps(self) -> None: ...
+
+
+def _not_allowed(mode: Mode) -> Verdict:
+    return AckResult.NOT_ALLOWED_IN_MODE, f"not allowed in {mode.name}"
+
+
+class OnboardProgram:
+    """The firmware's main loop state: mode, learner, controllers, episode bookkeeping."""
+
+    def __init__(
+        self, params: PlantParams, learner_config: LearnerConfig, mission: MissionConfig,
+        hw: SimulatedHardware, rng: np.random.Generator, downlink: Downlink,
+    ) -> None:
+        self.hw = hw
+        self.rng = rng
+        self.down = downlink
+        self.table = ParamTable({Scope.LEARNER: learner_config, Scope.PLANT: params, Scope.MISSION: mission})
+        self._base = (params, learner_config, mission)
+        self.params, self.config, self.mission = params, learner_config, mission
+        self.learner = Learner(learner_config, rng)
+        self._lspec = kernel_spec(learner_config)
+        self._terminal = n_states(learner_config) - 1
+        self.observer = SlidingModeObserver(params)
+        self.recovery = RecoveryController(params)
+        self.mode = Mode.IDLE
+        self.next_sample = 0
+        self.depth_m = 0.0
+        self.velocity_mps = 0.0
+        self.pressure_pa = hw.read_pressure_pa()
+        self.last_ground_rx_us = 0  # the link layer stamps every valid frame from the ground
+        self.successes = 0
+        self.episodes_left = 0  # 0 = no limit
+        self._dive_start_us = 0
+        self._hold_depth_m = 0.0  # recovery / hover / pause set point
+        self._next_idle_sample_us = 0
+        self._reset_episode()
+
+    # ------------------------------------------------------------------ main loop
+    def step(self) -> None:
+        """One control step of the current mode, then let its period of agent time pass."""
+        mode = self.mode
+        if mode == Mode.LEARNING:
+            dt = self.params.control_period_s
+            self._learning_step(dt)
+        elif mode in (Mode.RECOVERING, Mode.HOVER, Mode.PAUSED):
+            dt = self.params.recovery_period_s
+            self._controller_step(dt)
+        elif mode == Mode.SURFACING:
+            dt = self.params.control_period_s
+            self._measure(dt)
+            self.hw.set_actuator_cmd_deg(self.params.alpha_max_deg)
+            self._sample(Action.NONE, 0.0, 0)
+            if self.depth_m < self.mission.surface_depth_m:
+                self._enter(Mode.IDLE, "at the surface")
+        else:
+            dt = self.params.control_period_s
+            self._measure(dt)
+            self.hw.set_actuator_cmd_deg(self.hw.neutral_deg)
+            if self.hw.t_us >= self._next_idle_sample_us:
+                self._next_idle_sample_us = self.hw.t_us + int(self.mission.idle_sample_period_s * 1e6)
+                self._sample(Action.NONE, 0.0, 0)
+        if self.mode in _DIVING:
+            self._check_limits()
+        self.hw.advance(dt)
+
+    @property
+    def t_us(self) -> int:
+        return self.hw.t_us
+
+    def _measure(self, dt_s: float) -> None:
+        self.pressure_pa = self.hw.read_pressure_pa()
+        self.depth_m = self.hw.depth_from_pressure_m(self.pressure_pa)
+        estimate = self.observer.update(self.depth_m, dt_s)
+        # The paper preset feeds the learner the true velocity (its simulation did; diving-agent.md s. 7).
+        self.velocity_mps = estimate if self.params.use_observer else self.hw.true_velocity_mps
+
+    def _state(self) -> int:
+        fraction = (self.hw.actuator_cmd_deg - self._center_deg) / self.params.action_window_deg
+        return int(state_index_kernel(
+            self.depth_m, self.velocity_mps, self.params.target_depth_m, fraction, self._lspec
+        ))
+
+    def _sample(self, action: int, reward: float, state: int) -> None:
+        index = self.next_sample
+        self.next_sample = index + 1
+        hw = self.hw
+        self.down.log_frame(messages.Sample(
+            t_us=hw.t_us, sample=index, episode=self.episode, step=self._steps, pressure_pa=self.pressure_pa,
+            depth_m=self.depth_m, velocity_mps=self.velocity_mps, actuator_deg=hw.actuator_deg,
+            actuator_cmd_deg=hw.actuator_cmd_deg, reward=reward, state=state, action=action, mode=int(self.mode),
+        ), index, True)
+
+    def text(self, line: str, severity: Severity = Severity.INFO) -> None:
+        self.down.send(messages.Text(t_us=self.hw.t_us, severity=int(severity), text=line[:238]))
+
+    # ------------------------------------------------------------------ modes
+    def _enter(self, mode: Mode, why: str) -> None:
+        if mode == self.mode:
+            return
+        if self.mode == Mode.IDLE:
+            self._dive_start_us = self.hw.t_us
+        self.text(f"mode {self.mode.name} -> {mode.name}: {why}")
+        self.mode = mode
+        if mode in (Mode.RECOVERING, Mode.HOVER, Mode.PAUSED):
+            self.recovery.restart()
+        if mode == Mode.RECOVERING:
+            half_m = self.params.start_depth_fraction * self.config.z_tol_m
+            self._hold_depth_m = self.params.target_depth_m + half_m * float(self.rng.uniform(-1.0, 1.0))
+            if not self.params.start_with_recovery:
+                self._center_deg = self.hw.place(self._hold_depth_m)
+                self.observer.reset(self._hold_depth_m)
+                self._measure(0.0)
+                self._begin_episode(self._center_deg)
+
+    def _controller_step(self, dt: float) -> None:
+        self._measure(dt)
+        cmd = self.recovery.update(self.depth_m, self.velocity_mps, self._hold_depth_m, dt, self.hw.actuator_deg)
+        self.hw.set_actuator_cmd_deg(cmd)
+        self._sample(Action.NONE, 0.0, 0)
+        if self.mode == Mode.RECOVERING:
+            if self.recovery.settled:
+                self._begin_episode(self.recovery.alpha_avg_deg + self.params.start_trim_error_deg)
+            elif self.recovery.gave_up:
+                self._enter(Mode.SURFACING, "recovery did not settle")
+
+    def _check_limits(self) -> None:
+        mission, hw = self.mission, self.hw
+        why = ""
+        if hw.battery_v < mission.low_battery_v:
+            why = f"battery low ({hw.battery_v:.2f} V)"
+        elif mission.max_dive_s and hw.t_us - self._dive_start_us >= mission.max_dive_s * 1e6:
+            why = "maximum dive time"
+        elif (mission.surface_on_link_loss and mission.link_timeout_s
+              and hw.t_us - self.last_ground_rx_us >= mission.link_timeout_s * 1e6):
+            why = "link lost"
+        if why:
+            self.surface(why)
+
+    def surface(self, why: str) -> None:
+        self._abort_episode()
+        self._enter(Mode.SURFACING, why)
+
+    # ------------------------------------------------------------------ learning episodes
+    def _reset_episode(self) -> None:
+        self.episode = self.learner.episode
+        self._steps = 0
+        self._return = 0.0
+        self._prev_state = -1
+        self._prev_action = 0
+        self._center_deg = self.hw.neutral_deg
+
+    def _begin_episode(self, center_deg: float) -> None:
+        self._reset_episode()
+        self.episode = self.learner.episode + 1
+        self._center_deg = center_deg
+        self.hw.set_actuator_cmd_deg(center_deg)
+        start_state = self._state()
+        self.text(f"mode {self.mode.name} -> LEARNING: episode {self.episode}")
+        self.mode = Mode.LEARNING
+        c = self.config
+        self.down.log_frame(messages.EpisodeStart(
+            t_us=self.hw.t_us, episode=self.episode, sample=self.next_sample, start_state=start_state,
+            depth_m=self.depth_m, velocity_mps=self.velocity_mps, target_depth_m=self.params.target_depth_m,
+            z_tol_m=c.z_tol_m, zdot_tol_mps=c.zdot_tol_mps, p_explore=self.learner.p_explore,
+        ), self.next_sample, False)
+
+    def _learning_step(self, dt: float) -> None:
+        self._measure(dt)
+        state = self._state()
+        reward = 0.0
+        if self._prev_state >= 0:
+            reward = float(reward_kernel(self.depth_m, self.params.target_depth_m, state, self._lspec))
+            self._return += reward
+            self.learner.observe(self._prev_state, self._prev_action, reward, state)
+        limit = round(self.params.episode_limit_s / self.params.control_period_s)
+        if state == self._terminal or self._steps >= limit:
+            self._sample(Action.NONE, reward, state)
+            self._end_episode(EndReason.FAILURE if state == self._terminal else EndReason.SUCCESS, state)
+            return
+        action = self.learner.act(state)
+        step = self.params.action_step_deg if action == Action.INCREASE_VOLUME else -self.params.action_step_deg
+        window = self.params.action_window_deg
+        cmd = min(max(self.hw.actuator_cmd_deg + step, self._center_deg - window), self._center_deg + window)
+        self.hw.set_actuator_cmd_deg(cmd)
+        self._prev_state, self._prev_action = state, action
+        self._sample(action, reward, state)
+        self._steps += 1
+
+    def _end_episode(self, reason: EndReason, state: int) -> None:
+        self.learner.end_episode()
+        if reason == EndReason.SUCCESS:
+            self.successes += 1
+        self.down.log_frame(messages.EpisodeEnd(
+            t_us=self.hw.t_us, episode=self.episode, sample=self.next_sample - 1, reason=int(reason),
+            end_state=state, steps=self._steps, duration_s=self._steps * self.params.control_period_s,
+            episode_return=self._return, successes=self.successes,
+        ), self.next_sample - 1, False)
+        if self.mission.dump_each_episode:
+            self.down.episode_dumps()
+        if reason == EndReason.ABORTED:
+            return
+        if self.episodes_left:
+            self.episodes_left -= 1
+            if self.episodes_left == 0:
+                self._enter(Mode.SURFACING, "episode limit reached")
+                return
+        self.mode = Mode.LEARNING  # so that _enter logs the hand-back and picks a new start
+        self._enter(Mode.RECOVERING, f"episode {self.episode} {reason.name.lower()}")
+
+    def _abort_episode(self) -> None:
+        if self.mode == Mode.LEARNING:
+            self._end_episode(EndReason.ABORTED, self._state())
+
+    # ------------------------------------------------------------------ commands (SPEC.md s. 5-6)
+    def start(self, max_episodes: int) -> Verdict:
+        if self.mode not in (Mode.IDLE, Mode.HOVER, Mode.PAUSED):
+            return _not_allowed(self.mode)
+        self.episodes_left = max_episodes or self.mission.max_episodes
+        self._enter(Mode.RECOVERING, "CMD_START")
+        return OK
+
+    def stop(self) -> Verdict:
+        if self.mode == Mode.IDLE:
+            return _not_allowed(self.mode)
+        if self.mode != Mode.SURFACING:
+            self.surface("CMD_STOP")
+        return OK
+
+    def pause(self) -> Verdict:
+        if self.mode not in (Mode.LEARNING, Mode.RECOVERING):
+            return _not_allowed(self.mode)
+        self._abort_episode()
+        self._hold_depth_m = self.depth_m
+        self._enter(Mode.PAUSED, "CMD_PAUSE")
+        return OK
+
+    def hover(self, depth_m: float) -> Verdict:
+        if not 0.0 <= depth_m <= 2.5 or depth_m != depth_m:
+            return AckResult.BAD_VALUE, "hover depth outside [0, 2.5] m"
+        if self.mode not in (Mode.IDLE, Mode.HOVER, Mode.PAUSED):
+            return _not_allowed(self.mode)
+        self._hold_depth_m = depth_m
+        self._enter(Mode.HOVER, f"CMD_HOVER at {depth_m:.2f} m")
+        return OK
+
+    def reset_model(self) -> Verdict:
+        if self.mode == Mode.LEARNING:
+            return _not_allowed(self.mode)
+        self.learner.reset()
+        self.successes = 0
+        self._reset_episode()
+        self.text("model reset")
+        return OK
+
+    def set_param(self, index: int, value: float) -> Verdict:
+        """Apply a parameter; learner parameters rebuild the learner (its model starts again)."""
+        definition = self.table.defs[index]
+        busy = (Mode.LEARNING, Mode.RECOVERING) if definition.scope is Scope.LEARNER else (Mode.LEARNING,)
+        if definition.scope is not Scope.MISSION and self.mode in busy:
+            return _not_allowed(self.mode)
+        old = self.table.values[index]
+        try:
+            self.table.set(index, value)
+            params, config, mission = self._base
+            new_config = self.table.apply(Scope.LEARNER, config)
+            new_params = self.table.apply(Scope.PLANT, params)
+            new_mission = self.table.apply(Scope.MISSION, mission)
+        except (ParamsError, ValueError) as e:  # LearnerConfigError is a ValueError too
+            self.table.values[index] = old
+            return AckResult.BAD_VALUE, str(e)
+        self.params, self.mission = new_params, new_mission
+        if new_config != self.config:
+            self.config = new_config
+            self.learner = Learner(new_config, self.rng)
+            self._lspec = kernel_spec(new_config)
+            self._terminal = n_states(new_config) - 1
+            self.successes = 0
+            self._reset_episode()
+            self.text(f"{definition.name} changed: learner restarted")
+        return OK

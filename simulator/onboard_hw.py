@@ -1,0 +1,74 @@
+"""The simulated hardware the on-board program sees: pressure sensor, stepper actuator, battery, clock.
+
+The water (the plant) lives behind it; the program never reads the true depth or velocity, only
+the pressure reading, its own stepper count and the battery voltage (see onboard.py).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from simulator.agent_mission import Battery
+from simulator.parameters import PlantParams, kernel_params, neutral_alpha_deg
+from simulator.plant import Plant
+from simulator.sensor import PressureSensor, depth_from_pressure_kernel
+
+
+class SimulatedHardware:
+    """Teensy peripherals over the simulated plant; `advance` lets agent time pass (simulated, not wall)."""
+
+    def __init__(self, params: PlantParams, rng: np.random.Generator) -> None:
+        self.params = params
+        self._spec = kernel_params(params)
+        self.plant = Plant(params, rng)
+        self.sensor = PressureSensor(params, rng)
+        self.battery = Battery()
+        self.t_us = 0
+        self.neutral_deg = params.alpha_max_deg / 2.0  # what the firmware assumes before it learns alpha_avg
+        self.plant.set_state(depth_m=0.0, velocity_mps=0.0, alpha_deg=self.neutral_deg, alpha_cmd_deg=self.neutral_deg)
+
+    # ---- what the firmware may use
+    def read_pressure_pa(self) -> float:
+        return self.sensor.read(self.plant.depth_m)
+
+    def depth_from_pressure_m(self, pressure_pa: float) -> float:
+        """The firmware's conversion z = (P - P0) / (rho g), with its calibration constants."""
+        return float(depth_from_pressure_kernel(pressure_pa, self._spec))
+
+    def set_actuator_cmd_deg(self, alpha_cmd_deg: float) -> None:
+        self.plant.alpha_cmd_deg = min(max(alpha_cmd_deg, 0.0), self.params.alpha_max_deg)
+
+    @property
+    def actuator_cmd_deg(self) -> float:
+        return float(self.plant.alpha_cmd_deg)
+
+    @property
+    def actuator_deg(self) -> float:
+        """The gear angle, as the firmware knows it from counting its own (open-loop) steps."""
+        return self.plant.alpha_deg
+
+    @property
+    def battery_v(self) -> float:
+        return self.battery.voltage_v
+
+    # ---- the world
+    def advance(self, dt_s: float) -> None:
+        """Let dt_s of agent time pass: the plant moves, the battery drains, the clock ticks."""
+        self.plant.step(dt_s)
+        self.battery.drain(dt_s)
+        self.t_us += int(round(dt_s * 1e6))
+
+    @property
+    def true_depth_m(self) -> float:
+        """For the radio model (blackout) and the paper preset's true-velocity learner only."""
+        return self.plant.depth_m
+
+    @property
+    def true_velocity_mps(self) -> float:
+        return self.plant.velocity_mps
+
+    def place(self, depth_m: float) -> float:
+        """The paper's simulated restart: put the agent at rest at depth_m, gear at true neutral."""
+        neutral = neutral_alpha_deg(self.params)
+        self.plant.set_state(depth_m=depth_m, velocity_mps=0.0, alpha_deg=neutral, alpha_cmd_deg=neutral)
+        return neutral

@@ -1,0 +1,127 @@
+"""`python -m simulator serve`: parse the options, run the virtual agent, map errors to one line and exit code."""
+
+from __future__ import annotations
+
+import json
+import signal
+import sys
+import tomllib
+from dataclasses import replace
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+
+from learning import LearnerConfig, LearningError, learner_names, learner_preset
+from simulator.agent_mission import MissionConfig
+from simulator.errors import ParamsError, SimulatorError
+from simulator.faults import FaultConfig
+from simulator.parameters import PlantParams, preset, with_overrides
+from simulator.params_table import PARAM_DEFS, Scope, coerce
+from simulator.server import AgentServer, ServeConfig
+
+EXIT_BAD_ARGUMENT = 2
+
+
+def parse_tcp(text: str) -> tuple[str, int]:
+    """HOST:PORT (port 0 = any free port)."""
+    host, sep, port = text.rpartition(":")
+    if not sep or not host or not port.isdigit() or not 0 <= int(port) <= 65535:
+        raise ParamsError(f"--tcp wants HOST:PORT with a port 0-65535, got {text!r}")
+    return host.strip("[]"), int(port)
+
+
+def parse_speed(text: str) -> float | None:
+    """A positive factor of real time, or "max" (None)."""
+    if text.lower() == "max":
+        return None
+    try:
+        speed = float(text)
+    except ValueError:
+        speed = -1.0
+    if not speed > 0 or speed == float("inf"):
+        raise ParamsError(f"--speed wants a positive number or 'max', got {text!r}")
+    return speed
+
+
+def _read_table(path: Path) -> dict[str, Any]:
+    try:
+        text = path.read_bytes()
+        data = json.loads(text) if path.suffix.lower() == ".json" else tomllib.loads(text.decode())
+    except (OSError, UnicodeDecodeError, ValueError) as e:
+        raise ParamsError(f"cannot read parameter file {path}: {e}") from e
+    if not isinstance(data, dict):
+        raise ParamsError(f"parameter file {path} must hold a table of name = value")
+    return data
+
+
+def apply_param_file(
+    path: Path, plant: PlantParams, learner: LearnerConfig, mission: MissionConfig
+) -> tuple[PlantParams, LearnerConfig, MissionConfig]:
+    """Agent parameter names (PARAM_LIST names) set those; any other key must be a PlantParams field."""
+    by_name = {d.name: d for d in PARAM_DEFS}
+    changes: dict[Scope, dict[str, Any]] = {scope: {} for scope in Scope}
+    plant_rest: dict[str, Any] = {}
+    for key, value in _read_table(path).items():
+        definition = by_name.get(key)
+        if definition is None:
+            plant_rest[key] = value
+            continue
+        if not isinstance(value, int | float):
+            raise ParamsError(f"parameter {key!r} must be a number or true/false")
+        stored = coerce(definition, float(value))
+        kind = type(getattr({Scope.LEARNER: learner, Scope.PLANT: plant, Scope.MISSION: mission}[definition.scope],
+                            definition.field))
+        changes[definition.scope][definition.field] = kind(stored)
+    plant = with_overrides(replace(plant, **changes[Scope.PLANT]), plant_rest)
+    try:
+        learner = replace(learner, **changes[Scope.LEARNER])
+    except LearningError as e:
+        raise ParamsError(f"{path}: {e}") from e
+    return plant, learner, replace(mission, **changes[Scope.MISSION])
+
+
+def serve(
+    tcp: Annotated[str, typer.Option(help="HOST:PORT to listen on (port 0 = a free one).")] = "127.0.0.1:2323",
+    pty: Annotated[bool, typer.Option("--pty", help="Serve on a new pseudo-terminal instead of TCP.")] = False,
+    speed: Annotated[str, typer.Option(help="Times real time, or 'max'. Agent time is in every frame.")] = "1",
+    seed: Annotated[int | None, typer.Option(help="Seed of every random stream (default: random).")] = None,
+    preset_name: Annotated[str, typer.Option("--preset", help="Plant preset: hardware or paper.")] = "hardware",
+    learner: Annotated[str, typer.Option(help=f"Learner preset: {', '.join(learner_names())}.")] = "paper",
+    params: Annotated[Path | None, typer.Option(help="TOML/JSON table of agent parameters and plant figures.")] = None,
+    drop: Annotated[float, typer.Option(help="Probability of losing a whole frame, each direction.")] = 0.0,
+    corrupt: Annotated[float, typer.Option(help="Probability that one byte of a frame is changed.")] = 0.0,
+    delay: Annotated[float, typer.Option(help="Latency added each direction, ms of wall time.")] = 0.0,
+    disconnect_every: Annotated[
+        float, typer.Option(help="Close the connection every S seconds of AGENT time (0 = never).")
+    ] = 0.0,
+    blackout_below: Annotated[
+        float | None, typer.Option(help="The link works only shallower than this depth, m (like the radio).")
+    ] = None,
+) -> None:
+    """Serve a virtual diving agent over TCP or a pseudo-terminal; prints what to connect to first."""
+    try:
+        host, port = parse_tcp(tcp)
+        plant = preset(preset_name)
+        learner_config = learner_preset(learner)
+        mission = MissionConfig()
+        if params is not None:
+            plant, learner_config, mission = apply_param_file(params, plant, learner_config, mission)
+        config = ServeConfig(
+            plant=plant, learner=learner_config, mission=mission,
+            faults=FaultConfig(drop, corrupt, delay, disconnect_every, blackout_below),
+            host=host, port=port, pty=pty, speed=parse_speed(speed), seed=seed,
+        )
+        server = AgentServer(config)
+    except (SimulatorError, LearningError) as e:
+        typer.echo(f"error: {e}", err=True)
+        raise typer.Exit(EXIT_BAD_ARGUMENT) from None
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signum, lambda *_: server.stop())
+    print(server.address, flush=True)
+    try:
+        server.serve_forever()
+    except SimulatorError as e:
+        typer.echo(f"error: {e}", err=True)
+        raise typer.Exit(1) from None
+    sys.stdout.flush()

@@ -1,0 +1,192 @@
+"""The virtual agent's process loop: one thread, a selector, the program paced in agent time against wall time."""
+
+from __future__ import annotations
+
+import random
+import selectors
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from learning import LearnerConfig
+from simulator.agent_link import AgentLink
+from simulator.agent_mission import MissionConfig
+from simulator.faults import DelayLine, FaultConfig, FrameFaults
+from simulator.onboard import OnboardProgram
+from simulator.onboard_hw import SimulatedHardware
+from simulator.parameters import PlantParams
+from simulator.server_transport import PtyTransport, TcpTransport, Transport
+
+SLICE_S = 0.004  # longest the program runs before the sockets are served again
+MAX_WAIT_S = 0.02  # longest select() waits, so pty opens and delayed bytes are noticed
+HIGH_WATER_BYTES = 256 * 1024  # --speed max waits for the client above this; real time drops frames
+STEPS_PER_CLOCK_READ = 8
+
+
+@dataclass(frozen=True)
+class ServeConfig:
+    """Everything `python -m simulator serve` resolved from its options."""
+
+    plant: PlantParams
+    learner: LearnerConfig = field(default_factory=LearnerConfig)
+    mission: MissionConfig = field(default_factory=MissionConfig)
+    faults: FaultConfig = field(default_factory=FaultConfig)
+    host: str = "127.0.0.1"
+    port: int = 2323
+    pty: bool = False
+    speed: float | None = 1.0  # None = as fast as possible
+    seed: int | None = None
+
+
+class AgentServer:
+    """Owns the transport, the faulty pipe in each direction, the link layer and the on-board program."""
+
+    def __init__(self, config: ServeConfig) -> None:
+        self.config = config
+        seed = config.seed if config.seed is not None else random.SystemRandom().randrange(2**32)
+        rng = np.random.default_rng(seed)
+        fault_rng = random.Random(seed ^ 0x5A5A5A5A)
+        self.selector = selectors.DefaultSelector()
+        self.transport: Transport = (
+            PtyTransport(self.selector) if config.pty else TcpTransport(self.selector, config.host, config.port)
+        )
+        faults = config.faults
+        self.out_faults = FrameFaults(faults, fault_rng)
+        self.in_faults = FrameFaults(faults, fault_rng)
+        self.out_delay = DelayLine(faults.delay_ms / 1000.0)
+        self.in_delay = DelayLine(faults.delay_ms / 1000.0)
+        self.dropped_full = 0  # frames dropped because the client did not keep up (real-time speeds)
+        self.link = AgentLink(self._write, node_id=0x5100_0000 | (seed & 0xFFFF))
+        self.hw = SimulatedHardware(config.plant, rng)
+        self.program = OnboardProgram(config.plant, config.learner, config.mission, self.hw, rng, self.link)
+        self.link.attach(self.program)
+        self.transport.on_connect = self._connected
+        self.transport.on_data = self._received
+        self.transport.on_disconnect = self.link.on_disconnect
+        self._running = False
+        self._next_disconnect_us = self._disconnect_period_us()
+
+    @property
+    def address(self) -> str:
+        return self.transport.address
+
+    # ------------------------------------------------------------------ the faulty link
+    def _blacked_out(self) -> bool:
+        below = self.config.faults.blackout_below_m
+        return below is not None and self.hw.true_depth_m > below
+
+    def _write(self, wire: bytes) -> None:
+        transport = self.transport
+        if not transport.connected or self._blacked_out():
+            return
+        wire = self.out_faults.frame(wire)
+        if not wire:
+            return
+        if self.out_delay.delay_s:
+            self.out_delay.put(time.monotonic(), wire)
+        elif self.config.speed is not None and len(transport.outbuf) > HIGH_WATER_BYTES:
+            self.dropped_full += 1  # like a UART FIFO: the agent does not wait for a slow reader
+        else:
+            transport.outbuf += wire
+
+    def _received(self, data: bytes) -> None:
+        if self._blacked_out():
+            return
+        data = self.in_faults.stream(data)
+        if not data:
+            return
+        if self.in_delay.delay_s:
+            self.in_delay.put(time.monotonic(), data)
+        else:
+            self.link.receive(data)
+
+    def _connected(self) -> None:
+        self.in_faults.reset()
+        self.out_delay.clear()
+        self.in_delay.clear()
+        self._next_disconnect_us = self.program.t_us + self._disconnect_period_us()
+        self.link.on_connect()
+
+    def _disconnect_period_us(self) -> int:
+        every_s = self.config.faults.disconnect_every_s
+        return int(every_s * 1e6) if every_s else 2**63
+
+    # ------------------------------------------------------------------ the loop
+    def stop(self) -> None:
+        self._running = False
+
+    def serve_forever(self) -> None:
+        """Run until stop() (a signal handler calls it); always closes the port."""
+        self._running = True
+        try:
+            self._loop()
+        finally:
+            self.close()
+
+    def close(self) -> None:
+        try:
+            self.transport.close()
+        finally:
+            self.selector.close()
+
+    def _loop(self) -> None:
+        speed = self.config.speed
+        program, link, transport = self.program, self.link, self.transport
+        wall0 = time.monotonic()
+        agent0_us = program.t_us
+        while self._running:
+            now = time.monotonic()
+            if speed is None:
+                due_us = 2**63
+                blocked = len(transport.outbuf) > HIGH_WATER_BYTES
+            else:
+                due_us = agent0_us + int((now - wall0) * speed * 1e6)
+                blocked = False
+            deadline = now + SLICE_S
+            steps = 0
+            while not blocked and program.t_us < due_us:
+                program.step()
+                link.tick()
+                steps += 1
+                if program.t_us >= self._next_disconnect_us:
+                    self._next_disconnect_us = program.t_us + self._disconnect_period_us()
+                    transport.drop_client()
+                if steps % STEPS_PER_CLOCK_READ == 0:
+                    if time.monotonic() >= deadline:
+                        break
+                    if speed is None and len(transport.outbuf) > HIGH_WATER_BYTES:
+                        break
+            if speed is not None and program.t_us < due_us and steps and time.monotonic() >= deadline:
+                # Cannot keep up with the requested speed: do not try to catch up in a burst later.
+                wall0, agent0_us = time.monotonic(), program.t_us
+            self._io(self._wait_s(speed, due_us))
+
+    def _wait_s(self, speed: float | None, due_us: int) -> float:
+        if speed is None:
+            wait = MAX_WAIT_S if len(self.transport.outbuf) > HIGH_WATER_BYTES else 0.0
+        else:
+            # Sleep until the next control step is due in agent time.
+            wait = min(MAX_WAIT_S, max(0.0, (self.program.t_us + 1 - due_us) / 1e6 / speed))
+        for line in (self.out_delay, self.in_delay):
+            release = line.next_release_s()
+            if release is not None:
+                wait = min(wait, max(0.0, release - time.monotonic()))
+        return wait
+
+    def _io(self, timeout_s: float) -> None:
+        transport = self.transport
+        transport.poll()
+        transport.flush()
+        for key, mask in self.selector.select(timeout_s):
+            key.data(mask)
+        now = time.monotonic()
+        if len(self.out_delay):
+            ready = self.out_delay.due(now)
+            if ready and transport.connected:
+                transport.outbuf += ready
+        if len(self.in_delay):
+            ready = self.in_delay.due(now)
+            if ready:
+                self.link.receive(ready)
+        transport.flush()

@@ -1,0 +1,209 @@
+"""The two ways in: a TCP listener serving one client at a time (the ESP8266 bridge) and a pseudo-terminal (USB)."""
+
+from __future__ import annotations
+
+import errno
+import os
+import select
+import selectors
+import socket
+import tty
+from collections.abc import Callable
+
+from simulator.errors import SimulatorError
+
+READ_BYTES = 65536
+
+
+class TransportError(SimulatorError, OSError):
+    """The port cannot be opened (address in use, no pty available)."""
+
+
+class Transport:
+    """One client at a time; bytes out are buffered and flushed when the OS takes them.
+
+    The server sets on_connect / on_data / on_disconnect; `poll` is called every loop iteration.
+    """
+
+    address: str  # what to print on the first line: tcp://HOST:PORT or the pty's device path
+
+    def __init__(self, selector: selectors.BaseSelector) -> None:
+        self.selector = selector
+        self.outbuf = bytearray()
+        self.on_connect: Callable[[], None] = lambda: None
+        self.on_data: Callable[[bytes], None] = lambda data: None
+        self.on_disconnect: Callable[[], None] = lambda: None
+
+    @property
+    def connected(self) -> bool:
+        raise NotImplementedError
+
+    def send(self, data: bytes) -> None:
+        if self.connected:
+            self.outbuf += data
+
+    def flush(self) -> None:
+        raise NotImplementedError
+
+    def poll(self) -> None:
+        """Work that is not driven by selector events (pty open/close detection)."""
+
+    def drop_client(self) -> None:
+        raise NotImplementedError
+
+    def close(self) -> None:
+        raise NotImplementedError
+
+
+class TcpTransport(Transport):
+    """Listens on HOST:PORT; a new connection replaces the current one (a dead or forgotten client)."""
+
+    def __init__(self, selector: selectors.BaseSelector, host: str, port: int) -> None:
+        super().__init__(selector)
+        try:
+            self.listener = socket.create_server((host, port), reuse_port=False)
+        except OSError as e:
+            raise TransportError(f"cannot listen on {host}:{port}: {e.strerror or e}") from e
+        self.listener.setblocking(False)
+        bound_host, bound_port = self.listener.getsockname()[:2]
+        self.address = f"tcp://{bound_host}:{bound_port}"
+        self.client: socket.socket | None = None
+        selector.register(self.listener, selectors.EVENT_READ, self._accept)
+
+    @property
+    def connected(self) -> bool:
+        return self.client is not None
+
+    def _accept(self, _mask: int) -> None:
+        try:
+            sock, _ = self.listener.accept()
+        except OSError:
+            return
+        self.drop_client()
+        sock.setblocking(False)
+        sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        self.client = sock
+        self.selector.register(sock, selectors.EVENT_READ, self._ready)
+        self.on_connect()
+
+    def _ready(self, mask: int) -> None:
+        if mask & selectors.EVENT_READ:
+            try:
+                data = self.client.recv(READ_BYTES) if self.client else b""
+            except (BlockingIOError, InterruptedError):
+                return
+            except OSError:
+                data = b""
+            if not data:
+                self.drop_client()
+                return
+            self.on_data(data)
+        if mask & selectors.EVENT_WRITE:
+            self.flush()
+
+    def flush(self) -> None:
+        client = self.client
+        if client is None or not self.outbuf:
+            return
+        try:
+            sent = client.send(self.outbuf)
+        except (BlockingIOError, InterruptedError):
+            sent = 0
+        except OSError:
+            self.drop_client()
+            return
+        del self.outbuf[:sent]
+        want = selectors.EVENT_READ | (selectors.EVENT_WRITE if self.outbuf else 0)
+        if self.selector.get_key(client).events != want:
+            self.selector.modify(client, want, self._ready)
+
+    def drop_client(self) -> None:
+        client = self.client
+        if client is None:
+            return
+        self.client = None
+        self.outbuf.clear()
+        self.selector.unregister(client)
+        client.close()
+        self.on_disconnect()
+
+    def close(self) -> None:
+        self.drop_client()
+        self.selector.unregister(self.listener)
+        self.listener.close()
+
+
+class PtyTransport(Transport):
+    """A pseudo-terminal in raw mode; a client has it open while the master does not see a hang-up."""
+
+    def __init__(self, selector: selectors.BaseSelector) -> None:
+        super().__init__(selector)
+        try:
+            self.master, slave = os.openpty()
+            tty.setraw(slave)
+            self.address = os.ttyname(slave)
+        except OSError as e:
+            raise TransportError(f"cannot create a pseudo-terminal: {e}") from e
+        # Closing our slave end lets the master see POLLHUP until a client opens the device.
+        os.close(slave)
+        os.set_blocking(self.master, False)
+        self._hup = select.poll()
+        self._hup.register(self.master, select.POLLIN)
+        self._open = False
+
+    @property
+    def connected(self) -> bool:
+        return self._open
+
+    def poll(self) -> None:
+        if not self._open and not any(ev & select.POLLHUP for _, ev in self._hup.poll(0)):
+            self._open = True
+            self.selector.register(self.master, selectors.EVENT_READ, self._ready)
+            self.on_connect()
+
+    def _ready(self, mask: int) -> None:
+        if mask & selectors.EVENT_READ:
+            try:
+                data = os.read(self.master, READ_BYTES)
+            except BlockingIOError:
+                data = None
+            except OSError:  # EIO: the client closed the device
+                self.drop_client()
+                return
+            if data:
+                self.on_data(data)
+        if mask & selectors.EVENT_WRITE:
+            self.flush()
+
+    def flush(self) -> None:
+        if not self._open or not self.outbuf:
+            return
+        try:
+            sent = os.write(self.master, self.outbuf)
+        except BlockingIOError:
+            sent = 0
+        except OSError as e:
+            if e.errno == errno.EIO:
+                self.drop_client()
+                return
+            raise
+        del self.outbuf[:sent]
+        want = selectors.EVENT_READ | (selectors.EVENT_WRITE if self.outbuf else 0)
+        if self.selector.get_key(self.master).events != want:
+            self.selector.modify(self.master, want, self._ready)
+
+    def drop_client(self) -> None:
+        # A pty cannot be closed from this side without losing its path: a forced disconnect only
+        # forgets the session (the next bytes from the client are a new link, answered with HELLO).
+        if not self._open:
+            return
+        self._open = False
+        self.outbuf.clear()
+        self.selector.unregister(self.master)
+        self.on_disconnect()
+
+    def close(self) -> None:
+        if self._open:
+            self.selector.unregister(self.master)
+            self._open = False
+        os.close(self.master)

@@ -1,0 +1,129 @@
+"""The session against a scripted agent over real TCP: HELLO checks, commands, params, dumps, reconnect."""
+
+from __future__ import annotations
+
+import time
+
+import pytest
+
+from groundstation.clock import ClockModel
+from groundstation.errors import CommandError, IncompatibleAgentError, ParameterError
+from groundstation.events import EventKind, LinkEvent, Received, Sent
+from groundstation.gaps import SampleRanges
+from groundstation.links import make_link
+from groundstation.params import cache_path
+from groundstation.session import Session, SessionConfig
+from protocol import DumpKind
+from protocol import messages as m
+from tests.groundstation.fake_agent import FakeAgent
+
+
+class Collect:
+    def __init__(self) -> None:
+        self.received: list[Received] = []
+        self.sent: list[Sent] = []
+        self.events: list[LinkEvent] = []
+
+    def on_received(self, received: Received) -> None:
+        self.received.append(received)
+
+    def on_sent(self, sent: Sent) -> None:
+        self.sent.append(sent)
+
+    def on_event(self, event: LinkEvent) -> None:
+        self.events.append(event)
+
+
+def test_connect_fetches_and_caches_the_parameter_table(fake_agent: FakeAgent) -> None:
+    with Session(make_link(fake_agent.url)) as s:
+        assert s.agent_hello is not None and s.agent_hello.name == "fake"
+        assert [p.name for p in s.params][:2] == ["target_depth_m", "z_tol_m"]
+        applied = s.set_param("target_depth_m", "0.8")
+        assert applied.value == pytest.approx(0.8)
+        with pytest.raises(ParameterError, match=r"outside \[0.05, 2\]"):
+            s.set_param("target_depth_m", 9)
+        with pytest.raises(ParameterError, match="unknown parameter 'nope'"):
+            s.set_param("nope", 1)
+        path = cache_path(s.agent_hello.definitions_hash, s.agent_hello.node_id)
+    assert "target_depth_m" in path.read_text()
+
+
+@pytest.mark.parametrize(("version", "hash_", "pattern"), [
+    (2, None, "protocol version 2, this ground station speaks version 1"),
+    (1, 0xDEADBEEF, "hash deadbeef, firmware 9.8.7.*differs from ours"),
+])
+def test_incompatible_agent_is_one_clear_error(version: int, hash_: int | None, pattern: str) -> None:
+    agent = FakeAgent(protocol_version=version, defs_hash=hash_)
+    try:
+        with pytest.raises(IncompatibleAgentError, match=pattern):
+            Session(make_link(agent.url)).connect()
+    finally:
+        agent.close()
+
+
+def test_lost_ack_is_retried_with_the_same_seq_and_executed_once(fake_agent: FakeAgent) -> None:
+    collect = Collect()
+    with Session(make_link(fake_agent.url), listeners=[collect]) as s:
+        fake_agent.ignore_commands = 1
+        s.command(m.Surface())
+        surfaces = [x for x in collect.sent if isinstance(x.message, m.Surface)]
+        assert len(surfaces) == 2 and surfaces[0].seq == surfaces[1].seq and surfaces[0].wire == surfaces[1].wire
+        assert fake_agent.executed.count("CMD_SURFACE") == 1
+        assert s.stats.snapshot(s.decoder.stats)["retries"] == 1
+
+
+def test_nack_is_a_command_error_naming_the_reason(fake_agent: FakeAgent) -> None:
+    with Session(make_link(fake_agent.url), SessionConfig(fetch_params=False)) as s:
+        with pytest.raises(CommandError, match="PARAM_GET refused by the agent: BAD_VALUE"):
+            s.command(m.ParamGet(index=-1, name="missing"))
+
+
+def test_dump_missing_chunks_are_requested_again(fake_agent: FakeAgent) -> None:
+    with Session(make_link(fake_agent.url)) as s:
+        dump = s.dump(DumpKind.VALUES)
+    assert dump.values() == [float(i) for i in range(101)]
+    assert fake_agent.executed.count("CMD_DUMP") == 2  # the snapshot, then its missing range
+
+
+def test_reconnect_backfills_every_missed_sample(fake_agent: FakeAgent) -> None:
+    collect = Collect()
+    fake_agent.drop_every = 7
+    with Session(make_link(fake_agent.url), SessionConfig(backoff_s=(0.05, 0.2)), [collect]) as s:
+        s.command(m.StartLearning(max_episodes=12))
+        time.sleep(0.4)
+        fake_agent.disconnect()
+        deadline = time.monotonic() + 10
+        while fake_agent.learning and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert s.request_backfill(8.0) == 0
+        assert s.link_up
+    kinds = [e.kind for e in collect.events]
+    assert EventKind.LINK_LOST in kinds and EventKind.LINK_RESTORED in kinds
+    samples = [r for r in collect.received if isinstance(r.message, m.Sample)]
+    indices = sorted(r.message.sample for r in samples)  # type: ignore[attr-defined]
+    assert indices == list(range(fake_agent.sample))
+    assert any(r.backfilled for r in samples)
+    ends = {r.message.episode for r in collect.received if isinstance(r.message, m.EpisodeEnd)}  # type: ignore
+    assert ends == set(range(1, 13))
+
+
+def test_clock_model_recovers_offset_and_drift() -> None:
+    clock = ClockModel()
+    offset_us, drift = 5_000_000.0, 50e-6
+    for i in range(20):
+        t1 = 1_000_000_000 + i * 1_000_000
+        t2 = int(t1 + 300 + offset_us + drift * (t1 - 1_000_000_000))
+        clock.add(t1, t2, t2 + 10, t1 + 610 + (i % 3) * 200)
+    assert clock.drift == pytest.approx(drift, rel=0.05)
+    agent_us = int(1_019_000_000 + offset_us + drift * 19_000_000)
+    host_ns = clock.to_host_ns(agent_us)
+    assert host_ns is not None and abs(host_ns / 1000 - 1_019_000_000) < 200
+
+
+def test_sample_ranges_report_exact_gaps() -> None:
+    r = SampleRanges()
+    for i in [*range(0, 10), *range(12, 20), 25, 11]:
+        r.add(i)
+    assert not r.add(5)
+    assert r.missing() == [(10, 11), (20, 25)]
+    assert len(r) == 20 and 11 in r and 21 not in r
