@@ -39,6 +39,7 @@ from protocol import (
     FrameFlag,
     Message,
     NodeKind,
+    Signer,
     StreamDecoder,
     definitions_hash,
 )
@@ -64,6 +65,7 @@ class SessionConfig:
     backfill: bool = True
     fetch_params: bool = True
     node_id: int = field(default_factory=lambda: int.from_bytes(os.urandom(4), "little"))
+    key: bytes | None = field(default=None, repr=False)  # signing key: every frame sent is signed (SPEC s. 12)
 
 
 @dataclass
@@ -87,7 +89,9 @@ class Session:
         self.link = link
         self.config = config or SessionConfig()
         self.listeners: list[SessionListener] = list(listeners)
-        self.encoder = FrameEncoder()
+        # A fresh random link id per session, so a new session's clock may lag the last one's a little (SPEC s. 12).
+        signer = Signer(self.config.key, os.urandom(1)[0]) if self.config.key is not None else None
+        self.encoder = FrameEncoder(signer=signer)
         self.decoder = StreamDecoder()
         self.stats = LinkStats()
         self.clock = ClockModel()
@@ -358,7 +362,8 @@ class Session:
                 continue
             pending.attempts += 1
             pending.deadline_s = now_s + self._ack_timeout_s()
-            with self._send_lock:  # the same bytes, the same seq: the agent ACKs again without re-executing
+            with self._send_lock:  # the same seq (re-signed if signing): the agent ACKs again without re-executing
+                pending.wire = self.encoder.retry(pending.wire)
                 self._write(pending.message, pending.seq, pending.wire, retry=True)
 
     def _rerequest_dump_chunks(self, now_s: float) -> None:

@@ -37,6 +37,7 @@ class ServeConfig:
     pty: bool = False
     speed: float | None = 1.0  # None = as fast as possible
     seed: int | None = None
+    key: bytes | None = None  # signing key: commands must be signed (SPEC s. 12)
 
 
 class AgentServer:
@@ -57,7 +58,7 @@ class AgentServer:
         self.out_delay = DelayLine(faults.delay_ms / 1000.0)
         self.in_delay = DelayLine(faults.delay_ms / 1000.0)
         self.dropped_full = 0  # frames dropped because the client did not keep up (real-time speeds)
-        self.link = AgentLink(self._write, node_id=0x5100_0000 | (seed & 0xFFFF))
+        self.link = AgentLink(self._write, node_id=0x5100_0000 | (seed & 0xFFFF), key=config.key)
         self.hw = SimulatedHardware(config.plant, rng)
         self.program = OnboardProgram(config.plant, config.learner, config.mission, self.hw, rng, self.link)
         self.link.attach(self.program)
