@@ -150,6 +150,8 @@ class Session:
         self._stop.set()
         if self._thread is not None and self._thread is not threading.current_thread():
             self._thread.join(5.0)
+        if self.agent_hello is not None:  # the recording ends with the final link statistics, not 1 s old ones
+            self._emit_stats()
         self.link.close()
         self.link_up = False
         with self._cond:
@@ -342,8 +344,7 @@ class Session:
                                   rx_rejects=rx.rejects & 0xFFFFFFFF, rx_lost=rx.lost & 0xFFFFFFFF,
                                   log_first_sample=0, log_next_sample=0, episode=0, signing_rejects=0))
             self.send(m.Timesync(origin_us=time.time_ns() // 1000, receive_us=0, transmit_us=0))
-            data = {"link": self.stats.snapshot(rx), "clock": self.clock.as_dict()}
-            self._emit(LinkEvent(EventKind.STATS, time.time_ns(), "", data))
+            self._emit_stats()
         self._retransmit(now_s)
         if self.config.backfill and self.link_up and now_s >= self._next_backfill_s:
             self._next_backfill_s = now_s + 0.5
@@ -505,6 +506,10 @@ class Session:
                 listener.on_sent(sent)
             except Exception as e:  # noqa: BLE001
                 self._listener_failed(listener, e)
+
+    def _emit_stats(self) -> None:
+        data = {"link": self.stats.snapshot(self.decoder.stats), "clock": self.clock.as_dict()}
+        self._emit(LinkEvent(EventKind.STATS, time.time_ns(), "", data))
 
     def _emit(self, event: LinkEvent) -> None:
         for listener in list(self.listeners):

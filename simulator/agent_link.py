@@ -69,6 +69,10 @@ class AgentLink:
             messages.LogRequest: self._log_request,
         }
 
+    @property
+    def next_seq(self) -> int:
+        return self._seq
+
     def attach(self, program: OnboardProgram) -> None:
         self.program = program
 

@@ -111,6 +111,9 @@ def serve(
     key_file: Annotated[
         Path | None, typer.Option(help="Signing key file (dive keygen): commands must then be signed.")
     ] = None,
+    report: Annotated[
+        Path | None, typer.Option(help="At exit, write what the faults did and the samples produced (JSON).")
+    ] = None,
 ) -> None:
     """Serve a virtual diving agent over TCP or a pseudo-terminal; prints what to connect to first."""
     try:
@@ -138,4 +141,10 @@ def serve(
     except SimulatorError as e:
         typer.echo(f"error: {e}", err=True)
         raise typer.Exit(1) from None
+    finally:
+        if report is not None:
+            try:
+                report.write_text(json.dumps(server.report()))
+            except OSError as e:
+                typer.echo(f"error: cannot write report {report}: {e.strerror or e}", err=True)
     sys.stdout.flush()
