@@ -126,7 +126,7 @@ def run_command(
 
         result = run(config, show)
     for path in result.paths:
-        out.print(str(path))
+        typer.echo(str(path))
     if result.interrupted:
         err.print("stopped by Ctrl-C; the recording is complete", style="dim")
     if result.still_missing:
@@ -327,3 +327,7 @@ def main() -> None:
         app()
     except KeyboardInterrupt:
         sys.exit(130)
+
+
+if __name__ == "__main__":
+    main()

@@ -89,9 +89,11 @@ class Session:
         self.link = link
         self.config = config or SessionConfig()
         self.listeners: list[SessionListener] = list(listeners)
-        # A fresh random link id per session, so a new session's clock may lag the last one's a little (SPEC s. 12).
+        # A random first seq: an agent that remembers the last 16 (msg_id, seq) it ACKed must not take a new
+        # session's first commands for retries of the previous session's. A fresh random link id per session, so a
+        # new session's clock may lag the last one's a little (SPEC s. 12).
         signer = Signer(self.config.key, os.urandom(1)[0]) if self.config.key is not None else None
-        self.encoder = FrameEncoder(signer=signer)
+        self.encoder = FrameEncoder(first_seq=int.from_bytes(os.urandom(2), "little"), signer=signer)
         self.decoder = StreamDecoder()
         self.stats = LinkStats()
         self.clock = ClockModel()
@@ -346,10 +348,11 @@ class Session:
             self.send(m.Timesync(origin_us=time.time_ns() // 1000, receive_us=0, transmit_us=0))
             self._emit_stats()
         self._retransmit(now_s)
-        if self.config.backfill and self.link_up and now_s >= self._next_backfill_s:
+        if self.link_up and now_s >= self._next_backfill_s:
             self._next_backfill_s = now_s + 0.5
-            for start, end in self.backfill.due(now_s):
-                self.send(m.LogRequest(first_sample=start, end_sample=end), wait=False)
+            if self.config.backfill:
+                for start, end in self.backfill.due(now_s):
+                    self.send(m.LogRequest(first_sample=start, end_sample=end), wait=False)
             self._rerequest_dump_chunks(now_s)
 
     def _retransmit(self, now_s: float) -> None:

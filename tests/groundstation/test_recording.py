@@ -1,0 +1,99 @@
+"""Recordings: the main job writes an MCAP the mcap library reads, every message valid against its schema."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import jsonschema
+import numpy as np
+from mcap.reader import make_reader
+
+from groundstation.export import export_csv, export_npz
+from groundstation.loginfo import summarize
+from groundstation.mcap_io import is_complete, read_recording, recover
+from groundstation.recorder import RecorderConfig
+from groundstation.runner import RunConfig, add_marker, run
+from tests.groundstation.fake_agent import FakeAgent
+
+
+def validate_with_mcap_library(path: Path) -> dict[str, int]:
+    """Read with the mcap library itself (indexed reader) and validate every JSON message."""
+    counts: dict[str, int] = {}
+    validators: dict[int, jsonschema.Draft202012Validator] = {}
+    with path.open("rb") as f:
+        reader = make_reader(f)
+        assert reader.get_header().profile == "diving-agent"
+        for schema, channel, message in reader.iter_messages():
+            counts[channel.topic] = counts.get(channel.topic, 0) + 1
+            if channel.message_encoding == "json":
+                assert schema is not None and schema.encoding == "jsonschema"
+                if schema.id not in validators:
+                    body = json.loads(schema.data)
+                    jsonschema.Draft202012Validator.check_schema(body)
+                    validators[schema.id] = jsonschema.Draft202012Validator(body)
+                validators[schema.id].validate(json.loads(message.data))
+            else:
+                assert channel.message_encoding == "diving-agent-frame-v1"
+            assert message.log_time > 1_600_000_000 * 10**9
+        names = {m.name for m in reader.iter_metadata()}
+    assert {"agent_hello", "parameters", "host", "session"} <= names
+    return counts
+
+
+def test_main_job_records_a_complete_valid_mcap(tmp_path: Path) -> None:
+    agent = FakeAgent(drop_every=9)
+    add_marker("before the run")  # not part of this run
+    try:
+        config = RunConfig(url=agent.url, episodes=4, params={"target_depth_m": "0.6"},
+                           recorder=RecorderConfig(directory=tmp_path))
+        marked = []
+
+        def progress(status: object) -> None:
+            if not marked:
+                marked.append(add_marker("first progress"))
+
+        result = run(config, progress)
+    finally:
+        agent.close()
+    assert result.status.episodes >= 4 and result.still_missing == 0
+    [path] = result.paths
+    assert path.parent == tmp_path and "agent000a6e47" in path.name
+    counts = validate_with_mcap_library(path)
+    for topic in ("/agent/SAMPLE", "/agent/EPISODE_END", "/agent/ACK", "/ground/CMD_START", "/ground/PARAM_SET",
+                  "/raw/rx", "/raw/tx", "/event", "/marker"):
+        assert counts.get(topic), topic
+    contents = read_recording(path, {"/marker", "/agent/PARAM_VALUE"})
+    assert [m.json()["text"] for m in contents.messages if m.topic == "/marker"] == ["first progress"]
+    assert contents.metadata["parameters"][-1]["target_depth_m"] == "0.6"
+    summary = summarize(path)
+    assert summary.complete and summary.samples_missing == 0 and summary.samples_backfilled > 0
+    assert len(summary.episodes) >= 4 and {e.outcome for e in summary.episodes} == {"success", "failure"}
+
+    rows = export_csv(path, tmp_path / "s.csv")
+    assert rows == summary.samples
+    transitions = export_npz(path, tmp_path / "d.npz")
+    data = np.load(tmp_path / "d.npz")
+    assert len(data["state"]) == transitions > 0
+    assert set(data.files) >= {"state", "action", "reward", "next_state", "terminated", "truncated", "episode"}
+    assert data["terminated"].sum() + data["truncated"].sum() == len(set(data["episode"].tolist()))
+
+
+def test_truncated_recording_is_readable_and_recoverable(tmp_path: Path, fake_agent: FakeAgent) -> None:
+    result = run(RunConfig(url=fake_agent.url, episodes=2, recorder=RecorderConfig(directory=tmp_path)))
+    whole = result.paths[0]
+    cut = tmp_path / "cut.mcap"
+    data = whole.read_bytes()
+    cut.write_bytes(data[: len(data) * 2 // 3])
+    assert not is_complete(cut)
+    partial = summarize(cut)
+    assert not partial.complete and partial.samples > 0
+    fixed = tmp_path / "fixed.mcap"
+    count, truncated = recover(cut, fixed)
+    assert truncated and count == partial.messages
+    assert is_complete(fixed)
+    counts = validate_with_mcap_library(fixed)
+    assert counts["/agent/SAMPLE"] == partial.samples
+    shutil.copy(whole, tmp_path / "copy.mcap")
+    assert recover(tmp_path / "copy.mcap", tmp_path / "again.mcap")[1] is False
