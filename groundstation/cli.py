@@ -19,6 +19,7 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, SpinnerColumn
 
 from groundstation import view_cli
 from groundstation.errors import GroundStationError
+from groundstation.keys import keygen, resolve_key
 from groundstation.links import default_url, make_link
 from groundstation.recorder import RecorderConfig
 from groundstation.rerun_view import Viewer
@@ -64,7 +65,7 @@ def _one_line_errors(func: F) -> F:
 
 @contextmanager
 def _session(url: str | None) -> Iterator[Session]:
-    session = Session(make_link(url), SessionConfig(reconnect=False, backfill=False))
+    session = Session(make_link(url), SessionConfig(reconnect=False, backfill=False, key=resolve_key()))
     with session:
         yield session
 
@@ -98,6 +99,7 @@ def run_command(
     split_mb: Annotated[float, typer.Option(help="start a new file after this many MB (0 = never)")] = 0.0,
     split_minutes: Annotated[float, typer.Option(help="start a new file after this many minutes (0 = never)")] = 0.0,
     reconnect: Annotated[bool, typer.Option(help="reconnect after a link loss and backfill the gap")] = True,
+    key_file: Annotated[Path | None, typer.Option(help="sign commands with this key (default: $DIVE_KEY_FILE)")] = None,
 ) -> None:
     """Connect, set parameters, start learning and record everything to MCAP until N episodes or Ctrl-C."""
     url = _with_sim_options(url, speed=speed, seed=seed, preset=preset, learner=learner)
@@ -117,7 +119,7 @@ def run_command(
         recorder = RecorderConfig(directory=out_path or Path("recordings"))
     recorder = RecorderConfig(recorder.directory, recorder.path, int(split_mb * 1e6), split_minutes * 60.0)
     config = RunConfig(url=url, episodes=episodes, params=values, recorder=recorder,
-                       session=SessionConfig(reconnect=reconnect))
+                       session=SessionConfig(reconnect=reconnect, key=resolve_key(key_file)))
     err.print(f"connecting to {url}", style="dim")
     view = view_cli.open_live_view(viewer, rrd, web_port, name=url, headless_default=Viewer.NONE)
     columns = (SpinnerColumn(), TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
@@ -336,6 +338,7 @@ def study(ctx: typer.Context) -> None:
 
 app.command(name="view")(view_cli.view)
 app.command(name="replay")(view_cli.replay)
+app.command(name="keygen")(keygen)
 
 
 def main() -> None:

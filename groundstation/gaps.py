@@ -66,6 +66,38 @@ class SampleRanges:
         return [(a, b) for a, b in gaps if b > a]
 
 
+class EpisodeFrames:
+    """Which EPISODE_START / EPISODE_END frames the ground holds, and where a lost one lies in the on-board log.
+
+    A lost episode frame leaves no gap in the SAMPLE indices, so it is found another way: EPISODE_START carries the
+    index of its episode's first LEARNING sample and EPISODE_END that of its last (SPEC.md s. 7), and the agent
+    sends each right beside that sample. A LEARNING sample of an episode whose START never came, or a later sample
+    after an episode whose END never came, shows the frame was lost; the log holds it under that sample's index.
+    """
+
+    def __init__(self) -> None:
+        self.starts: set[int] = set()
+        self.ends: set[int] = set()
+        self._learning: dict[int, tuple[int, int]] = {}  # episode -> (first, last) LEARNING sample index seen
+        self._latest_sample = -1
+
+    def saw_sample(self, sample: int, episode: int, learning: bool) -> None:
+        self._latest_sample = max(self._latest_sample, sample)
+        if learning:
+            first, last = self._learning.get(episode, (sample, sample))
+            self._learning[episode] = (min(first, sample), max(last, sample))
+
+    def missing(self) -> list[tuple[int, int]]:
+        """[start, end) sample ranges whose replay brings back the lost episode frames."""
+        ranges = []
+        for episode, (first, last) in self._learning.items():
+            if episode not in self.starts:
+                ranges.append((first, first + 1))
+            if episode not in self.ends and self._latest_sample > last:
+                ranges.append((last, last + 1))
+        return ranges
+
+
 class BackfillPlanner:
     """Decides which LOG_REQUEST ranges to send: gaps the agent still holds, each retried a few times.
 
@@ -73,10 +105,13 @@ class BackfillPlanner:
     before that heartbeat, so on an in-order stream a hole below it is a real loss, not a frame in flight.
     """
 
-    def __init__(self, retry_after_s: float = 3.0, attempts: int = 3, merge_below: int = 16) -> None:
+    # A retry every second, five tries: at --speed max the agent's 512 KiB log turns over in about 4 s of wall time,
+    # and a replayed frame can be lost again on a bad link (tests/reliability/test_fault_matrix.py).
+    def __init__(self, retry_after_s: float = 1.0, attempts: int = 5, merge_below: int = 16) -> None:
         self.held = SampleRanges()
         self.known_end = 0
         self.log_first = 0
+        self.episodes = EpisodeFrames()
         self._requested: dict[tuple[int, int], tuple[int, float]] = {}  # range -> (attempts, when)
         self._retry_after_s = retry_after_s
         self._attempts = attempts
@@ -95,15 +130,19 @@ class BackfillPlanner:
             return []
         return self.held.missing(end=max(self.known_end, self.held.end or 0))
 
+    def pending(self) -> bool:
+        """Anything still to fetch: samples, or episode frames (which `missing()` does not count)."""
+        return bool(self.missing() or self.episodes.missing())
+
     def due(self, now_s: float) -> list[tuple[int, int]]:
         """Ranges to request now (merged when close, clipped to what the on-board log still holds)."""
         merged: list[tuple[int, int]] = []
-        for start, end in self.missing():
+        for start, end in sorted(self.missing() + self.episodes.missing()):
             start = max(start, self.log_first)
             if end <= start:
                 continue
             if merged and start - merged[-1][1] < self._merge_below:
-                merged[-1] = (merged[-1][0], end)
+                merged[-1] = (merged[-1][0], max(end, merged[-1][1]))
             else:
                 merged.append((start, end))
         due = []

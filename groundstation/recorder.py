@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 import platform
@@ -9,11 +10,13 @@ import socket
 import sys
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 from groundstation.dumps import DumpAssembler
+from groundstation.errors import RecordingError
 from groundstation.events import EventKind, LinkEvent, Received, Sent
 from groundstation.mcap_io import RAW_ENCODING, McapFileWriter, mcap_library_version
 from groundstation.session import tool_version
@@ -68,6 +71,25 @@ class RecorderConfig:
     flush_period_s: float = 1.0
 
 
+_Method = TypeVar("_Method", bound=Callable[..., None])
+
+
+def _guarded(method: _Method) -> _Method:
+    """A recorder method under its lock, skipped after a failed write, turning a new failure into `failure`."""
+
+    @functools.wraps(method)
+    def guarded(self: Recorder, *args: Any) -> None:
+        with self._lock:
+            if self.failure is not None:
+                return
+            try:
+                method(self, *args)
+            except OSError as e:  # RecordingError is an OSError too
+                self._fail(e)
+
+    return guarded  # type: ignore[return-value]
+
+
 class Recorder:
     """Opens its file at the agent's first HELLO (the name holds the agent id); thread-safe."""
 
@@ -84,50 +106,64 @@ class Recorder:
         self._hello: dict[str, Any] = {}
         self._parameters: dict[str, Any] = {}
         self._dumps = DumpAssembler()
+        self.failure: RecordingError | None = None  # the first write that failed; nothing is written after it
 
     @property
     def path(self) -> Path | None:
         return self.paths[-1] if self.paths else None
 
     # ------------------------------------------------------------------ listener
+    @_guarded
     def on_received(self, received: Received) -> None:
-        with self._lock:
-            msg = received.message
-            if self._writer is None and isinstance(msg, messages.Hello):
-                self._hello = msg.to_dict()
-                self._agent_id = msg.node_id
-                self._open()
-            if self._writer is None:
-                self._early.append(("rx", received))
-                return
-            self._rotate_if_due()
-            self._write_received(received)
+        msg = received.message
+        if self._writer is None and isinstance(msg, messages.Hello):
+            self._hello = msg.to_dict()
+            self._agent_id = msg.node_id
+            self._open()
+        if self._writer is None:
+            self._early.append(("rx", received))
+            return
+        self._rotate_if_due()
+        self._write_received(received)
 
+    @_guarded
     def on_sent(self, sent: Sent) -> None:
-        with self._lock:
-            if self._writer is None:
-                self._early.append(("tx", sent))
-                return
-            self._write_sent(sent)
+        if self._writer is None:
+            self._early.append(("tx", sent))
+            return
+        self._write_sent(sent)
 
+    @_guarded
     def on_event(self, event: LinkEvent) -> None:
-        with self._lock:
-            if self._writer is None:
-                self._early.append(("event", event))
-                return
-            self._write_event(event)
+        if self._writer is None:
+            self._early.append(("event", event))
+            return
+        self._write_event(event)
 
+    @_guarded
     def set_parameters(self, values: dict[str, Any]) -> None:
-        with self._lock:
-            self._parameters = dict(values)
-            if self._writer is not None:
-                self._writer.metadata("parameters", self._parameters)
+        self._parameters = dict(values)
+        if self._writer is not None:
+            self._writer.metadata("parameters", self._parameters)
 
+    @_guarded
     def close(self) -> None:
-        with self._lock:
-            if self._writer is not None:
-                self._writer.close()
-                self._writer = None
+        if self._writer is not None:
+            writer, self._writer = self._writer, None
+            writer.close()
+
+    def _fail(self, error: OSError) -> None:
+        """Record nothing more after a failed write (disk full, folder not writable), keep what was written
+        readable, and keep the error for the run to report; the session goes on and closes the link cleanly."""
+        where = self.path or self.config.directory
+        self.failure = error if isinstance(error, RecordingError) else RecordingError(
+            f"cannot write the recording {where}: {error.strerror or error}")
+        writer, self._writer = self._writer, None
+        if writer is not None:
+            try:
+                writer.close()
+            except OSError:
+                pass  # the footer may not fit on a full disk; the chunks already flushed stay readable
 
     # ------------------------------------------------------------------ internals
     def _file_name(self) -> Path:

@@ -17,7 +17,7 @@ from groundstation.links import make_link
 from groundstation.params import cache_dir
 from groundstation.recorder import Recorder, RecorderConfig
 from groundstation.session import Session, SessionConfig
-from protocol import EndReason
+from protocol import EndReason, Mode
 from protocol import messages as m
 
 
@@ -144,6 +144,73 @@ class _Progress:
         self.changed.set()
 
 
+class _AgentWatch:
+    """Starts learning and follows the agent's mode from its heartbeats, so the run neither hangs nor stalls.
+
+    EPISODE_END frames are what the run counts, but one can be lost on the link; the agent's own episode counter
+    (HEARTBEAT.episode) and its return to IDLE say the episodes are done all the same (the final backfill then
+    fetches the lost frames). An agent that surfaced for another reason (link loss, maximum dive time) before
+    the episodes were done is started again with the episodes left.
+    """
+
+    MAX_RESTARTS = 10
+    SURFACING_WAIT_S = 60.0
+    FIRST_HEARTBEAT_WAIT_S = 2.0  # heartbeats come at 1 Hz of agent time
+
+    def __init__(self, session: Session, episodes: int, status: RunStatus) -> None:
+        self.session, self.episodes, self.status = session, episodes, status
+        self.first_episode = 0
+        self.left_idle = False
+        self.restarts = 0
+
+    def start(self) -> None:
+        beat = self._wait_unless_surfacing()
+        self.first_episode = beat.episode if beat is not None else 0
+        if beat is not None and beat.mode in (Mode.LEARNING, Mode.RECOVERING):
+            self.status.messages.append(f"the agent is already learning (episode {beat.episode}): recording it")
+            self.left_idle = True
+            return
+        self.session.command(m.StartLearning(max_episodes=self.episodes))
+
+    def finished(self) -> bool:
+        beat = self.session.last_heartbeat
+        if beat is None:
+            return False
+        if beat.mode != Mode.IDLE:
+            self.left_idle = True
+            return False
+        if not self.left_idle:
+            return False  # the heartbeat from before CMD_START
+        done = beat.episode - self.first_episode
+        if self.episodes and done >= self.episodes:
+            return True
+        if self.restarts >= self.MAX_RESTARTS:
+            self.status.messages.append(f"the agent surfaced {self.restarts} times; stopping")
+            return True
+        self.restarts += 1
+        self.left_idle = False
+        left = self.episodes - done if self.episodes else 0
+        self.status.messages.append(f"the agent surfaced after episode {beat.episode}; starting it again")
+        try:
+            self.session.command(m.StartLearning(max_episodes=left))
+        except (CommandError, LinkError) as e:
+            self.left_idle = True  # try again on the next look
+            self.status.messages.append(f"restart refused: {e}")
+        return False
+
+    def _wait_unless_surfacing(self) -> m.Heartbeat | None:
+        """The agent's latest heartbeat (waiting up to 2 s for one), once it is not surfacing any more."""
+        first_deadline = time.monotonic() + self.FIRST_HEARTBEAT_WAIT_S
+        while self.session.last_heartbeat is None and time.monotonic() < first_deadline:
+            time.sleep(0.05)
+        deadline = time.monotonic() + self.SURFACING_WAIT_S
+        beat = self.session.last_heartbeat
+        while beat is not None and beat.mode == Mode.SURFACING and time.monotonic() < deadline:
+            time.sleep(0.1)
+            beat = self.session.last_heartbeat
+        return beat
+
+
 @dataclass(frozen=True, slots=True)
 class RunResult:
     paths: list[Path]
@@ -180,7 +247,8 @@ def run(config: RunConfig, on_progress: Callable[[RunStatus], None] | None = Non
         for name, value in config.params.items():
             session.set_param(name, value)
         recorder.set_parameters(session.params.values())
-        session.command(m.StartLearning(max_episodes=config.episodes))
+        watch = _AgentWatch(session, config.episodes, status)
+        watch.start()
         try:
             while not stop.is_set() and not (config.episodes and status.episodes >= config.episodes):
                 progress.changed.wait(0.2)
@@ -189,6 +257,8 @@ def run(config: RunConfig, on_progress: Callable[[RunStatus], None] | None = Non
                     session.mark(text)
                 if on_progress is not None:
                     on_progress(status)
+                if watch.finished() or recorder.failure is not None:
+                    break
         except KeyboardInterrupt:
             interrupted = True
         if interrupted or stop.is_set():
@@ -200,6 +270,8 @@ def run(config: RunConfig, on_progress: Callable[[RunStatus], None] | None = Non
     finally:
         session.close()
         recorder.close()
+    if recorder.failure is not None:
+        raise recorder.failure  # after the link was closed cleanly; what was written stays readable
     if on_progress is not None:
         on_progress(status)
     return RunResult(list(recorder.paths), status, interrupted, missing)

@@ -38,7 +38,9 @@ from protocol import (
     FrameEncoder,
     FrameFlag,
     Message,
+    Mode,
     NodeKind,
+    Signer,
     StreamDecoder,
     definitions_hash,
 )
@@ -64,6 +66,7 @@ class SessionConfig:
     backfill: bool = True
     fetch_params: bool = True
     node_id: int = field(default_factory=lambda: int.from_bytes(os.urandom(4), "little"))
+    key: bytes | None = field(default=None, repr=False)  # signing key: every frame sent is signed (SPEC s. 12)
 
 
 @dataclass
@@ -88,8 +91,10 @@ class Session:
         self.config = config or SessionConfig()
         self.listeners: list[SessionListener] = list(listeners)
         # A random first seq: an agent that remembers the last 16 (msg_id, seq) it ACKed must not take a new
-        # session's first commands for retries of the previous session's.
-        self.encoder = FrameEncoder(first_seq=int.from_bytes(os.urandom(2), "little"))
+        # session's first commands for retries of the previous session's. A fresh random link id per session, so a
+        # new session's clock may lag the last one's a little (SPEC s. 12).
+        signer = Signer(self.config.key, os.urandom(1)[0]) if self.config.key is not None else None
+        self.encoder = FrameEncoder(first_seq=int.from_bytes(os.urandom(2), "little"), signer=signer)
         self.decoder = StreamDecoder()
         self.stats = LinkStats()
         self.clock = ClockModel()
@@ -148,6 +153,8 @@ class Session:
         self._stop.set()
         if self._thread is not None and self._thread is not threading.current_thread():
             self._thread.join(5.0)
+        if self.agent_hello is not None:  # the recording ends with the final link statistics, not 1 s old ones
+            self._emit_stats()
         self.link.close()
         self.link_up = False
         with self._cond:
@@ -274,8 +281,8 @@ class Session:
         self._next_backfill_s = 0.0
         deadline = time.monotonic() + timeout_s
         with self._cond:
-            self._cond.wait_for(lambda: not self.backfill.missing() or not self.link_up, timeout_s)
-            while self.backfill.missing() and time.monotonic() < deadline:
+            self._cond.wait_for(lambda: not self.backfill.pending() or not self.link_up, timeout_s)
+            while self.backfill.pending() and time.monotonic() < deadline:
                 self._cond.wait(0.1)
         return sum(b - a for a, b in self.backfill.missing())
 
@@ -340,8 +347,7 @@ class Session:
                                   rx_rejects=rx.rejects & 0xFFFFFFFF, rx_lost=rx.lost & 0xFFFFFFFF,
                                   log_first_sample=0, log_next_sample=0, episode=0, signing_rejects=0))
             self.send(m.Timesync(origin_us=time.time_ns() // 1000, receive_us=0, transmit_us=0))
-            data = {"link": self.stats.snapshot(rx), "clock": self.clock.as_dict()}
-            self._emit(LinkEvent(EventKind.STATS, time.time_ns(), "", data))
+            self._emit_stats()
         self._retransmit(now_s)
         if self.link_up and now_s >= self._next_backfill_s:
             self._next_backfill_s = now_s + 0.5
@@ -361,7 +367,8 @@ class Session:
                 continue
             pending.attempts += 1
             pending.deadline_s = now_s + self._ack_timeout_s()
-            with self._send_lock:  # the same bytes, the same seq: the agent ACKs again without re-executing
+            with self._send_lock:  # the same seq (re-signed if signing): the agent ACKs again without re-executing
+                pending.wire = self.encoder.retry(pending.wire)
                 self._write(pending.message, pending.seq, pending.wire, retry=True)
 
     def _rerequest_dump_chunks(self, now_s: float) -> None:
@@ -380,11 +387,14 @@ class Session:
         backfilled = bool(frame.flags & FrameFlag.REPLAYED)
         deliver = True
         if isinstance(msg, m.Sample):
+            self.backfill.episodes.saw_sample(msg.sample, msg.episode, msg.mode == Mode.LEARNING)
             new = self.backfill.held.add(msg.sample)
             deliver = new or not backfilled
             if backfilled and new:
                 self.stats.backfilled += 1
         elif isinstance(msg, _SEQUENCED):
+            (self.backfill.episodes.starts if isinstance(msg, m.EpisodeStart) else self.backfill.episodes.ends).add(
+                msg.episode)
             key = (msg.MSG_ID, msg.episode, msg.sample)
             deliver = key not in self._episodes_seen
             self._episodes_seen.add(key)
@@ -417,7 +427,7 @@ class Session:
             self.backfill.saw_log_window(msg.first_sample, msg.next_sample)
             self._emit(LinkEvent(EventKind.BACKFILL_DONE, host_ns, f"{msg.replayed} frames replayed",
                                  msg.to_dict()))
-        if isinstance(msg, m.Sample | m.LogRange):
+        if isinstance(msg, m.Sample | m.LogRange | m.EpisodeStart | m.EpisodeEnd):
             with self._cond:
                 self._cond.notify_all()
         if deliver and self.agent_hello is not None:  # nothing reaches listeners from an incompatible peer
@@ -503,6 +513,10 @@ class Session:
                 listener.on_sent(sent)
             except Exception as e:  # noqa: BLE001
                 self._listener_failed(listener, e)
+
+    def _emit_stats(self) -> None:
+        data = {"link": self.stats.snapshot(self.decoder.stats), "clock": self.clock.as_dict()}
+        self._emit(LinkEvent(EventKind.STATS, time.time_ns(), "", data))
 
     def _emit(self, event: LinkEvent) -> None:
         for listener in list(self.listeners):

@@ -25,11 +25,13 @@ from protocol.registry import (
     message_class,
     message_class_by_name,
 )
+from protocol.signing import SignatureCheck, SignatureVerifier, Signer, SigningError
 
 __all__ = [
     "PROTOCOL_VERSION", "AckResult", "Action", "CobsError", "DecoderStats", "Direction", "DumpKind",
     "EncodedFrame", "EndReason", "Frame", "FrameEncoder", "FrameError", "FrameFlag", "Message", "MessageDef",
-    "Mode", "NodeKind", "ParamType", "PayloadError", "ProtocolError", "Severity", "StreamDecoder",
-    "UnknownMessageError", "definitions", "definitions_hash", "message_class", "message_class_by_name",
+    "Mode", "NodeKind", "ParamType", "PayloadError", "ProtocolError", "Severity", "SignatureCheck",
+    "SignatureVerifier", "Signer", "SigningError", "StreamDecoder", "UnknownMessageError",
+    "definitions", "definitions_hash", "message_class", "message_class_by_name",
     "messages",
 ]

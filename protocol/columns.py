@@ -8,10 +8,12 @@ from collections.abc import Iterable
 from typing import Any
 
 from protocol.crc import CRC_INIT
-from protocol.enums import INCOMPATIBLE_FLAGS_MASK, PROTOCOL_VERSION
+from protocol.enums import INCOMPATIBLE_FLAGS_MASK, PROTOCOL_VERSION, FrameFlag
+from protocol.frame import payload_end
 from protocol.registry import MessageDef
 
 _HEADER_SIZE = 5
+_SIGNED = int(FrameFlag.SIGNED)
 
 
 def record_struct(definition: MessageDef) -> struct.Struct:
@@ -38,10 +40,13 @@ def payload_records(inner_frames: Iterable[bytes], definition: MessageDef) -> by
             continue
         if crc_hqx(inner[:-2], CRC_INIT) != (inner[-2] << 8 | inner[-1]):
             continue
-        if length == end + 2:  # the common case: exactly the payload this build knows
+        if length == end + 2 and not inner[1] & _SIGNED:  # the common case: exactly the payload this build knows
             append(inner[_HEADER_SIZE:end])
         else:
-            payload = inner[_HEADER_SIZE : min(end, length - 2)]
+            data_end = payload_end(inner)
+            if data_end < 0:
+                continue
+            payload = inner[_HEADER_SIZE : min(end, data_end)]
             append(payload + bytes(size - len(payload)))
     return b"".join(pieces)
 

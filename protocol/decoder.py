@@ -8,13 +8,14 @@ from dataclasses import dataclass, field, fields
 
 from protocol.cobs import cobs_decode
 from protocol.crc import CRC_INIT
-from protocol.enums import INCOMPATIBLE_FLAGS_MASK, PROTOCOL_VERSION
+from protocol.enums import INCOMPATIBLE_FLAGS_MASK, PROTOCOL_VERSION, FrameFlag
 from protocol.errors import CobsError
-from protocol.frame import HEADER, MAX_CHUNK, MIN_INNER
+from protocol.frame import HEADER, MAX_CHUNK, MIN_INNER, payload_end
 from protocol.registry import Message, message_classes
 
 HEADER_SIZE = HEADER.size
 unpack_header = HEADER.unpack_from
+_SIGNED = int(FrameFlag.SIGNED)
 _SEQ_HALF = 0x8000  # a seq this far or more behind the expected one is late/duplicate, not a gap
 
 
@@ -57,7 +58,12 @@ class Frame:
 
     @property
     def payload(self) -> bytes:
-        return self.inner[HEADER.size : -2]
+        """The message payload: without CRC, and without the signature trailer when signed."""
+        return self.inner[HEADER.size : payload_end(self.inner)]
+
+    @property
+    def signed(self) -> bool:
+        return bool(self.flags & _SIGNED)
 
 
 @dataclass
@@ -131,8 +137,14 @@ class StreamDecoder:
         if cls is None:
             stats.unknown_id += 1
             return None
+        end = -2
+        if flags & _SIGNED:  # the signature trailer is cut off before the payload is decoded (SPEC.md section 12)
+            end = payload_end(inner)
+            if end < 0:
+                stats.malformed += 1
+                return None
         try:
-            decoded = cls.unpack(inner[HEADER_SIZE:-2])
+            decoded = cls.unpack(inner[HEADER_SIZE:end])
         except Exception:  # a decoder must not raise on wire input, whatever a payload holds
             stats.malformed += 1
             return None

@@ -1,13 +1,17 @@
-"""Frame encoder: message in, wire bytes out, with the sender's own sequence counter."""
+"""Frame encoder: message in, wire bytes out, with the sender's own sequence counter (and optional signer)."""
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from collections.abc import Callable
+from typing import TYPE_CHECKING, NamedTuple
 
-from protocol.cobs import cobs_encode
+from protocol.cobs import cobs_decode, cobs_encode
 from protocol.enums import FrameFlag
-from protocol.frame import DELIMITER, build_inner
+from protocol.frame import DELIMITER, HEADER, build_inner, payload_end
 from protocol.registry import Message
+
+if TYPE_CHECKING:
+    from protocol.signing import Signer
 
 
 class EncodedFrame(NamedTuple):
@@ -16,10 +20,14 @@ class EncodedFrame(NamedTuple):
 
 
 class FrameEncoder:
-    """Keeps the per-sender sequence counter (+1 per frame, wraps at 65536)."""
+    """Keeps the per-sender sequence counter (+1 per frame, wraps at 65536).
 
-    def __init__(self, first_seq: int = 0) -> None:
+    With a `signer`, every frame gets flag bit 2 and a signature trailer (SPEC.md section 12).
+    """
+
+    def __init__(self, first_seq: int = 0, signer: Signer | None = None) -> None:
         self._seq = first_seq & 0xFFFF
+        self.signer = signer
 
     @property
     def next_seq(self) -> int:
@@ -32,8 +40,25 @@ class FrameEncoder:
         return self.encode_payload(message.MSG_ID, message.pack(), flags)
 
     def encode_payload(self, msg_id: int, payload: bytes, flags: int = 0) -> EncodedFrame:
-        """Frame an already packed payload (raises FrameError if it exceeds 247 bytes)."""
-        inner = build_inner(flags, self._seq, msg_id, payload)
+        """Frame an already packed payload (raises FrameError if it exceeds 247 bytes, 234 when signed)."""
+        inner = build_inner(flags, self._seq, msg_id, payload, self._trailer())
         seq = self._seq
         self._seq = (seq + 1) & 0xFFFF
         return EncodedFrame(seq, cobs_encode(inner) + DELIMITER)
+
+    def retry(self, wire: bytes) -> bytes:
+        """The wire bytes to re-send a frame: the same seq and payload; re-signed with a fresh timestamp if signed.
+
+        Re-sending a signed frame byte for byte would be refused as a replay, so a retry carries a new trailer; the
+        agent still recognises it as a retry by (msg_id, seq) and does not run the command twice.
+        """
+        if self.signer is None:
+            return wire
+        inner = cobs_decode(wire[:-1])
+        end = payload_end(inner)
+        flags = inner[1] & ~FrameFlag.SIGNED
+        _, _, seq, msg_id = HEADER.unpack_from(inner)
+        return cobs_encode(build_inner(flags, seq, msg_id, inner[HEADER.size : end], self._trailer())) + DELIMITER
+
+    def _trailer(self) -> Callable[[bytes], bytes] | None:
+        return self.signer.trailer if self.signer is not None else None

@@ -4,11 +4,12 @@ from __future__ import annotations
 
 import struct
 from binascii import crc_hqx
+from collections.abc import Callable
 from dataclasses import dataclass
 
 from protocol.cobs import cobs_encode
 from protocol.crc import CRC_INIT, crc16_ccitt_false
-from protocol.enums import INCOMPATIBLE_FLAGS_MASK, PROTOCOL_VERSION
+from protocol.enums import INCOMPATIBLE_FLAGS_MASK, PROTOCOL_VERSION, FrameFlag
 from protocol.errors import FrameError
 from protocol.registry import MAX_PAYLOAD
 
@@ -18,6 +19,8 @@ MIN_INNER = HEADER.size + CRC.size  # 7: an empty payload
 MAX_INNER = HEADER.size + MAX_PAYLOAD + CRC.size  # 254
 MAX_CHUNK = 256  # longest COBS chunk a receiver keeps (254 inner bytes + 2 bytes of COBS overhead)
 DELIMITER = b"\x00"
+TRAILER_SIZE = 13  # signature trailer when flag bit 2 is set: link_id u8 | timestamp u48 LE | signature 6 bytes
+_SIGNED = int(FrameFlag.SIGNED)
 
 
 @dataclass(frozen=True, slots=True)
@@ -31,12 +34,32 @@ class RawFrame:
     version: int = PROTOCOL_VERSION
 
 
-def build_inner(flags: int, seq: int, msg_id: int, payload: bytes) -> bytes:
-    """The inner frame with its CRC; raises FrameError on an oversize payload."""
-    if len(payload) > MAX_PAYLOAD:
-        raise FrameError(f"payload of {len(payload)} bytes exceeds {MAX_PAYLOAD}")
+def build_inner(flags: int, seq: int, msg_id: int, payload: bytes,
+                trailer: Callable[[bytes], bytes] | None = None) -> bytes:
+    """The inner frame with its CRC; raises FrameError on an oversize payload.
+
+    With `trailer` (a Signer's), flag bit 2 is set and trailer(header + payload) is appended before the CRC.
+    """
+    room = MAX_PAYLOAD - (TRAILER_SIZE if trailer is not None else 0)
+    if len(payload) > room:
+        raise FrameError(f"payload of {len(payload)} bytes exceeds {room}")
+    if trailer is not None:
+        flags |= _SIGNED
     body = HEADER.pack(PROTOCOL_VERSION, flags, seq & 0xFFFF, msg_id) + payload
+    if trailer is not None:
+        body += trailer(body)
     return body + crc_hqx(body, CRC_INIT).to_bytes(2, "big")
+
+
+def payload_end(inner: bytes) -> int:
+    """Where the message payload ends in an inner frame: before the CRC, and before the trailer when signed.
+
+    The trailer is cut off BEFORE the payload is decoded, so it works for messages ending in bytes[] / text[] too.
+    Returns -1 for a signed frame too short to hold a trailer.
+    """
+    if inner[1] & _SIGNED:
+        return len(inner) - 2 - TRAILER_SIZE if len(inner) >= MIN_INNER + TRAILER_SIZE else -1
+    return len(inner) - 2
 
 
 def encode_wire(inner: bytes) -> bytes:
@@ -53,4 +76,7 @@ def parse_inner(inner: bytes) -> RawFrame:
     version, flags, seq, msg_id = HEADER.unpack_from(inner)
     if version != PROTOCOL_VERSION or flags & INCOMPATIBLE_FLAGS_MASK:
         raise FrameError(f"incompatible frame (version {version}, flags 0x{flags:02X})")
-    return RawFrame(flags, seq, msg_id, inner[HEADER.size : -2], version)
+    end = payload_end(inner)
+    if end < 0:
+        raise FrameError(f"signed frame of {len(inner)} bytes has no room for its {TRAILER_SIZE}-byte trailer")
+    return RawFrame(flags, seq, msg_id, inner[HEADER.size : end], version)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import time
 from collections import deque
 from collections.abc import Callable
 
@@ -13,6 +14,8 @@ from protocol import (
     Frame,
     FrameFlag,
     NodeKind,
+    SignatureCheck,
+    SignatureVerifier,
     StreamDecoder,
     definitions_hash,
     messages,
@@ -41,8 +44,12 @@ class AgentLink:
     `write` takes wire bytes (the server passes them through fault injection to the transport).
     """
 
-    def __init__(self, write: Callable[[bytes], None], node_id: int, ring: LogRing | None = None) -> None:
+    def __init__(self, write: Callable[[bytes], None], node_id: int, ring: LogRing | None = None,
+                 key: bytes | None = None) -> None:
         self.write = write
+        # With a key, commands must be signed (SPEC s. 12); refusals are counted in HEARTBEAT.signing_rejects.
+        self.verifier = SignatureVerifier(key) if key is not None else None
+        self.signing_rejects = 0
         self.node_id = node_id
         self.boot_id = int.from_bytes(os.urandom(4), "little") or 1
         self.ring = ring or LogRing()
@@ -64,6 +71,10 @@ class AgentLink:
             messages.ParamGet: self._param_get, messages.ParamSet: self._param_set,
             messages.LogRequest: self._log_request,
         }
+
+    @property
+    def next_seq(self) -> int:
+        return self._seq
 
     def attach(self, program: OnboardProgram) -> None:
         self.program = program
@@ -114,7 +125,7 @@ class AgentLink:
             uptime_ms=(prog.t_us // 1000) & 0xFFFFFFFF, mode=int(prog.mode),
             battery_mv=int(prog.hw.battery_v * 1000), rx_frames=stats.frames, rx_rejects=stats.rejects,
             rx_lost=stats.lost, log_first_sample=self.ring.first_sample, log_next_sample=prog.next_sample,
-            episode=prog.episode,
+            episode=prog.episode, signing_rejects=self.signing_rejects & 0xFFFFFFFF,
         ))
 
     def tick(self) -> None:
@@ -136,10 +147,18 @@ class AgentLink:
     def receive(self, data: bytes) -> None:
         """Whatever the link delivered; garbage is counted by the decoder and otherwise ignored."""
         for frame in self.decoder.feed(data):
-            self._prog.last_ground_rx_us = self._prog.t_us
-            self._handle(frame)
+            check = self._check_signature(frame)
+            if check is SignatureCheck.VALID:  # an unsigned frame must not keep a signed link alive
+                self._prog.last_ground_rx_us = self._prog.t_us
+            self._handle(frame, check)
 
-    def _handle(self, frame: Frame) -> None:
+    def _check_signature(self, frame: Frame) -> SignatureCheck:
+        if self.verifier is None:
+            return SignatureCheck.VALID
+        # Wall time, not agent time: the ground stamps frames with its wall clock (SPEC s. 12, step 4).
+        return self.verifier.check(frame.inner, time.monotonic())
+
+    def _handle(self, frame: Frame, check: SignatureCheck = SignatureCheck.VALID) -> None:
         message = frame.message
         if isinstance(message, messages.Hello):
             if not self._hello_sent:
@@ -149,7 +168,11 @@ class AgentLink:
                 t = self._prog.t_us
                 self.send(messages.Timesync(origin_us=message.origin_us, receive_us=t, transmit_us=t))
         elif frame.msg_id >= COMMAND_IDS_FROM:
-            self._command(frame)
+            if check is SignatureCheck.VALID:
+                self._command(frame)
+            else:  # not run, not remembered as answered: only the refusal is sent
+                self.signing_rejects += 1
+                self._ack(frame, AckResult.UNAUTHORIZED, f"signature {check.name.lower().replace('_', ' ')}")
 
     def _command(self, frame: Frame) -> None:
         for msg_id, seq, result, reason in self._answered:

@@ -6,7 +6,20 @@ import heapq
 import random
 from dataclasses import dataclass
 
+from protocol.cobs import cobs_decode
+from protocol.errors import CobsError
 from simulator.errors import ParamsError
+
+MAX_LOGGED_SEQS = 1_000_000  # seqs kept for the --report file; plenty for a test, a soak only needs the counts
+
+
+def frame_seq(wire: bytes) -> int | None:
+    """The seq of an encoded frame (COBS + 0x00), or None if it is not a decodable frame."""
+    try:
+        inner = cobs_decode(wire.rstrip(b"\x00"))
+    except CobsError:
+        return None
+    return inner[2] | inner[3] << 8 if len(inner) >= 4 else None
 
 
 @dataclass(frozen=True)

@@ -13,6 +13,8 @@ from typing import Annotated, Any
 import typer
 
 from learning import LearnerConfig, LearningError, learner_names, learner_preset
+from protocol import SigningError
+from protocol.signing import parse_key
 from simulator.agent_mission import MissionConfig
 from simulator.errors import ParamsError, SimulatorError
 from simulator.faults import FaultConfig
@@ -42,6 +44,14 @@ def parse_speed(text: str) -> float | None:
     if not speed > 0 or speed == float("inf"):
         raise ParamsError(f"--speed wants a positive number or 'max', got {text!r}")
     return speed
+
+
+def read_key_file(path: Path) -> bytes:
+    """The signing key in a key file (64 hex digits, as `dive keygen` writes)."""
+    try:
+        return parse_key(path.read_text(encoding="ascii"))
+    except (OSError, UnicodeDecodeError, SigningError) as e:
+        raise ParamsError(f"cannot read key file {path}: {e}") from e
 
 
 def _read_table(path: Path) -> dict[str, Any]:
@@ -100,6 +110,12 @@ def serve(
     blackout_below: Annotated[
         float | None, typer.Option(help="The link works only shallower than this depth, m (like the radio).")
     ] = None,
+    key_file: Annotated[
+        Path | None, typer.Option(help="Signing key file (dive keygen): commands must then be signed.")
+    ] = None,
+    report: Annotated[
+        Path | None, typer.Option(help="At exit, write what the faults did and the samples produced (JSON).")
+    ] = None,
 ) -> None:
     """Serve a virtual diving agent over TCP or a pseudo-terminal; prints what to connect to first."""
     try:
@@ -113,6 +129,7 @@ def serve(
             plant=plant, learner=learner_config, mission=mission,
             faults=FaultConfig(drop, corrupt, delay, disconnect_every, blackout_below),
             host=host, port=port, pty=pty, speed=parse_speed(speed), seed=seed,
+            key=read_key_file(key_file) if key_file is not None else None,
         )
         server = AgentServer(config)
     except (SimulatorError, LearningError) as e:
@@ -126,4 +143,10 @@ def serve(
     except SimulatorError as e:
         typer.echo(f"error: {e}", err=True)
         raise typer.Exit(1) from None
+    finally:
+        if report is not None:
+            try:
+                report.write_text(json.dumps(server.report()))
+            except OSError as e:
+                typer.echo(f"error: cannot write report {report}: {e.strerror or e}", err=True)
     sys.stdout.flush()

@@ -12,7 +12,7 @@ import numpy as np
 from learning import LearnerConfig
 from simulator.agent_link import AgentLink
 from simulator.agent_mission import MissionConfig
-from simulator.faults import DelayLine, FaultConfig, FrameFaults
+from simulator.faults import MAX_LOGGED_SEQS, DelayLine, FaultConfig, FrameFaults, frame_seq
 from simulator.onboard import OnboardProgram
 from simulator.onboard_hw import SimulatedHardware
 from simulator.parameters import PlantParams
@@ -37,6 +37,7 @@ class ServeConfig:
     pty: bool = False
     speed: float | None = 1.0  # None = as fast as possible
     seed: int | None = None
+    key: bytes | None = None  # signing key: commands must be signed (SPEC s. 12)
 
 
 class AgentServer:
@@ -57,13 +58,18 @@ class AgentServer:
         self.out_delay = DelayLine(faults.delay_ms / 1000.0)
         self.in_delay = DelayLine(faults.delay_ms / 1000.0)
         self.dropped_full = 0  # frames dropped because the client did not keep up (real-time speeds)
-        self.link = AgentLink(self._write, node_id=0x5100_0000 | (seed & 0xFFFF))
+        self.blacked_out = 0  # frames not sent because the agent was below --blackout-below
+        # Per connection: the seq of its first frame, then the seqs lost to faults (for --report).
+        self.lost_by_connection: list[list[int]] = []
+        self.connection_end_seqs: list[int] = []  # the seq after the last frame of each finished connection
+        self._logged = 0
+        self.link = AgentLink(self._write, node_id=0x5100_0000 | (seed & 0xFFFF), key=config.key)
         self.hw = SimulatedHardware(config.plant, rng)
         self.program = OnboardProgram(config.plant, config.learner, config.mission, self.hw, rng, self.link)
         self.link.attach(self.program)
         self.transport.on_connect = self._connected
         self.transport.on_data = self._received
-        self.transport.on_disconnect = self.link.on_disconnect
+        self.transport.on_disconnect = self._disconnected
         self._running = False
         self._next_disconnect_us = self._disconnect_period_us()
 
@@ -78,9 +84,16 @@ class AgentServer:
 
     def _write(self, wire: bytes) -> None:
         transport = self.transport
-        if not transport.connected or self._blacked_out():
+        if not transport.connected:
             return
-        wire = self.out_faults.frame(wire)
+        if self._blacked_out():
+            self.blacked_out += 1
+            self._log_lost(wire)
+            return
+        sent = self.out_faults.frame(wire)
+        if sent != wire:
+            self._log_lost(wire)
+        wire = sent
         if not wire:
             return
         if self.out_delay.delay_s:
@@ -101,7 +114,18 @@ class AgentServer:
         else:
             self.link.receive(data)
 
+    def _log_lost(self, wire: bytes) -> None:
+        seq = frame_seq(wire)
+        if seq is not None and self.lost_by_connection and self._logged < MAX_LOGGED_SEQS:
+            self._logged += 1
+            self.lost_by_connection[-1].append(seq)
+
+    def _disconnected(self) -> None:
+        self.connection_end_seqs.append(self.link.next_seq)
+        self.link.on_disconnect()
+
     def _connected(self) -> None:
+        self.lost_by_connection.append([self.link.next_seq])
         self.in_faults.reset()
         self.out_delay.clear()
         self.in_delay.clear()
@@ -111,6 +135,20 @@ class AgentServer:
     def _disconnect_period_us(self) -> int:
         every_s = self.config.faults.disconnect_every_s
         return int(every_s * 1e6) if every_s else 2**63
+
+    def report(self) -> dict[str, object]:
+        """What the faults did and what the agent produced (serve --report FILE writes it at exit)."""
+        out, into, prog = self.out_faults, self.in_faults, self.program
+        ends = [*self.connection_end_seqs, self.link.next_seq][: len(self.lost_by_connection)]
+        return {
+            "connections": len(self.lost_by_connection), "next_sample": prog.next_sample, "t_agent_s": prog.t_us / 1e6,
+            "signing_rejects": self.link.signing_rejects,
+            "out": {"dropped": out.dropped, "corrupted": out.corrupted, "blacked_out": self.blacked_out,
+                    "dropped_full": self.dropped_full, "lost_by_connection": self.lost_by_connection,
+                    "connection_end_seqs": ends},
+            "in": {"dropped": into.dropped, "corrupted": into.corrupted, "rx_lost": self.link.decoder.stats.lost,
+                   "rx_rejects": self.link.decoder.stats.rejects},
+        }
 
     # ------------------------------------------------------------------ the loop
     def stop(self) -> None:

@@ -1,0 +1,141 @@
+"""Soak: an hour of agent time against the virtual agent at --speed max with faults on (not a test; run by hand).
+
+    .venv/bin/python benchmarks/soak.py [--agent-hours 1] [--speed max] [--faults "--drop 0.02 --corrupt 0.005"]
+
+Prints frames handled, reconnects, the ground station's memory (RSS) at start, middle and end, and every
+SAMPLE missing from the recording (with the agent's own count of what it lost to faults).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shlex
+import signal
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+from groundstation.events import LinkEvent, Received, Sent
+from groundstation.links import make_link
+from groundstation.mcap_io import iter_messages
+from groundstation.recorder import Recorder, RecorderConfig
+from groundstation.session import Session, SessionConfig
+from protocol import messages as m
+
+DEFAULT_FAULTS = "--drop 0.02 --corrupt 0.005 --disconnect-every 600 --blackout-below 1.5"
+
+
+def rss_mb() -> float:
+    for line in Path("/proc/self/status").read_text().splitlines():
+        if line.startswith("VmRSS:"):
+            return int(line.split()[1]) / 1024
+    return float("nan")
+
+
+class AgentClock:
+    """A session listener that follows the agent's clock (its SAMPLE t_us)."""
+
+    def __init__(self) -> None:
+        self.agent_s = 0.0
+        self.changed = threading.Event()
+
+    def on_received(self, received: Received) -> None:
+        msg = received.message
+        if isinstance(msg, m.Sample) and not received.backfilled:
+            self.agent_s = max(self.agent_s, msg.t_us / 1e6)
+
+    def on_sent(self, sent: Sent) -> None:
+        pass
+
+    def on_event(self, event: LinkEvent) -> None:
+        pass
+
+
+def missing_samples(path: Path) -> tuple[int, list[int], int]:
+    """(samples held, indices missing between the first held and the last reported, duplicates)."""
+    held: set[int] = set()
+    duplicates = 0
+    reported_end = 0
+    for msg in iter_messages(path, {"/agent/SAMPLE", "/agent/HEARTBEAT"}):
+        body = msg.json()
+        if msg.topic == "/agent/SAMPLE":
+            index = int(body["sample"])
+            duplicates += index in held
+            held.add(index)
+        else:
+            reported_end = max(reported_end, int(body["log_next_sample"]))
+    if not held:
+        return 0, [], 0
+    end = max(max(held) + 1, reported_end)
+    return len(held), sorted(set(range(min(held), end)) - held), duplicates
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--agent-hours", type=float, default=1.0)
+    parser.add_argument("--speed", default="max")
+    parser.add_argument("--seed", type=int, default=1)
+    parser.add_argument("--faults", default=DEFAULT_FAULTS)
+    args = parser.parse_args()
+    work = Path(tempfile.mkdtemp(prefix="dive-soak-"))
+    report = work / "agent-report.json"
+    agent = subprocess.Popen(
+        [sys.executable, "-m", "simulator", "serve", "--tcp", "127.0.0.1:0", "--speed", args.speed, "--seed",
+         str(args.seed), "--report", str(report), *shlex.split(args.faults)],
+        stdout=subprocess.PIPE, text=True)
+    assert agent.stdout is not None
+    url = agent.stdout.readline().strip()
+    clock = AgentClock()
+    recorder = Recorder(RecorderConfig(directory=work / "rec"))
+    session = Session(make_link(url), SessionConfig(), [recorder, clock])
+    wall0 = time.monotonic()
+    rss: list[tuple[str, float]] = []
+    try:
+        session.connect()
+        session.command(m.StartLearning(max_episodes=0))
+        start_agent_s = clock.agent_s
+        rss.append(("start", rss_mb()))
+        target_s = args.agent_hours * 3600
+        halfway = False
+        while clock.agent_s - start_agent_s < target_s:
+            time.sleep(0.5)
+            if not halfway and clock.agent_s - start_agent_s >= target_s / 2:
+                rss.append(("middle", rss_mb()))
+                halfway = True
+        try:
+            session.command(m.Stop())
+        except Exception as e:  # noqa: BLE001 the soak reports, it does not stop on a lost command
+            print(f"stop command: {e}")
+        still_missing = session.request_backfill(15.0)
+        rss.append(("end", rss_mb()))
+    finally:
+        session.close()
+        recorder.close()
+        agent.send_signal(signal.SIGTERM)
+        agent.wait(30)
+    wall_s = time.monotonic() - wall0
+    stats = session.decoder.stats
+    agent_report = json.loads(report.read_text())
+    held, missing, duplicates = missing_samples(recorder.paths[-1])
+    print(f"agent time       {clock.agent_s - start_agent_s:,.0f} s at --speed {args.speed}, {wall_s:,.1f} s wall")
+    print(f"faults           {args.faults}")
+    print(f"frames handled   {stats.frames:,} received ({stats.lost:,} lost by seq, {stats.rejects:,} rejected), "
+          f"{session.stats.tx_frames:,} sent, {session.stats.retries:,} retries")
+    print(f"reconnects       {session.stats.reconnects} (agent saw {agent_report['connections']} connections)")
+    print("ground RSS       " + ", ".join(f"{name} {value:.1f} MB" for name, value in rss)
+          + f"  (end/start {rss[-1][1] / rss[0][1]:.3f})")
+    print(f"agent lost       {agent_report['out']['dropped']:,} dropped, {agent_report['out']['corrupted']:,} "
+          f"corrupted, {agent_report['out']['blacked_out']:,} blacked out")
+    print(f"samples          {held:,} recorded, {session.stats.backfilled:,} backfilled, {duplicates} duplicated, "
+          f"{len(missing)} missing (session says {still_missing})")
+    if missing:
+        print(f"missing samples  {missing[:50]}{' ...' if len(missing) > 50 else ''}")
+    print(f"recording        {recorder.paths[-1]}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,170 @@
+"""Command authentication (SPEC.md section 12): a truncated HMAC-SHA256 trailer with a replay-proof timestamp."""
+
+from __future__ import annotations
+
+import hashlib
+import hmac
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field, fields
+from enum import IntEnum
+
+from protocol.enums import FrameFlag
+from protocol.errors import ProtocolError
+from protocol.frame import HEADER, MIN_INNER, TRAILER_SIZE
+
+KEY_SIZE = 32
+SIGNATURE_SIZE = 6
+LINK_ID_SIZE = 1
+TIMESTAMP_SIZE = 6  # u48 little-endian
+TIMESTAMP_UNIT_US = 10
+EPOCH_2015_UNIX_S = 1_420_070_400  # 2015-01-01 00:00:00 UTC, MAVLink 2's signing epoch
+TIMESTAMP_MAX = (1 << 48) - 1
+# A link id the receiver has not seen since boot is refused if its first timestamp lies further than this behind
+# the receiver's estimate of "now" (MAVLink 2 uses the same minute).
+NEW_LINK_WINDOW_S = 60.0
+_TICKS_PER_S = 1_000_000 // TIMESTAMP_UNIT_US
+_SIGNED = int(FrameFlag.SIGNED)
+
+
+class SigningError(ProtocolError):
+    """A key that is not 32 bytes, or key text that is not 64 hex digits."""
+
+
+class SignatureCheck(IntEnum):
+    """What a receiver concluded about one frame's signature; only VALID may run a command."""
+
+    VALID = 0
+    UNSIGNED = 1  # flag bit 2 clear
+    TRUNCATED = 2  # flag bit 2 set, but the frame is too short to hold a trailer
+    BAD_SIGNATURE = 3  # wrong key, or any bit of header, payload, link id or timestamp changed
+    REPLAYED = 4  # timestamp not above the last accepted one of its link id
+    TOO_OLD = 5  # a link id new since boot whose timestamp is over NEW_LINK_WINDOW_S behind the estimate
+
+
+def check_key(key: bytes) -> bytes:
+    """The key itself if it is 32 bytes; SigningError otherwise."""
+    if len(key) != KEY_SIZE:
+        raise SigningError(f"a signing key is {KEY_SIZE} bytes, got {len(key)}")
+    return bytes(key)
+
+
+def parse_key(text: str) -> bytes:
+    """A key from its file text: 64 hex digits (whitespace around them ignored)."""
+    digits = text.strip()
+    try:
+        key = bytes.fromhex(digits)
+    except ValueError as e:
+        raise SigningError(f"a key file holds {2 * KEY_SIZE} hex digits: {e}") from e
+    return check_key(key)
+
+
+def format_key(key: bytes) -> str:
+    """The file text of a key: 64 lower-case hex digits and a newline."""
+    return check_key(key).hex() + "\n"
+
+
+def timestamp_from_unix_ns(unix_ns: int) -> int:
+    """A signing timestamp: 10 µs units since 2015-01-01 UTC, clamped to u48."""
+    ticks = (unix_ns // 1000 - EPOCH_2015_UNIX_S * 1_000_000) // TIMESTAMP_UNIT_US
+    return min(max(ticks, 0), TIMESTAMP_MAX)
+
+
+def signature(key: bytes, signed_part: bytes) -> bytes:
+    """The first 6 bytes of HMAC-SHA256(key, everything in the inner frame before the signature)."""
+    return hmac.new(key, signed_part, hashlib.sha256).digest()[:SIGNATURE_SIZE]
+
+
+class Signer:
+    """One sender's signing state: key, link id and a timestamp that only ever increases."""
+
+    def __init__(self, key: bytes, link_id: int, clock_ns: Callable[[], int] = time.time_ns) -> None:
+        if not 0 <= link_id <= 0xFF:
+            raise SigningError(f"link id {link_id} is not a u8")
+        self._key = check_key(key)
+        self.link_id = link_id
+        self._clock_ns = clock_ns
+        self._last_timestamp = -1
+
+    def next_timestamp(self) -> int:
+        # Wall time, but never equal to or below the previous one: two frames in the same 10 µs, or the host clock
+        # stepping back, must not make the receiver refuse our own next frame as a replay.
+        stamp = max(timestamp_from_unix_ns(self._clock_ns()), self._last_timestamp + 1)
+        self._last_timestamp = min(stamp, TIMESTAMP_MAX)
+        return self._last_timestamp
+
+    def trailer(self, body: bytes) -> bytes:
+        """The 13-byte trailer for `body` = header (flag bit 2 already set) + payload."""
+        head = bytes([self.link_id]) + self.next_timestamp().to_bytes(TIMESTAMP_SIZE, "little")
+        return head + signature(self._key, body + head)
+
+
+@dataclass(slots=True)
+class VerifierStats:
+    """Frames checked by result."""
+
+    valid: int = 0
+    unsigned: int = 0
+    truncated: int = 0
+    bad_signature: int = 0
+    replayed: int = 0
+    too_old: int = 0
+
+    @property
+    def rejects(self) -> int:
+        return self.truncated + self.bad_signature + self.replayed + self.too_old
+
+    def as_dict(self) -> dict[str, int]:
+        return {f.name: getattr(self, f.name) for f in fields(self)}
+
+
+@dataclass
+class SignatureVerifier:
+    """The receiver's side: checks a frame's trailer and keeps the replay state (the last timestamp per link id).
+
+    `now_s` passed to `check` is any monotonic clock of the receiver (seconds); it only advances the estimate of
+    the current timestamp between accepted frames.
+    """
+
+    key: bytes
+    stats: VerifierStats = field(default_factory=VerifierStats)
+    _last_by_link: dict[int, int] = field(default_factory=dict)
+    _best_timestamp: int | None = None
+    _best_at_s: float = 0.0
+
+    def __post_init__(self) -> None:
+        self.key = check_key(self.key)
+
+    def check(self, inner: bytes, now_s: float) -> SignatureCheck:
+        """Check the inner frame (CRC included, already CRC-checked); a VALID frame moves the replay state on."""
+        result = self._check(inner, now_s)
+        name = result.name.lower()
+        setattr(self.stats, name, getattr(self.stats, name) + 1)
+        return result
+
+    def estimate(self, now_s: float) -> int | None:
+        """The receiver's estimate of the sender's current timestamp, or None before the first valid frame."""
+        if self._best_timestamp is None:
+            return None
+        return self._best_timestamp + int(max(now_s - self._best_at_s, 0.0) * _TICKS_PER_S)
+
+    def _check(self, inner: bytes, now_s: float) -> SignatureCheck:
+        if len(inner) < HEADER.size or not inner[1] & _SIGNED:
+            return SignatureCheck.UNSIGNED
+        if len(inner) < MIN_INNER + TRAILER_SIZE:
+            return SignatureCheck.TRUNCATED
+        sig_start = len(inner) - 2 - SIGNATURE_SIZE
+        link_id = inner[sig_start - TIMESTAMP_SIZE - LINK_ID_SIZE]
+        stamp = int.from_bytes(inner[sig_start - TIMESTAMP_SIZE : sig_start], "little")
+        if not hmac.compare_digest(signature(self.key, inner[:sig_start]), inner[sig_start:-2]):
+            return SignatureCheck.BAD_SIGNATURE
+        last = self._last_by_link.get(link_id)
+        if last is not None and stamp <= last:
+            return SignatureCheck.REPLAYED
+        estimate = self.estimate(now_s)
+        if last is None and estimate is not None and stamp < estimate - int(NEW_LINK_WINDOW_S * _TICKS_PER_S):
+            return SignatureCheck.TOO_OLD
+        self._last_by_link[link_id] = stamp
+        if estimate is None or stamp > estimate:
+            self._best_timestamp, self._best_at_s = stamp, now_s
+        return SignatureCheck.VALID
