@@ -11,6 +11,7 @@ from learning.errors import LearningError
 from learning.model import N_ACTIONS, allocate_model, dense_counts, export_model_kernel, record_transition
 from learning.planning import plan_kernel
 from learning.rng import new_stream
+from learning.spec import direct_entry
 
 _REWARD_SUM_BYTES = 4  # float32 per (s, a) on the Teensy
 _COUNT_BYTES = 2  # uint16
@@ -62,6 +63,12 @@ class Learner:
         self._q = np.zeros((s, N_ACTIONS))
         self._policy = np.zeros(s, dtype=np.int8)
         self._episode = 0
+        self._p_explore = float(explore_probability(0, self._spec))
+        # Compiled entries without per-call dispatch (see direct_entry): act and observe run every step.
+        self._select = direct_entry(select_action_kernel, self._policy, 0, 0.0, self._spec, self._rng_state)
+        self._record = direct_entry(
+            record_transition, self._succ_idx, self._succ_cnt, self._reward_sum, 0, 0, 0.0, 0, self._sparse
+        )
         self.last_sweeps = plan_kernel(
             self._succ_idx, self._succ_cnt, self._reward_sum, self._values, self._q, self._policy,
             self._spec, self._rng_state,
@@ -79,12 +86,12 @@ class Learner:
     @property
     def p_explore(self) -> float:
         """Exploration probability of the current episode."""
-        return float(explore_probability(self._episode, self._spec))
+        return self._p_explore
 
     def act(self, state: int) -> int:
         """0 = a1 (decrease volume), 1 = a2 (increase volume); greedy, flipped with p_explore."""
         self._check_state(state)
-        return int(select_action_kernel(self._policy, state, self.p_explore, self._spec, self._rng_state))
+        return int(self._select(self._policy, state, self._p_explore, self._spec, self._rng_state))
 
     def observe(self, state: int, action: int, reward: float, next_state: int) -> None:
         """Record one transition into the count model (Alg. 3)."""
@@ -92,9 +99,8 @@ class Learner:
         self._check_state(next_state, allow_terminal=True)
         if action not in (0, 1):
             raise LearningError(f"action must be 0 or 1, got {action}")
-        record_transition(
-            self._succ_idx, self._succ_cnt, self._reward_sum, state, action, float(reward), next_state,
-            self._sparse,
+        self._record(
+            self._succ_idx, self._succ_cnt, self._reward_sum, state, action, reward, next_state, self._sparse
         )
 
     def end_episode(self) -> None:
@@ -106,6 +112,7 @@ class Learner:
             )
         )
         self._episode += 1
+        self._p_explore = float(explore_probability(self._episode, self._spec))
 
     @property
     def values(self) -> NDArray[np.float64]:

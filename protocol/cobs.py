@@ -66,3 +66,38 @@ def _decode_blocks(encoded: bytes) -> bytes:
             out.append(0)
         position = end
     return bytes(out)
+
+
+class CobsFrameEncoder:
+    """COBS-encodes frames into wire bytes (with the 0x00 delimiter) faster for senders of similar frames.
+
+    The code bytes of a short frame depend only on where its zero bytes are, and a stream of SAMPLEs
+    repeats a few hundred zero patterns. Each pattern's code bytes are kept once (at most
+    `max_patterns`, then forgotten and relearned); a known pattern is encoded by one integer OR
+    instead of a Python step per zero. Byte-identical to `cobs_encode(frame) + b"\\x00"`.
+    """
+
+    def __init__(self, max_patterns: int = 4096) -> None:
+        self._codes: dict[bytes, int] = {}
+        self._max_patterns = max_patterns
+
+    def encode(self, frame: bytes) -> bytes:
+        """The wire bytes of one frame."""
+        size = len(frame)
+        if size >= _MAX_BLOCK:
+            return cobs_encode(frame) + b"\x00"
+        pattern = frame.translate(_ZERO_PATTERN)
+        # The frame shifted by one byte, with room for the first code in front and the delimiter behind.
+        body = int.from_bytes(frame, "big") << 8
+        codes = self._codes.get(pattern)
+        if codes is None:
+            wire = cobs_encode(frame) + b"\x00"
+            if len(self._codes) >= self._max_patterns:
+                self._codes.clear()
+            self._codes[pattern] = int.from_bytes(wire, "big") ^ body  # the code bytes, zero elsewhere
+            return wire
+        return (body | codes).to_bytes(size + 2, "big")
+
+
+# Maps 0x00 to 0x01 and every other byte to 0x00: the zero pattern of a frame, as a dictionary key.
+_ZERO_PATTERN = bytes([1] + [0] * 255)

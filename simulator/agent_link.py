@@ -20,6 +20,7 @@ from protocol import (
     definitions_hash,
     messages,
 )
+from protocol.cobs import CobsFrameEncoder
 from protocol.frame import HEADER, build_inner, encode_wire
 from protocol.registry import Message
 from simulator import agent_dumps
@@ -57,6 +58,7 @@ class AgentLink:
         self.dumps = DumpStore()
         self.program: OnboardProgram | None = None
         self._seq = 0
+        self._cobs = CobsFrameEncoder()  # a SAMPLE every control step: cached COBS codes (protocol/cobs.py)
         self._answered: deque[tuple[int, int, int, str]] = deque(maxlen=ACK_MEMORY)
         self._hello_sent = False
         self._next_heartbeat_us = 0
@@ -94,16 +96,20 @@ class AgentLink:
         if self._deferred is not None:
             self._deferred.append(lambda: self.send(message, flags))
             return
-        self.write(encode_wire(self._frame(message.MSG_ID, message.pack(), flags)))
+        self.write(self._cobs.encode(self._frame(message.MSG_ID, message.pack(), flags)))
 
     def log_frame(self, message: Message, sample: int, is_sample: bool) -> None:
         """A SAMPLE or EPISODE frame: into the on-board log, then onto the link."""
+        self.log_payload(message.MSG_ID, message.pack(), sample, is_sample)
+
+    def log_payload(self, msg_id: int, payload: bytes, sample: int, is_sample: bool) -> None:
+        """log_frame for an already packed payload (the SAMPLE of every control step)."""
         if self._deferred is not None:
-            self._deferred.append(lambda: self.log_frame(message, sample, is_sample))
+            self._deferred.append(lambda: self.log_payload(msg_id, payload, sample, is_sample))
             return
-        inner = self._frame(message.MSG_ID, message.pack())
+        inner = self._frame(msg_id, payload)
         self.ring.append(sample, inner, is_sample)
-        self.write(encode_wire(inner))
+        self.write(self._cobs.encode(inner))
 
     def episode_dumps(self) -> None:
         for kind in (DumpKind.VALUES, DumpKind.POLICY):

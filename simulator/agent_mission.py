@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from bisect import bisect_left
 from dataclasses import dataclass
 
 
@@ -39,6 +40,7 @@ class Battery:
     def __init__(self, params: BatteryParams | None = None) -> None:
         self.params = params or BatteryParams()
         self.charge_fraction = 1.0
+        self._socs = [soc for soc, _ in self.params.curve]
 
     def drain(self, dt_s: float) -> None:
         self.charge_fraction = max(0.0, self.charge_fraction - dt_s / self.params.endurance_s)
@@ -48,7 +50,9 @@ class Battery:
         """Open-circuit voltage, interpolated on the discharge curve."""
         curve = self.params.curve
         soc = self.charge_fraction
-        for (soc0, v0), (soc1, v1) in zip(curve, curve[1:], strict=False):
-            if soc <= soc1:
-                return v0 + (v1 - v0) * (soc - soc0) / (soc1 - soc0)
-        return curve[-1][1]
+        # The first point at or above soc closes the segment (read every control step, so no scan).
+        upper = bisect_left(self._socs, soc, 1)
+        if upper == len(curve):
+            return curve[-1][1]
+        (soc0, v0), (soc1, v1) = curve[upper - 1], curve[upper]
+        return v0 + (v1 - v0) * (soc - soc0) / (soc1 - soc0)

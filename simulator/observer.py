@@ -6,7 +6,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from learning.spec import KernelSpec
+from learning.spec import KernelSpec, direct_entry
 from simulator.parameters import PlantParams, kernel_params
 
 X1 = 0  # depth estimate, m
@@ -39,6 +39,12 @@ class SlidingModeObserver:
     def __init__(self, params: PlantParams) -> None:
         self._spec = kernel_params(params)
         self._state = np.zeros(OBSERVER_SIZE)
+        self._update = direct_entry(observer_update_kernel, self._state, 0.0, 0.0, self._spec)
+
+    @property
+    def state(self) -> NDArray[np.float64]:
+        """The live estimate (X1, X2), for compiled steps that chain the kernels."""
+        return self._state
 
     def reset(self, depth_m: float) -> None:
         """Start at depth_m and rest."""
@@ -47,4 +53,4 @@ class SlidingModeObserver:
 
     def update(self, measured_depth_m: float, dt_s: float) -> float:
         """Feed one depth reading taken dt_s after the previous one; returns the velocity in m/s."""
-        return float(observer_update_kernel(self._state, float(measured_depth_m), float(dt_s), self._spec))
+        return float(self._update(self._state, measured_depth_m, dt_s, self._spec))

@@ -32,12 +32,14 @@ import numpy as np
 from learning import Learner, LearnerConfig, n_states
 from learning.acting import reward_kernel, state_index_kernel
 from learning.config import kernel_spec
+from learning.spec import direct_entry
 from protocol import AckResult, Action, EndReason, Mode, Severity, messages
 from protocol.registry import Message
 from simulator.agent_mission import MissionConfig
 from simulator.errors import ParamsError
 from simulator.observer import SlidingModeObserver
 from simulator.onboard_hw import SimulatedHardware
+from simulator.onboard_kernel import recovery_period_kernel, sense_kernel
 from simulator.parameters import PlantParams
 from simulator.params_table import ParamTable, Scope
 from simulator.recovery import RecoveryController
@@ -45,12 +47,17 @@ from simulator.recovery import RecoveryController
 Verdict = tuple[AckResult, str]
 OK: Verdict = (AckResult.ACCEPTED, "")
 _DIVING = (Mode.RECOVERING, Mode.LEARNING, Mode.HOVER, Mode.PAUSED)
+_HELD = (Mode.RECOVERING, Mode.HOVER, Mode.PAUSED)  # the recovery controller holds a depth
+_SAMPLE_ID = messages.Sample.MSG_ID
+_pack_sample = messages.Sample.pack_values
 
 
 class Downlink(Protocol):
     """Where the program's frames go (the link layer): logged frames also enter the on-board log."""
 
     def log_frame(self, message: Message, sample: int, is_sample: bool) -> None: ...
+
+    def log_payload(self, msg_id: int, payload: bytes, sample: int, is_sample: bool) -> None: ...
 
     def send(self, message: Message) -> None: ...
 
@@ -76,9 +83,18 @@ class OnboardProgram:
         self.params, self.config, self.mission = params, learner_config, mission
         self.learner = Learner(learner_config, rng)
         self._lspec = kernel_spec(learner_config)
+        self._state_index = direct_entry(state_index_kernel, 0.0, 0.0, 0.0, 0.0, self._lspec)
+        self._reward = direct_entry(reward_kernel, 0.0, 0.0, 0, self._lspec)
         self._terminal = n_states(learner_config) - 1
         self.observer = SlidingModeObserver(params)
         self.recovery = RecoveryController(params)
+        # One compiled call per sensing / recovery period instead of one per kernel (onboard_kernel.py).
+        plant_state, sensor_rng, spec = hw.kernel_state
+        self._sense_args = (plant_state, self.observer.state, sensor_rng)
+        self._spec = spec
+        self._sense = direct_entry(sense_kernel, *self._sense_args, True, 0.0, spec)
+        self._recovery_args = (plant_state, self.observer.state, self.recovery.state, sensor_rng)
+        self._recovery_period = direct_entry(recovery_period_kernel, *self._recovery_args, True, 0.0, 0.0, spec)
         self.mode = Mode.IDLE
         self.next_sample = 0
         self.depth_m = 0.0
@@ -99,7 +115,7 @@ class OnboardProgram:
         if mode == Mode.LEARNING:
             dt = self.params.control_period_s
             self._learning_step(dt)
-        elif mode in (Mode.RECOVERING, Mode.HOVER, Mode.PAUSED):
+        elif mode in _HELD:
             dt = self.params.recovery_period_s
             self._controller_step(dt)
         elif mode == Mode.SURFACING:
@@ -125,15 +141,14 @@ class OnboardProgram:
         return self.hw.t_us
 
     def _measure(self, dt_s: float) -> None:
-        self.pressure_pa = self.hw.read_pressure_pa()
-        self.depth_m = self.hw.depth_from_pressure_m(self.pressure_pa)
-        estimate = self.observer.update(self.depth_m, dt_s)
         # The paper preset feeds the learner the true velocity (its simulation did; diving-agent.md s. 7).
-        self.velocity_mps = estimate if self.params.use_observer else self.hw.true_velocity_mps
+        self.pressure_pa, self.depth_m, self.velocity_mps = self._sense(
+            *self._sense_args, self.params.use_observer, dt_s, self._spec
+        )
 
     def _state(self) -> int:
         fraction = (self.hw.actuator_cmd_deg - self._center_deg) / self.params.action_window_deg
-        return int(state_index_kernel(
+        return int(self._state_index(
             self.depth_m, self.velocity_mps, self.params.target_depth_m, fraction, self._lspec
         ))
 
@@ -141,10 +156,10 @@ class OnboardProgram:
         index = self.next_sample
         self.next_sample = index + 1
         hw = self.hw
-        self.down.log_frame(messages.Sample(
-            t_us=hw.t_us, sample=index, episode=self.episode, step=self._steps, pressure_pa=self.pressure_pa,
-            depth_m=self.depth_m, velocity_mps=self.velocity_mps, actuator_deg=hw.actuator_deg,
-            actuator_cmd_deg=hw.actuator_cmd_deg, reward=reward, state=state, action=action, mode=int(self.mode),
+        # Packed from the values in messages.Sample's field order: the same bytes as building the message.
+        self.down.log_payload(_SAMPLE_ID, _pack_sample(
+            hw.t_us, index, self.episode, self._steps, self.pressure_pa, self.depth_m, self.velocity_mps,
+            hw.actuator_deg, hw.actuator_cmd_deg, reward, state, action, self.mode,
         ), index, True)
 
     def text(self, line: str, severity: Severity = Severity.INFO) -> None:
@@ -158,7 +173,7 @@ class OnboardProgram:
             self._dive_start_us = self.hw.t_us
         self.text(f"mode {self.mode.name} -> {mode.name}: {why}")
         self.mode = mode
-        if mode in (Mode.RECOVERING, Mode.HOVER, Mode.PAUSED):
+        if mode in _HELD:
             self.recovery.restart()
         if mode == Mode.RECOVERING:
             half_m = self.params.start_depth_fraction * self.config.z_tol_m
@@ -170,14 +185,15 @@ class OnboardProgram:
                 self._begin_episode(self._center_deg)
 
     def _controller_step(self, dt: float) -> None:
-        self._measure(dt)
-        cmd = self.recovery.update(self.depth_m, self.velocity_mps, self._hold_depth_m, dt, self.hw.actuator_deg)
+        self.pressure_pa, self.depth_m, self.velocity_mps, cmd, settled, gave_up = self._recovery_period(
+            *self._recovery_args, self.params.use_observer, self._hold_depth_m, dt, self._spec
+        )
         self.hw.set_actuator_cmd_deg(cmd)
         self._sample(Action.NONE, 0.0, 0)
         if self.mode == Mode.RECOVERING:
-            if self.recovery.settled:
+            if settled:
                 self._begin_episode(self.recovery.alpha_avg_deg + self.params.start_trim_error_deg)
-            elif self.recovery.gave_up:
+            elif gave_up:
                 self._enter(Mode.SURFACING, "recovery did not settle")
 
     def _check_limits(self) -> None:
@@ -226,7 +242,7 @@ class OnboardProgram:
         state = self._state()
         reward = 0.0
         if self._prev_state >= 0:
-            reward = float(reward_kernel(self.depth_m, self.params.target_depth_m, state, self._lspec))
+            reward = float(self._reward(self.depth_m, self.params.target_depth_m, state, self._lspec))
             self._return += reward
             self.learner.observe(self._prev_state, self._prev_action, reward, state)
         limit = round(self.params.episode_limit_s / self.params.control_period_s)

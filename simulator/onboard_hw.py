@@ -7,7 +7,9 @@ the pressure reading, its own stepper count and the battery voltage (see onboard
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import NDArray
 
+from learning.spec import KernelSpec, direct_entry
 from simulator.agent_mission import Battery
 from simulator.parameters import PlantParams, kernel_params, neutral_alpha_deg
 from simulator.plant import Plant
@@ -23,6 +25,7 @@ class SimulatedHardware:
         self.plant = Plant(params, rng)
         self.sensor = PressureSensor(params, rng)
         self.battery = Battery()
+        self._depth_from_pressure = direct_entry(depth_from_pressure_kernel, 0.0, self._spec)
         self.t_us = 0
         self.neutral_deg = params.alpha_max_deg / 2.0  # what the firmware assumes before it learns alpha_avg
         self.plant.set_state(depth_m=0.0, velocity_mps=0.0, alpha_deg=self.neutral_deg, alpha_cmd_deg=self.neutral_deg)
@@ -33,7 +36,7 @@ class SimulatedHardware:
 
     def depth_from_pressure_m(self, pressure_pa: float) -> float:
         """The firmware's conversion z = (P - P0) / (rho g), with its calibration constants."""
-        return float(depth_from_pressure_kernel(pressure_pa, self._spec))
+        return float(self._depth_from_pressure(pressure_pa, self._spec))
 
     def set_actuator_cmd_deg(self, alpha_cmd_deg: float) -> None:
         self.plant.alpha_cmd_deg = min(max(alpha_cmd_deg, 0.0), self.params.alpha_max_deg)
@@ -50,6 +53,15 @@ class SimulatedHardware:
     @property
     def battery_v(self) -> float:
         return self.battery.voltage_v
+
+    @property
+    def kernel_state(self) -> tuple[NDArray[np.float64], NDArray[np.uint64], KernelSpec]:
+        """(plant state, sensor random stream, spec) for the compiled sensing of onboard_kernel.
+
+        Those kernels read the plant only through the sensor kernel (and the true velocity where
+        true_velocity_mps is allowed), as the firmware would.
+        """
+        return self.plant.state, self.sensor.rng_state, self._spec
 
     # ---- the world
     def advance(self, dt_s: float) -> None:

@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import NDArray
 
+from learning.spec import KernelSpec, direct_entry
 from simulator.parameters import PlantParams, kernel_params, neutral_alpha_deg
 from simulator.plant_kernel import ALPHA, PLANT_SIZE, ZDOT, Z, plant_step
 
@@ -19,10 +21,21 @@ class Plant:
         self._state = np.zeros(PLANT_SIZE)
         self.alpha_cmd_deg = neutral_alpha_deg(params)
         self._state[ALPHA] = self.alpha_cmd_deg
+        self._step = direct_entry(plant_step, self._state, 0.0, 0.0, self._spec)
 
     @property
     def params(self) -> PlantParams:
         return self._params
+
+    @property
+    def spec(self) -> KernelSpec:
+        """The parameters as the kernels take them."""
+        return self._spec
+
+    @property
+    def state(self) -> NDArray[np.float64]:
+        """The live state array (plant_kernel layout), for compiled steps that chain the kernels."""
+        return self._state
 
     @property
     def depth_m(self) -> float:
@@ -55,4 +68,4 @@ class Plant:
 
     def step(self, dt_s: float) -> None:
         """Integrate dt_s seconds with fixed sub-steps, holding the current command."""
-        plant_step(self._state, float(self.alpha_cmd_deg), float(dt_s), self._spec)
+        self._step(self._state, self.alpha_cmd_deg, dt_s, self._spec)

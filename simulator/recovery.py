@@ -6,7 +6,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from learning.spec import KernelSpec
+from learning.spec import KernelSpec, direct_entry
 from simulator.parameters import PlantParams, kernel_params
 
 AVG = 0  # learned neutral angle alpha_avg, deg
@@ -70,6 +70,14 @@ class RecoveryController:
         self._state = np.zeros(RECOVERY_SIZE)
         recovery_init(self._state, params.alpha_max_deg / 2.0)
         self._alpha_deg = params.alpha_max_deg / 2.0
+        self._update = direct_entry(recovery_update_kernel, self._state, 0.0, 0.0, 0.0, 0.0, 0.0, self._spec)
+        self._settled = direct_entry(recovery_settled, self._state, self._spec)
+        self._gave_up = direct_entry(recovery_gave_up, self._state, self._spec)
+
+    @property
+    def state(self) -> NDArray[np.float64]:
+        """The live controller state (AVG, CALM_S, ELAPSED_S), for compiled steps that chain the kernels."""
+        return self._state
 
     def restart(self) -> None:
         """Begin a new recovery (the settle and give-up clocks restart, alpha_avg is kept)."""
@@ -83,10 +91,7 @@ class RecoveryController:
         if alpha_deg is not None:
             self._alpha_deg = alpha_deg
         cmd = float(
-            recovery_update_kernel(
-                self._state, float(depth_m), float(velocity_mps), float(self._alpha_deg),
-                float(target_depth_m), float(dt_s), self._spec,
-            )
+            self._update(self._state, depth_m, velocity_mps, self._alpha_deg, target_depth_m, dt_s, self._spec)
         )
         if alpha_deg is None:
             # Without a reading of the gear, assume it follows the command (the stepper is open loop).
@@ -95,11 +100,11 @@ class RecoveryController:
 
     @property
     def settled(self) -> bool:
-        return bool(recovery_settled(self._state, self._spec))
+        return bool(self._settled(self._state, self._spec))
 
     @property
     def gave_up(self) -> bool:
-        return bool(recovery_gave_up(self._state, self._spec))
+        return bool(self._gave_up(self._state, self._spec))
 
     @property
     def alpha_avg_deg(self) -> float:

@@ -7,7 +7,7 @@ from numba import njit
 from numpy.typing import NDArray
 
 from learning.rng import new_stream, normal
-from learning.spec import KernelSpec
+from learning.spec import KernelSpec, direct_entry
 from simulator.parameters import PlantParams, kernel_params
 
 
@@ -32,10 +32,16 @@ class PressureSensor:
     def __init__(self, params: PlantParams, rng: np.random.Generator) -> None:
         self._spec = kernel_params(params)
         self._rng_state = new_stream(rng)
+        self._read = direct_entry(read_pressure_kernel, 0.0, self._spec, self._rng_state)
+
+    @property
+    def rng_state(self) -> NDArray[np.uint64]:
+        """The sensor's own random stream, for compiled steps that chain the kernels."""
+        return self._rng_state
 
     def read(self, depth_m: float) -> float:
         """Pressure in Pa at depth_m."""
-        return float(read_pressure_kernel(float(depth_m), self._spec, self._rng_state))
+        return float(self._read(depth_m, self._spec, self._rng_state))
 
 
 def depth_from_pressure(pressure_pa: float, params: PlantParams) -> float:

@@ -54,6 +54,7 @@ class AgentServer:
         )
         faults = config.faults
         self.out_faults = FrameFaults(faults, fault_rng)
+        self._out_faulty = faults.active
         self.in_faults = FrameFaults(faults, fault_rng)
         self.out_delay = DelayLine(faults.delay_ms / 1000.0)
         self.in_delay = DelayLine(faults.delay_ms / 1000.0)
@@ -90,12 +91,13 @@ class AgentServer:
             self.blacked_out += 1
             self._log_lost(wire)
             return
-        sent = self.out_faults.frame(wire)
-        if sent != wire:
-            self._log_lost(wire)
-        wire = sent
-        if not wire:
-            return
+        if self._out_faulty:  # skipped per frame when no drop or corruption was asked for
+            sent = self.out_faults.frame(wire)
+            if sent != wire:
+                self._log_lost(wire)
+            wire = sent
+            if not wire:
+                return
         if self.out_delay.delay_s:
             self.out_delay.put(time.monotonic(), wire)
         elif self.config.speed is not None and len(transport.outbuf) > HIGH_WATER_BYTES:
@@ -171,6 +173,7 @@ class AgentServer:
     def _loop(self) -> None:
         speed = self.config.speed
         program, link, transport = self.program, self.link, self.transport
+        hw = program.hw  # its clock is program.t_us, read here without the property on every step
         wall0 = time.monotonic()
         agent0_us = program.t_us
         while self._running:
@@ -183,11 +186,11 @@ class AgentServer:
                 blocked = False
             deadline = now + SLICE_S
             steps = 0
-            while not blocked and program.t_us < due_us:
+            while not blocked and hw.t_us < due_us:
                 program.step()
                 link.tick()
                 steps += 1
-                if program.t_us >= self._next_disconnect_us:
+                if hw.t_us >= self._next_disconnect_us:
                     self._next_disconnect_us = program.t_us + self._disconnect_period_us()
                     transport.drop_client()
                 if steps % STEPS_PER_CLOCK_READ == 0:
