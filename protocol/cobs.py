@@ -34,15 +34,16 @@ def cobs_decode(encoded: bytes) -> bytes:
     """Decode one COBS chunk (without its 0x00 delimiter); raises CobsError if it is malformed."""
     if b"\x00" in encoded:
         raise CobsError("zero byte inside a COBS chunk")
-    # Common case, no full (0xFF) block: each code byte stands exactly where its zero goes, so overwrite
-    # the codes in place and drop the first one; one step per zero instead of copying block by block.
+    size = len(encoded)
+    if size > _MAX_BLOCK:  # only a chunk this long can hold a full (0xFF) block
+        return _decode_blocks(encoded)
+    # Every frame: each code byte stands exactly where its zero goes, so overwrite the codes in place
+    # and drop the first one; one step per zero instead of copying block by block. (A 0xFF code in
+    # so short a chunk runs past its end, which the length check below reports.)
     out = bytearray(encoded)
-    size = len(out)
     position = 0
     while position < size:
         code = out[position]
-        if code == 0xFF:
-            return _decode_blocks(encoded)
         out[position] = 0
         position += code
     if position != size:

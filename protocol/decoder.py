@@ -5,6 +5,7 @@ from __future__ import annotations
 from binascii import crc_hqx
 from collections.abc import Mapping
 from dataclasses import dataclass, field, fields
+from typing import NamedTuple
 
 from protocol.cobs import cobs_decode
 from protocol.crc import CRC_INIT
@@ -17,6 +18,7 @@ HEADER_SIZE = HEADER.size
 unpack_header = HEADER.unpack_from
 _SIGNED = int(FrameFlag.SIGNED)
 _SEQ_HALF = 0x8000  # a seq this far or more behind the expected one is late/duplicate, not a gap
+_new_frame = tuple.__new__  # Frame(...) without the named tuple's Python-level __new__
 
 
 @dataclass(slots=True)
@@ -46,9 +48,11 @@ class DecoderStats:
         return {f.name: getattr(self, f.name) for f in fields(self)}
 
 
-@dataclass(frozen=True, slots=True)
-class Frame:
-    """A received frame: header fields, the decoded message and the inner bytes (for raw recording)."""
+class Frame(NamedTuple):
+    """A received frame: header fields, the decoded message and the inner bytes (for raw recording).
+
+    A named tuple (immutable like a frozen dataclass) because a decoder builds one per received frame.
+    """
 
     flags: int
     seq: int
@@ -125,31 +129,34 @@ class StreamDecoder:
         if len(inner) < MIN_INNER:
             stats.runts += 1
             return None
-        if crc_hqx(inner[:-2], CRC_INIT) != (inner[-2] << 8 | inner[-1]):
+        if crc_hqx(inner, CRC_INIT):  # over the frame and its big-endian CRC, a good frame's CRC is 0
             stats.crc_errors += 1
             return None
         version, flags, seq, msg_id = unpack_header(inner)
         if version != PROTOCOL_VERSION or flags & INCOMPATIBLE_FLAGS_MASK:
             stats.incompatible += 1
             return None
-        self._track_sequence(seq)
+        if seq == self._expected_seq:  # in order: nothing lost
+            self._expected_seq = (seq + 1) & 0xFFFF
+        else:
+            self._track_sequence(seq)
         cls = self._classes.get(msg_id)
         if cls is None:
             stats.unknown_id += 1
             return None
-        end = -2
+        end = len(inner) - 2
         if flags & _SIGNED:  # the signature trailer is cut off before the payload is decoded (SPEC.md section 12)
             end = payload_end(inner)
             if end < 0:
                 stats.malformed += 1
                 return None
         try:
-            decoded = cls.unpack(inner[HEADER_SIZE:end])
+            decoded = cls.unpack_from(inner, HEADER_SIZE, end)
         except Exception:  # a decoder must not raise on wire input, whatever a payload holds
             stats.malformed += 1
             return None
         stats.frames += 1
-        return Frame(flags, seq, msg_id, decoded, inner)
+        return _new_frame(Frame, (flags, seq, msg_id, decoded, inner))
 
     def _track_sequence(self, seq: int) -> None:
         expected = self._expected_seq

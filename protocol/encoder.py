@@ -5,9 +5,9 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import TYPE_CHECKING, NamedTuple
 
-from protocol.cobs import cobs_decode, cobs_encode
+from protocol.cobs import CobsFrameEncoder, cobs_decode
 from protocol.enums import FrameFlag
-from protocol.frame import DELIMITER, HEADER, build_inner, payload_end
+from protocol.frame import HEADER, build_inner, payload_end
 from protocol.registry import Message
 
 if TYPE_CHECKING:
@@ -19,6 +19,10 @@ class EncodedFrame(NamedTuple):
     wire: bytes  # COBS(inner) + 0x00, ready to write
 
 
+_ACK_REQUESTED = int(FrameFlag.ACK_REQUESTED)  # a plain int: IntFlag arithmetic is slow
+_new_encoded = tuple.__new__  # EncodedFrame(...) without the named tuple's Python-level __new__
+
+
 class FrameEncoder:
     """Keeps the per-sender sequence counter (+1 per frame, wraps at 65536).
 
@@ -28,6 +32,7 @@ class FrameEncoder:
     def __init__(self, first_seq: int = 0, signer: Signer | None = None) -> None:
         self._seq = first_seq & 0xFFFF
         self.signer = signer
+        self._cobs = CobsFrameEncoder()  # senders repeat a few zero patterns (SAMPLEs): cached COBS codes
 
     @property
     def next_seq(self) -> int:
@@ -36,15 +41,16 @@ class FrameEncoder:
     def encode(self, message: Message, flags: int = 0) -> EncodedFrame:
         """Encode a message; commands get the ACK-requested flag set."""
         if message.DEFINITION.needs_ack:
-            flags |= FrameFlag.ACK_REQUESTED
+            flags |= _ACK_REQUESTED
         return self.encode_payload(message.MSG_ID, message.pack(), flags)
 
     def encode_payload(self, msg_id: int, payload: bytes, flags: int = 0) -> EncodedFrame:
         """Frame an already packed payload (raises FrameError if it exceeds 247 bytes, 234 when signed)."""
-        inner = build_inner(flags, self._seq, msg_id, payload, self._trailer())
         seq = self._seq
+        signer = self.signer
+        inner = build_inner(flags, seq, msg_id, payload, signer.trailer if signer is not None else None)
         self._seq = (seq + 1) & 0xFFFF
-        return EncodedFrame(seq, cobs_encode(inner) + DELIMITER)
+        return _new_encoded(EncodedFrame, (seq, self._cobs.encode(inner)))
 
     def retry(self, wire: bytes) -> bytes:
         """The wire bytes to re-send a frame: the same seq and payload; re-signed with a fresh timestamp if signed.
@@ -58,7 +64,7 @@ class FrameEncoder:
         end = payload_end(inner)
         flags = inner[1] & ~FrameFlag.SIGNED
         _, _, seq, msg_id = HEADER.unpack_from(inner)
-        return cobs_encode(build_inner(flags, seq, msg_id, inner[HEADER.size : end], self._trailer())) + DELIMITER
+        return self._cobs.encode(build_inner(flags, seq, msg_id, inner[HEADER.size : end], self._trailer()))
 
     def _trailer(self) -> Callable[[bytes], bytes] | None:
         return self.signer.trailer if self.signer is not None else None

@@ -55,6 +55,7 @@ class Message:
     _struct: ClassVar[struct.Struct]
     _getter: ClassVar[Any]
     _text_indices: ClassVar[tuple[int, ...]]
+    _build: ClassVar[Any]  # values in declaration order -> instance, without __init__ (see _builder)
 
     def pack(self) -> bytes:
         """The payload bytes, little-endian, in declaration order."""
@@ -114,7 +115,16 @@ class Message:
         if definition.has_tail:
             tail = payload[size:]
             values = (*values, tail.decode("utf-8", "replace") if definition.fields[-1].wire.is_text else tail)
-        return cls(*values)
+        built: Self = cls._build(values)
+        return built
+
+    @classmethod
+    def unpack_from(cls, frame: bytes, start: int, end: int) -> Self:
+        """unpack(frame[start:end]) without the copy when the payload holds every fixed field (a decoder's path)."""
+        if end - start >= cls.DEFINITION.fixed_size and not (cls._text_indices or cls.DEFINITION.has_tail):
+            built: Self = cls._build(cls._struct.unpack_from(frame, start))
+            return built
+        return cls.unpack(frame[start:end])
 
     def to_dict(self) -> dict[str, Any]:
         """Field values by name (tail bytes as hex), the JSON form used by recordings and vectors."""
@@ -178,11 +188,46 @@ def message(
         cls._struct = struct.Struct("<" + "".join(f.wire.struct_code for f in fixed))
         cls._getter = attrgetter(*[f.name for f in fields]) if fields else staticmethod(lambda _self: ())
         cls._text_indices = tuple(i for i, f in enumerate(fixed) if f.wire.is_text)
+        cls._build = staticmethod(_builder(cls, [f.name for f in fields]))
+        if len(fields) > 1 and not (cls._text_indices or has_tail):
+            setattr(cls, "pack", _plain_packer(name, cls._struct, cls._getter))  # noqa: B010 (mypy: no method assignment)
         _BY_ID[msg_id] = cls
         _BY_NAME[name] = cls
         return cls
 
     return declare
+
+
+def _plain_packer(name: str, layout: struct.Struct, getter: Any) -> typing.Callable[[Any], bytes]:
+    """Message.pack for a message of fixed fields only (most of them, SAMPLE among them): one struct call."""
+    pack = layout.pack
+
+    def packed(self: Any) -> bytes:
+        try:
+            return pack(*getter(self))
+        except (struct.error, TypeError) as e:
+            raise PayloadError(f"{name}: {e}") from e
+
+    packed.__doc__ = Message.pack.__doc__
+    return packed
+
+
+def _builder(cls: type, names: list[str]) -> typing.Callable[[tuple[Any, ...]], Any]:
+    """A function that makes an instance of the frozen slots dataclass `cls` from its field values.
+
+    The dataclass __init__ sets each field through object.__setattr__ (a global lookup and a call per
+    field); a decoder building every received message pays that per frame. Calling the slot
+    descriptors' setters directly gives the same object at about half the cost. Only for values that
+    come from the struct, which already has the field types.
+    """
+    setters = {f"set_{i}": getattr(cls, name).__set__ for i, name in enumerate(names)}
+    lines = ["def build(values):", "    obj = new(cls)"]
+    lines += [f"    set_{i}(obj, values[{i}])" for i in range(len(names))]
+    source = "\n".join([*lines, "    return obj", ""])
+    namespace: dict[str, Any] = {"new": object.__new__, "cls": cls, **setters}
+    exec(source, namespace)  # generated from the field names of our own table, as dataclasses does
+    build: typing.Callable[[tuple[Any, ...]], Any] = namespace["build"]
+    return build
 
 
 def _check_id_range(msg_id: int, direction: Direction, name: str) -> None:

@@ -41,3 +41,20 @@ def test_pack_values_rejects_out_of_range_values_like_pack() -> None:
         Sample.pack_values(*values)
     with pytest.raises(PayloadError):
         Sample(*values).pack()
+
+
+@pytest.mark.parametrize("definition", definitions(), ids=lambda d: d.name)
+def test_unpack_from_a_frame_equals_unpack_of_the_slice(definition) -> None:  # type: ignore[no-untyped-def]
+    cls = message_class(definition.msg_id)
+
+    @FAST
+    @given(message=messages_of(definition))
+    def check(message: Message) -> None:
+        payload = message.pack()
+        frame = b"\x01\x02\x03" + payload + b"\xaa\xbb"
+        for cut in (0, 1, len(payload) // 2):  # short payloads are zero-extended either way
+            end = 3 + len(payload) - cut
+            assert cls.unpack_from(frame, 3, end) == cls.unpack(frame[3:end])
+        assert cls.unpack_from(frame, 3, len(frame)) == cls.unpack(frame[3:])  # extra bytes ignored
+
+    check()
