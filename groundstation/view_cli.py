@@ -32,7 +32,7 @@ GrpcPortOption = Annotated[int, typer.Option("--grpc-port", help="Port of the Re
 
 
 def _fail(message: str) -> typer.Exit:
-    typer.echo(f"error: {message}", err=True)
+    typer.echo(f"dive: {message}", err=True)  # the prefix of every dive error (cli.py)
     return typer.Exit(1)
 
 

@@ -86,9 +86,13 @@ def _damaged(recording: Path, tmp_path: Path) -> dict[str, Path]:
     return paths
 
 
-def test_damaged_recordings_give_one_clear_line_in_log_info_and_export(recording: Path, tmp_path: Path) -> None:
+def test_damaged_recordings_give_one_clear_line_in_log_info_export_and_replay(recording: Path, tmp_path: Path) -> None:
     for name, path in _damaged(recording, tmp_path).items():
-        for args in (["log", "info", str(path)], ["log", "export", str(path), "--out", str(tmp_path / "x.csv")]):
+        for args in (
+            ["log", "info", str(path)],
+            ["log", "export", str(path), "--out", str(tmp_path / "x.csv")],
+            ["replay", str(path), "--rrd", str(tmp_path / "x.rrd")],
+        ):
             done = dive(*args)
             _one_clear_line(done)
             if name in ("empty", "not mcap", "cut in the header"):
