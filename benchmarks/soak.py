@@ -41,12 +41,15 @@ class AgentClock:
 
     def __init__(self) -> None:
         self.agent_s = 0.0
+        self.first_s: float | None = None  # agent time of the first live SAMPLE: the soak counts from there
         self.changed = threading.Event()
 
     def on_received(self, received: Received) -> None:
         msg = received.message
         if isinstance(msg, m.Sample) and not received.backfilled:
             self.agent_s = max(self.agent_s, msg.t_us / 1e6)
+            if self.first_s is None:
+                self.first_s = self.agent_s
 
     def on_sent(self, sent: Sent) -> None:
         pass
@@ -97,7 +100,9 @@ def main() -> None:
     try:
         session.connect()
         session.command(m.StartLearning(max_episodes=0))
-        start_agent_s = clock.agent_s
+        while clock.first_s is None:  # the agent idled at the surface until now: its clock ran ahead
+            time.sleep(0.05)
+        start_agent_s = clock.first_s
         rss.append(("start", rss_mb()))
         target_s = args.agent_hours * 3600
         halfway = False

@@ -191,7 +191,13 @@ class Session:
                 pending = _Pending(message, encoded.seq, encoded.wire, now, now + self._ack_timeout_s())
                 with self._cond:
                     self._pending[encoded.seq] = pending
-            self._write(message, encoded.seq, encoded.wire)
+            try:
+                self._write(message, encoded.seq, encoded.wire)
+            except LinkError:
+                # A command sent while the link is down (it drops often under water) stays pending: the reader
+                # re-sends it once the session has reconnected. Without reconnect there is nobody to do so.
+                if pending is None or not self.config.reconnect or self._stop.is_set():
+                    raise
         if pending is None or not wait:
             return None
         limit = timeout_s if timeout_s is not None else self._ack_timeout_s() * (self.config.retries + 1) + 1.0

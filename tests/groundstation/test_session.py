@@ -7,7 +7,7 @@ import time
 import pytest
 
 from groundstation.clock import ClockModel
-from groundstation.errors import CommandError, IncompatibleAgentError, ParameterError
+from groundstation.errors import CommandError, IncompatibleAgentError, LinkError, ParameterError
 from groundstation.events import EventKind, LinkEvent, Received, Sent
 from groundstation.gaps import SampleRanges
 from groundstation.links import make_link
@@ -70,6 +70,28 @@ def test_lost_ack_is_retried_with_the_same_seq_and_executed_once(fake_agent: Fak
         assert len(surfaces) == 2 and surfaces[0].seq == surfaces[1].seq and surfaces[0].wire == surfaces[1].wire
         assert fake_agent.executed.count("CMD_SURFACE") == 1
         assert s.stats.snapshot(s.decoder.stats)["retries"] == 1
+
+
+def test_a_command_sent_while_the_link_is_down_is_delivered_after_the_reconnect(fake_agent: FakeAgent) -> None:
+    with Session(make_link(fake_agent.url), SessionConfig(backoff_s=(0.05, 0.2), fetch_params=False)) as s:
+        fake_agent.disconnect()
+        deadline = time.monotonic() + 5
+        while s.link_up and time.monotonic() < deadline:  # the reader has seen the loss
+            time.sleep(0.01)
+        assert not s.link_up
+        s.command(m.Surface(), timeout_s=10)
+        assert fake_agent.executed.count("CMD_SURFACE") == 1
+        assert s.stats.reconnects >= 1
+
+
+def test_without_reconnect_a_command_on_a_lost_link_is_a_link_error(fake_agent: FakeAgent) -> None:
+    with Session(make_link(fake_agent.url), SessionConfig(reconnect=False, fetch_params=False)) as s:
+        fake_agent.disconnect()
+        deadline = time.monotonic() + 5
+        while s.link_up and time.monotonic() < deadline:
+            time.sleep(0.01)
+        with pytest.raises(LinkError):
+            s.command(m.Surface(), timeout_s=2)
 
 
 def test_nack_is_a_command_error_naming_the_reason(fake_agent: FakeAgent) -> None:
