@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import functools
 import json
-import math
 import platform
 import socket
 import sys
@@ -12,6 +11,7 @@ import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
+from math import isfinite
 from pathlib import Path
 from typing import Any, TypeVar
 
@@ -49,17 +49,18 @@ def message_schema(message_type: type[Message]) -> dict[str, Any]:
     return schema
 
 
-def _clean(value: Any) -> Any:
-    """JSON has no NaN or infinity: they become null."""
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    return value
+# One encoder each: json.dumps with any option builds a new JSONEncoder per call, more than a SAMPLE's encoding costs.
+_compact_json = json.JSONEncoder(separators=(",", ":")).encode
+_compact_json_any = json.JSONEncoder(separators=(",", ":"), default=str).encode
 
 
 def message_json(message: Message, seq: int, flags: int, backfilled: bool) -> bytes:
-    body = {k: _clean(v) for k, v in message.to_dict().items()}
-    body.update(_seq=seq, _flags=flags, _backfilled=backfilled)
-    return json.dumps(body, separators=(",", ":")).encode()
+    body = message.to_dict()
+    for key, value in body.items():
+        if value.__class__ is float and not isfinite(value):  # JSON has no NaN or infinity: they become null
+            body[key] = None
+    body["_seq"], body["_flags"], body["_backfilled"] = seq, flags, backfilled
+    return _compact_json(body).encode()
 
 
 @dataclass(frozen=True, slots=True)
@@ -219,7 +220,7 @@ class Recorder:
             dump = self._dumps.feed(msg)
             if dump is not None:
                 topic = f"/dump/{dump.kind.name}"
-                body = json.dumps(dump.as_dict(), separators=(",", ":")).encode()
+                body = _compact_json(dump.as_dict()).encode()
                 w.write(w.channel(topic, "json", "diving_agent.dump", DUMP_SCHEMA), body, received.host_time_ns)
 
     def _write_sent(self, sent: Sent) -> None:
@@ -243,5 +244,5 @@ class Recorder:
         else:
             channel = w.channel("/event", "json", "diving_agent.event", EVENT_SCHEMA)
             body = {"kind": str(event.kind), "detail": event.detail, "data": event.data}
-        w.write(channel, json.dumps(body, default=str, separators=(",", ":")).encode(), event.host_time_ns)
+        w.write(channel, _compact_json_any(body).encode(), event.host_time_ns)
 

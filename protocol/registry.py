@@ -56,6 +56,8 @@ class Message:
     _getter: ClassVar[Any]
     _text_indices: ClassVar[tuple[int, ...]]
     _build: ClassVar[Any]  # values in declaration order -> instance, without __init__ (see _builder)
+    _names: ClassVar[tuple[str, ...]]  # field names in declaration order
+    _bytes_names: ClassVar[tuple[str, ...]]  # fields holding bytes (hex in to_dict)
 
     def pack(self) -> bytes:
         """The payload bytes, little-endian, in declaration order."""
@@ -128,10 +130,11 @@ class Message:
 
     def to_dict(self) -> dict[str, Any]:
         """Field values by name (tail bytes as hex), the JSON form used by recordings and vectors."""
-        out = {f.name: getattr(self, f.name) for f in self.DEFINITION.fields}
-        for f in self.DEFINITION.fields:
-            if isinstance(out[f.name], bytes):
-                out[f.name] = out[f.name].hex()
+        names = self._names
+        values = self._getter(self)
+        out = dict(zip(names, (values,) if len(names) == 1 else values, strict=True))
+        for name in self._bytes_names:
+            out[name] = out[name].hex()
         return out
 
     @classmethod
@@ -189,6 +192,8 @@ def message(
         cls._getter = attrgetter(*[f.name for f in fields]) if fields else staticmethod(lambda _self: ())
         cls._text_indices = tuple(i for i, f in enumerate(fixed) if f.wire.is_text)
         cls._build = staticmethod(_builder(cls, [f.name for f in fields]))
+        cls._names = tuple(f.name for f in fields)
+        cls._bytes_names = tuple(f.name for f in fields if f.wire.spec_name == "bytes[]")
         if len(fields) > 1 and not (cls._text_indices or has_tail):
             setattr(cls, "pack", _plain_packer(name, cls._struct, cls._getter))  # noqa: B010 (mypy: no method assignment)
         _BY_ID[msg_id] = cls
