@@ -327,7 +327,7 @@ def log_recover(file: Path, out_path: Annotated[Path | None, typer.Option("--out
 @app.command(context_settings=_FORWARD, add_help_option=False)
 def sim(ctx: typer.Context) -> None:
     """Serve a virtual diving agent over TCP or a pseudo-terminal (`dive sim --help` for options)."""
-    raise typer.Exit(run_simulator_command(["serve", *ctx.args]))
+    raise typer.Exit(run_simulator_command(["sim", *ctx.args]))
 
 
 @app.command(context_settings=_FORWARD, add_help_option=False)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+
 import typer
 
 from simulator.serve_cli import serve
@@ -17,6 +19,7 @@ app = typer.Typer(
 
 
 app.command()(serve)
+app.command(name="sim", hidden=True)(serve)  # `dive sim` forwards here as `sim`, so its usage line says `dive sim`
 
 
 @app.callback()
@@ -28,4 +31,5 @@ app.command(name="study")(study)
 
 
 def main() -> None:
-    app()
+    # Started by `dive sim` / `dive study`, usage lines name the command the user typed (see groundstation).
+    app(prog_name=os.environ.get("DIVE_SIMULATOR_PROG_NAME", "python -m simulator"))
