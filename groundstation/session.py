@@ -82,6 +82,7 @@ class _Pending:
 
 
 _SEQUENCED = (m.EpisodeStart, m.EpisodeEnd)
+KEPT_DUMPS = 16  # completed dumps a session keeps (the newest), see Session._forget_old_dumps
 
 
 class Session:
@@ -427,6 +428,7 @@ class Session:
             if done is not None:
                 with self._cond:
                     self._completed_dumps[done.dump_id] = done
+                    self._forget_old_dumps()
                     self._cond.notify_all()
         elif isinstance(msg, m.LogRange):
             self._log_ranges += 1
@@ -500,6 +502,18 @@ class Session:
         self.stats.round_trip(max(0.0, sample.round_trip_us) / 1e6)
 
     # ------------------------------------------------------------------ helpers
+    def _forget_old_dumps(self) -> None:
+        """Keep the last KEPT_DUMPS completed dumps: the agent sends two per episode, for as long as a session lasts.
+
+        A dump() caller waits for the newest dump of its kind, so older ones are no longer asked for (the
+        recorder has written them already).
+        """
+        while len(self._completed_dumps) > KEPT_DUMPS:
+            oldest = next(iter(self._completed_dumps))
+            del self._completed_dumps[oldest]
+            self._dump_seen.pop(oldest, None)
+            self._dump_rerequests.pop(oldest, None)
+
     def _ack_timeout_s(self) -> float:
         rtt = self.stats.rtt_median_s()
         return max(self.config.ack_timeout_s, 3 * rtt) if rtt is not None else self.config.ack_timeout_s

@@ -25,6 +25,7 @@ class FakeAgent:
     def __init__(self, *, period_s: float = 0.005, episode_len: int = 20, protocol_version: int = 1,
                  defs_hash: int | None = None, drop_every: int = 0) -> None:
         self.period_s = period_s
+        self.last_dump_id = 6  # snapshot ids count up from 7
         self.episode_len = episode_len
         self.protocol_version = protocol_version
         self.defs_hash = definitions_hash() if defs_hash is None else defs_hash
@@ -154,7 +155,9 @@ class FakeAgent:
             return 0, []
         if isinstance(msg, m.DumpRequest):
             data = struct.pack("<101f", *[float(i) for i in range(101)]) if msg.kind == DumpKind.VALUES else bytes(101)
-            dump_id = msg.dump_id or 7
+            if msg.dump_id == 0:  # a new snapshot gets a new id, as on the agent (simulator/agent_dumps.py)
+                self.last_dump_id += 1
+            dump_id = msg.dump_id or self.last_dump_id
             end = len(data) if msg.length == 0 else msg.offset + msg.length
             chunks = [(m.DumpChunk(dump_id=dump_id, kind=msg.kind, episode=self.episode, total_bytes=len(data),
                                    offset=o, data=data[o:min(o + 224, end)]), 0) for o in range(msg.offset, end, 224)]

@@ -12,7 +12,7 @@ from groundstation.events import EventKind, LinkEvent, Received, Sent
 from groundstation.gaps import SampleRanges
 from groundstation.links import make_link
 from groundstation.params import cache_path
-from groundstation.session import Session, SessionConfig
+from groundstation.session import KEPT_DUMPS, Session, SessionConfig
 from protocol import DumpKind
 from protocol import messages as m
 from tests.groundstation.fake_agent import FakeAgent
@@ -105,6 +105,14 @@ def test_dump_missing_chunks_are_requested_again(fake_agent: FakeAgent) -> None:
         dump = s.dump(DumpKind.VALUES)
     assert dump.values() == [float(i) for i in range(101)]
     assert fake_agent.executed.count("CMD_DUMP") == 2  # the snapshot, then its missing range
+
+
+def test_a_long_session_keeps_only_the_newest_dumps(fake_agent: FakeAgent) -> None:
+    with Session(make_link(fake_agent.url)) as s:
+        for _ in range(KEPT_DUMPS + 4):
+            assert s.dump(DumpKind.VALUES).values() == [float(i) for i in range(101)]
+        assert len(s._completed_dumps) == KEPT_DUMPS  # memory bounded whatever the session's length
+        assert len(s._dump_seen) <= KEPT_DUMPS
 
 
 def test_reconnect_backfills_every_missed_sample(fake_agent: FakeAgent) -> None:
