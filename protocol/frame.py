@@ -21,6 +21,7 @@ MAX_CHUNK = 256  # longest COBS chunk a receiver keeps (254 inner bytes + 2 byte
 DELIMITER = b"\x00"
 TRAILER_SIZE = 13  # signature trailer when flag bit 2 is set: link_id u8 | timestamp u48 LE | signature 6 bytes
 _SIGNED = int(FrameFlag.SIGNED)
+_pack_header = HEADER.pack
 
 
 @dataclass(frozen=True, slots=True)
@@ -40,13 +41,13 @@ def build_inner(flags: int, seq: int, msg_id: int, payload: bytes,
 
     With `trailer` (a Signer's), flag bit 2 is set and trailer(header + payload) is appended before the CRC.
     """
-    room = MAX_PAYLOAD - (TRAILER_SIZE if trailer is not None else 0)
+    room = MAX_PAYLOAD if trailer is None else MAX_PAYLOAD - TRAILER_SIZE
     if len(payload) > room:
         raise FrameError(f"payload of {len(payload)} bytes exceeds {room}")
-    if trailer is not None:
-        flags |= _SIGNED
-    body = HEADER.pack(PROTOCOL_VERSION, flags, seq & 0xFFFF, msg_id) + payload
-    if trailer is not None:
+    if trailer is None:  # every frame but signed commands: the short path
+        body = _pack_header(PROTOCOL_VERSION, flags, seq & 0xFFFF, msg_id) + payload
+    else:
+        body = _pack_header(PROTOCOL_VERSION, flags | _SIGNED, seq & 0xFFFF, msg_id) + payload
         body += trailer(body)
     return body + crc_hqx(body, CRC_INIT).to_bytes(2, "big")
 
