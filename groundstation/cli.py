@@ -120,12 +120,11 @@ def run_command(
     recorder = RecorderConfig(recorder.directory, recorder.path, int(split_mb * 1e6), split_minutes * 60.0)
     config = RunConfig(url=url, episodes=episodes, params=values, recorder=recorder,
                        session=SessionConfig(reconnect=reconnect, key=resolve_key(key_file)))
-    err.print(f"connecting to {url}", style="dim")
     view = view_cli.open_live_view(viewer, rrd, web_port, name=url, headless_default=Viewer.NONE)
     columns = (SpinnerColumn(), TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
                TimeElapsedColumn())
     with view_cli.closing_view(view), Progress(*columns, console=err, transient=False) as bar:
-        task = bar.add_task("episodes", total=episodes or None)
+        task = bar.add_task(f"connecting to {url}", total=episodes or None)
         shown = 0
 
         def show(status: RunStatus) -> None:
