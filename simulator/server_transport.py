@@ -8,6 +8,7 @@ import select
 import selectors
 import socket
 import tty
+from abc import ABC, abstractmethod
 from collections.abc import Callable
 
 from simulator.errors import SimulatorError
@@ -19,7 +20,7 @@ class TransportError(SimulatorError, OSError):
     """The port cannot be opened (address in use, no pty available)."""
 
 
-class Transport:
+class Transport(ABC):
     """One client at a time; bytes out are buffered and flushed when the OS takes them.
 
     The server sets on_connect / on_data / on_disconnect; `poll` is called every loop iteration.
@@ -35,24 +36,28 @@ class Transport:
         self.on_disconnect: Callable[[], None] = lambda: None
 
     @property
+    @abstractmethod
     def connected(self) -> bool:
-        raise NotImplementedError
+        """A client is there to take bytes."""
 
     def send(self, data: bytes) -> None:
         if self.connected:
             self.outbuf += data
 
+    @abstractmethod
     def flush(self) -> None:
-        raise NotImplementedError
+        """Write what the OS takes of the out buffer now, without blocking."""
 
-    def poll(self) -> None:
+    def poll(self) -> None:  # noqa: B027 - a hook: TCP is driven by selector events alone
         """Work that is not driven by selector events (pty open/close detection)."""
 
+    @abstractmethod
     def drop_client(self) -> None:
-        raise NotImplementedError
+        """Close the current client's connection (the fault --disconnect-every); keep listening."""
 
+    @abstractmethod
     def close(self) -> None:
-        raise NotImplementedError
+        """Close the client and the port."""
 
 
 class TcpTransport(Transport):
