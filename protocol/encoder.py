@@ -47,10 +47,18 @@ class FrameEncoder:
     def encode_payload(self, msg_id: int, payload: bytes, flags: int = 0) -> EncodedFrame:
         """Frame an already packed payload (raises FrameError if it exceeds 247 bytes, 234 when signed)."""
         seq = self._seq
-        signer = self.signer
-        inner = build_inner(flags, seq, msg_id, payload, signer.trailer if signer is not None else None)
+        return _new_encoded(EncodedFrame, (seq, self.wire(self.next_inner(msg_id, payload, flags))))
+
+    def next_inner(self, msg_id: int, payload: bytes, flags: int = 0) -> bytes:
+        """The inner frame of a payload with the next seq, for senders that keep it (the agent's on-board log)."""
+        seq = self._seq
+        inner = build_inner(flags, seq, msg_id, payload, self._trailer())
         self._seq = (seq + 1) & 0xFFFF
-        return _new_encoded(EncodedFrame, (seq, self._cobs.encode(inner)))
+        return inner
+
+    def wire(self, inner: bytes) -> bytes:
+        """COBS(inner) + 0x00, from the cached codes of its zero pattern."""
+        return self._cobs.encode(inner)
 
     def retry(self, wire: bytes) -> bytes:
         """The wire bytes to re-send a frame: the same seq and payload; re-signed with a fresh timestamp if signed.
@@ -64,7 +72,7 @@ class FrameEncoder:
         end = payload_end(inner)
         flags = inner[1] & ~FrameFlag.SIGNED
         _, _, seq, msg_id = HEADER.unpack_from(inner)
-        return self._cobs.encode(build_inner(flags, seq, msg_id, inner[HEADER.size : end], self._trailer()))
+        return self.wire(build_inner(flags, seq, msg_id, inner[HEADER.size : end], self._trailer()))
 
     def _trailer(self) -> Callable[[bytes], bytes] | None:
         return self.signer.trailer if self.signer is not None else None

@@ -7,7 +7,6 @@ from binascii import crc_hqx
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from protocol.cobs import cobs_encode
 from protocol.crc import CRC_INIT, crc16_ccitt_false
 from protocol.enums import INCOMPATIBLE_FLAGS_MASK, PROTOCOL_VERSION, FrameFlag
 from protocol.errors import FrameError
@@ -61,11 +60,6 @@ def payload_end(inner: bytes) -> int:
     if inner[1] & _SIGNED:
         return len(inner) - 2 - TRAILER_SIZE if len(inner) >= MIN_INNER + TRAILER_SIZE else -1
     return len(inner) - 2
-
-
-def encode_wire(inner: bytes) -> bytes:
-    """COBS-encode an inner frame and append the 0x00 delimiter."""
-    return cobs_encode(inner) + DELIMITER
 
 
 def parse_inner(inner: bytes) -> RawFrame:

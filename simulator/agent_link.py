@@ -12,6 +12,7 @@ from protocol import (
     AckResult,
     DumpKind,
     Frame,
+    FrameEncoder,
     FrameFlag,
     NodeKind,
     SignatureCheck,
@@ -20,8 +21,7 @@ from protocol import (
     definitions_hash,
     messages,
 )
-from protocol.cobs import CobsFrameEncoder
-from protocol.frame import HEADER, build_inner, encode_wire
+from protocol.frame import HEADER
 from protocol.registry import Message
 from simulator import agent_dumps
 from simulator.agent_dumps import DumpStore
@@ -57,8 +57,7 @@ class AgentLink:
         self.decoder = StreamDecoder()
         self.dumps = DumpStore()
         self.program: OnboardProgram | None = None
-        self._seq = 0
-        self._cobs = CobsFrameEncoder()  # a SAMPLE every control step: cached COBS codes (protocol/cobs.py)
+        self._encoder = FrameEncoder()  # the agent's seq counter; frames keep their inner bytes for the log
         self._answered: deque[tuple[int, int, int, str]] = deque(maxlen=ACK_MEMORY)
         self._hello_sent = False
         self._next_heartbeat_us = 0
@@ -76,7 +75,7 @@ class AgentLink:
 
     @property
     def next_seq(self) -> int:
-        return self._seq
+        return self._encoder.next_seq
 
     def attach(self, program: OnboardProgram) -> None:
         self.program = program
@@ -87,16 +86,11 @@ class AgentLink:
         return self.program
 
     # ------------------------------------------------------------------ sending
-    def _frame(self, msg_id: int, payload: bytes, flags: int = 0) -> bytes:
-        inner = build_inner(flags, self._seq, msg_id, payload)
-        self._seq = (self._seq + 1) & 0xFFFF
-        return inner
-
     def send(self, message: Message, flags: int = 0) -> None:
         if self._deferred is not None:
             self._deferred.append(lambda: self.send(message, flags))
             return
-        self.write(self._cobs.encode(self._frame(message.MSG_ID, message.pack(), flags)))
+        self.write(self._encoder.encode_payload(message.MSG_ID, message.pack(), flags).wire)
 
     def log_frame(self, message: Message, sample: int, is_sample: bool) -> None:
         """A SAMPLE or EPISODE frame: into the on-board log, then onto the link."""
@@ -107,9 +101,9 @@ class AgentLink:
         if self._deferred is not None:
             self._deferred.append(lambda: self.log_payload(msg_id, payload, sample, is_sample))
             return
-        inner = self._frame(msg_id, payload)
+        inner = self._encoder.next_inner(msg_id, payload)
         self.ring.append(sample, inner, is_sample)
-        self.write(self._cobs.encode(inner))
+        self.write(self._encoder.wire(inner))
 
     def episode_dumps(self) -> None:
         for kind in (DumpKind.VALUES, DumpKind.POLICY):
@@ -202,7 +196,8 @@ class AgentLink:
             if isinstance(reply, bytes):
                 # Re-sent as logged (same msg_id and payload), flagged REPLAYED, with a new seq.
                 msg_id = reply[HEADER.size - 1]
-                self.write(encode_wire(self._frame(msg_id, reply[HEADER.size : -2], FrameFlag.REPLAYED)))
+                replayed = self._encoder.encode_payload(msg_id, reply[HEADER.size : -2], FrameFlag.REPLAYED)
+                self.write(replayed.wire)
             else:
                 self.send(reply)
 
