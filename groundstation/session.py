@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 from importlib.metadata import PackageNotFoundError, version
 
 from groundstation.clock import ClockModel
-from groundstation.dumps import Dump, DumpAssembler
+from groundstation.dumps import Dump, DumpTracker
 from groundstation.errors import (
     CommandError,
     CommandTimeout,
@@ -82,7 +82,6 @@ class _Pending:
 
 
 _SEQUENCED = (m.EpisodeStart, m.EpisodeEnd)
-KEPT_DUMPS = 16  # completed dumps a session keeps (the newest), see Session._forget_old_dumps
 
 
 class Session:
@@ -101,7 +100,7 @@ class Session:
         self.clock = ClockModel()
         self.params = ParamTable()
         self.backfill = BackfillPlanner()
-        self.dumps = DumpAssembler()
+        self.dumps = DumpTracker()
         self.agent_hello: m.Hello | None = None
         self.last_heartbeat: m.Heartbeat | None = None
         self.link_up = False
@@ -111,9 +110,6 @@ class Session:
         self._send_lock = threading.Lock()
         self._pending: dict[int, _Pending] = {}
         self._episodes_seen: set[tuple[int, int, int]] = set()
-        self._completed_dumps: dict[int, Dump] = {}
-        self._dump_seen: dict[int, tuple[int, float]] = {}  # dump_id -> (kind, first chunk time)
-        self._dump_rerequests: dict[int, int] = {}
         self._log_ranges = 0
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
@@ -271,15 +267,11 @@ class Session:
         self.command(m.DumpRequest(kind=int(kind), dump_id=0, offset=0, length=0))
         deadline = asked + timeout_s
 
-        def mine() -> int | None:
-            ids = [i for i, (k, t) in self._dump_seen.items() if k == kind and t >= asked]
-            return max(ids) if ids else None
-
         with self._cond:
             while time.monotonic() < deadline:
-                dump_id = mine()
-                if dump_id is not None and dump_id in self._completed_dumps:
-                    return self._completed_dumps[dump_id]
+                done = self.dumps.newest_since(kind, asked)
+                if done is not None:
+                    return done
                 self._cond.wait(0.05)
         raise CommandTimeout(f"CMD_DUMP {kind.name}: snapshot incomplete after {timeout_s:g} s")
 
@@ -379,14 +371,8 @@ class Session:
                 self._write(pending.message, pending.seq, pending.wire, retry=True)
 
     def _rerequest_dump_chunks(self, now_s: float) -> None:
-        for dump_id, (kind, gaps) in self.dumps.pending().items():
-            first_seen = self._dump_seen.get(dump_id, (kind, now_s))[1]
-            tries = self._dump_rerequests.get(dump_id, 0)
-            if now_s - first_seen < 0.5 * (tries + 1) or tries >= 3:
-                continue
-            self._dump_rerequests[dump_id] = tries + 1
-            for start, end in gaps:
-                self.send(m.DumpRequest(kind=kind, dump_id=dump_id, offset=start, length=end - start), wait=False)
+        for kind, dump_id, start, end in self.dumps.due_rerequests(now_s):
+            self.send(m.DumpRequest(kind=kind, dump_id=dump_id, offset=start, length=end - start), wait=False)
 
     # ------------------------------------------------------------------ frames in
     def _handle(self, frame: Frame, host_ns: int) -> None:
@@ -423,12 +409,8 @@ class Session:
                 self._param_updates += 1
                 self._cond.notify_all()
         elif isinstance(msg, m.DumpChunk):
-            self._dump_seen.setdefault(msg.dump_id, (msg.kind, time.monotonic()))
-            done = self.dumps.feed(msg)
-            if done is not None:
-                with self._cond:
-                    self._completed_dumps[done.dump_id] = done
-                    self._forget_old_dumps()
+            with self._cond:
+                if self.dumps.feed(msg, time.monotonic()) is not None:
                     self._cond.notify_all()
         elif isinstance(msg, m.LogRange):
             self._log_ranges += 1
@@ -502,18 +484,6 @@ class Session:
         self.stats.round_trip(max(0.0, sample.round_trip_us) / 1e6)
 
     # ------------------------------------------------------------------ helpers
-    def _forget_old_dumps(self) -> None:
-        """Keep the last KEPT_DUMPS completed dumps: the agent sends two per episode, for as long as a session lasts.
-
-        A dump() caller waits for the newest dump of its kind, so older ones are no longer asked for (the
-        recorder has written them already).
-        """
-        while len(self._completed_dumps) > KEPT_DUMPS:
-            oldest = next(iter(self._completed_dumps))
-            del self._completed_dumps[oldest]
-            self._dump_seen.pop(oldest, None)
-            self._dump_rerequests.pop(oldest, None)
-
     def _ack_timeout_s(self) -> float:
         rtt = self.stats.rtt_median_s()
         return max(self.config.ack_timeout_s, 3 * rtt) if rtt is not None else self.config.ack_timeout_s

@@ -7,12 +7,13 @@ import time
 import pytest
 
 from groundstation.clock import ClockModel
+from groundstation.dumps import KEPT_DUMPS
 from groundstation.errors import CommandError, IncompatibleAgentError, LinkError, ParameterError
 from groundstation.events import EventKind, LinkEvent, Received, Sent
 from groundstation.gaps import SampleRanges
 from groundstation.links import make_link
 from groundstation.params import cache_path
-from groundstation.session import KEPT_DUMPS, Session, SessionConfig
+from groundstation.session import Session, SessionConfig
 from protocol import DumpKind
 from protocol import messages as m
 from tests.groundstation.fake_agent import FakeAgent
@@ -111,8 +112,8 @@ def test_a_long_session_keeps_only_the_newest_dumps(fake_agent: FakeAgent) -> No
     with Session(make_link(fake_agent.url)) as s:
         for _ in range(KEPT_DUMPS + 4):
             assert s.dump(DumpKind.VALUES).values() == [float(i) for i in range(101)]
-        assert len(s._completed_dumps) == KEPT_DUMPS  # memory bounded whatever the session's length
-        assert len(s._dump_seen) <= KEPT_DUMPS
+        assert s.dumps.held == KEPT_DUMPS  # memory bounded whatever the session's length
+        assert s.dumps.tracked <= KEPT_DUMPS
 
 
 def test_reconnect_backfills_every_missed_sample(fake_agent: FakeAgent) -> None:
