@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import time
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from enum import StrEnum
 from typing import Any, Protocol
@@ -64,3 +66,55 @@ class SessionListener(Protocol):
     def on_sent(self, sent: Sent) -> None: ...
 
     def on_event(self, event: LinkEvent) -> None: ...
+
+
+class Listeners:
+    """The session's listeners, each told everything; what one raises becomes an ERROR event, never the session's."""
+
+    def __init__(self, listeners: Iterable[SessionListener] = ()) -> None:
+        self._listeners = list(listeners)
+
+    def add(self, listener: SessionListener) -> None:
+        self._listeners.append(listener)
+
+    def received(self, received: Received) -> None:
+        for listener in list(self._listeners):
+            try:
+                listener.on_received(received)
+            except Exception as e:  # noqa: BLE001 a listener's bug must not stop the session
+                self._failed(listener, e)
+
+    def sent(self, sent: Sent) -> None:
+        for listener in list(self._listeners):
+            try:
+                listener.on_sent(sent)
+            except Exception as e:  # noqa: BLE001
+                self._failed(listener, e)
+
+    def event(self, event: LinkEvent) -> None:
+        for listener in list(self._listeners):
+            try:
+                listener.on_event(event)
+            except Exception as e:  # noqa: BLE001
+                if event.kind != EventKind.ERROR:  # reporting the failure of a report would loop
+                    self._failed(listener, e)
+
+    def _failed(self, listener: object, error: Exception) -> None:
+        self.event(LinkEvent(EventKind.ERROR, time.time_ns(),
+                             f"listener {type(listener).__name__} raised {type(error).__name__}: {error}"))
+
+
+class ReceivedCallback:
+    """A listener that only wants received frames (for progress displays)."""
+
+    def __init__(self, callback: Callable[[Received], None]) -> None:
+        self._callback = callback
+
+    def on_received(self, received: Received) -> None:
+        self._callback(received)
+
+    def on_sent(self, sent: Sent) -> None:
+        pass
+
+    def on_event(self, event: LinkEvent) -> None:
+        pass

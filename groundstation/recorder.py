@@ -18,8 +18,8 @@ from typing import Any, TypeVar
 from groundstation.dumps import DumpAssembler
 from groundstation.errors import RecordingError
 from groundstation.events import EventKind, LinkEvent, Received, Sent
+from groundstation.hello import tool_version
 from groundstation.mcap_io import RAW_ENCODING, McapFileWriter, mcap_library_version
-from groundstation.session import tool_version
 from protocol import Message, messages
 from protocol.cobs import cobs_decode
 from protocol.jsonschema import message_json_schema

@@ -13,7 +13,6 @@ import threading
 import time
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
-from importlib.metadata import PackageNotFoundError, version
 
 from groundstation.clock import ClockModel
 from groundstation.dumps import Dump, DumpTracker
@@ -25,13 +24,13 @@ from groundstation.errors import (
     LinkTimeout,
     ParameterError,
 )
-from groundstation.events import EventKind, LinkEvent, Received, Sent, SessionListener
+from groundstation.events import EventKind, LinkEvent, Listeners, Received, ReceivedCallback, Sent, SessionListener
 from groundstation.gaps import BackfillPlanner
+from groundstation.hello import ground_hello, incompatibility
 from groundstation.links import Link
 from groundstation.params import Parameter, ParamTable, load_cached, parse_value, save_cached
 from groundstation.stats import LinkStats
 from protocol import (
-    PROTOCOL_VERSION,
     AckResult,
     DumpKind,
     Frame,
@@ -39,19 +38,10 @@ from protocol import (
     FrameFlag,
     Message,
     Mode,
-    NodeKind,
     Signer,
     StreamDecoder,
-    definitions_hash,
 )
 from protocol import messages as m
-
-
-def tool_version() -> str:
-    try:
-        return version("diving-agent")
-    except PackageNotFoundError:
-        return "0.0.0"
 
 
 @dataclass(frozen=True, slots=True)
@@ -89,7 +79,7 @@ class Session:
                  listeners: Iterable[SessionListener] = ()) -> None:
         self.link = link
         self.config = config or SessionConfig()
-        self.listeners: list[SessionListener] = list(listeners)
+        self.listeners = Listeners(listeners)
         # A random first seq: an agent that remembers the last 16 (msg_id, seq) it ACKed must not take a new
         # session's first commands for retries of the previous session's. A fresh random link id per session, so a
         # new session's clock may lag the last one's a little (SPEC s. 12).
@@ -168,7 +158,7 @@ class Session:
         self.close()
 
     def add_listener(self, listener: SessionListener) -> None:
-        self.listeners.append(listener)
+        self.listeners.add(listener)
 
     def mark(self, text: str) -> None:
         """A user marker: goes to every listener (the recorder writes it to /marker)."""
@@ -424,11 +414,7 @@ class Session:
             t_us = getattr(msg, "t_us", None)
             agent_ns = self.clock.to_host_ns(t_us) if isinstance(t_us, int) and t_us else None
             received = Received(frame, host_ns, agent_ns, backfilled)
-            for listener in list(self.listeners):
-                try:
-                    listener.on_received(received)
-                except Exception as e:  # noqa: BLE001 a listener's bug must not stop the session
-                    self._listener_failed(listener, e)
+            self.listeners.received(received)
 
     def _on_ack(self, ack: m.Ack) -> None:
         with self._cond:
@@ -444,15 +430,7 @@ class Session:
             self._cond.notify_all()
 
     def _on_hello(self, hello: m.Hello) -> None:
-        if hello.protocol_version != PROTOCOL_VERSION:
-            problem = (f"the agent speaks protocol version {hello.protocol_version}, this ground station speaks "
-                       f"version {PROTOCOL_VERSION}")
-        elif hello.definitions_hash != definitions_hash():
-            problem = (f"the agent's message table (hash {hello.definitions_hash:08x}, firmware "
-                       f"{hello.firmware_major}.{hello.firmware_minor}.{hello.firmware_patch}) differs from ours "
-                       f"(hash {definitions_hash():08x}, dive {tool_version()})")
-        else:
-            problem = None
+        problem = incompatibility(hello)
         previous = self.agent_hello
         with self._cond:
             if problem is not None:
@@ -489,54 +467,23 @@ class Session:
         return max(self.config.ack_timeout_s, 3 * rtt) if rtt is not None else self.config.ack_timeout_s
 
     def _send_hello(self) -> None:
-        major, minor, patch = (int(x) if x.isdigit() else 0 for x in (tool_version().split(".") + ["0"] * 3)[:3])
-        self.send(m.Hello(protocol_version=PROTOCOL_VERSION, node_kind=int(NodeKind.GROUND),
-                          definitions_hash=definitions_hash(), firmware_major=major, firmware_minor=minor,
-                          firmware_patch=patch, node_id=self.config.node_id, boot_id=self._boot_id, name="dive"))
+        self.send(ground_hello(self.config.node_id, self._boot_id))
 
     def _write(self, message: Message, seq: int, wire: bytes, retry: bool = False) -> None:
         self.link.send(wire)
         self.stats.sent(len(wire), retry)
-        sent = Sent(seq, message, wire, time.time_ns())
-        for listener in list(self.listeners):
-            try:
-                listener.on_sent(sent)
-            except Exception as e:  # noqa: BLE001
-                self._listener_failed(listener, e)
+        self.listeners.sent(Sent(seq, message, wire, time.time_ns()))
 
     def _emit_stats(self) -> None:
         data = {"link": self.stats.snapshot(self.decoder.stats), "clock": self.clock.as_dict()}
         self._emit(LinkEvent(EventKind.STATS, time.time_ns(), "", data))
 
     def _emit(self, event: LinkEvent) -> None:
-        for listener in list(self.listeners):
-            try:
-                listener.on_event(event)
-            except Exception as e:  # noqa: BLE001
-                if event.kind != EventKind.ERROR:
-                    self._listener_failed(listener, e)
-
-    def _listener_failed(self, listener: object, error: Exception) -> None:
-        self._emit(LinkEvent(EventKind.ERROR, time.time_ns(),
-                             f"listener {type(listener).__name__} raised {type(error).__name__}: {error}"))
+        self.listeners.event(event)
 
     def _hello_data(self) -> dict[str, object]:
         return self.agent_hello.to_dict() if self.agent_hello else {}
 
     def rx_listener(self, callback: Callable[[Received], None]) -> SessionListener:
         """A listener that only wants received frames (for progress displays)."""
-        return _CallbackListener(callback)
-
-
-class _CallbackListener:
-    def __init__(self, callback: Callable[[Received], None]) -> None:
-        self._callback = callback
-
-    def on_received(self, received: Received) -> None:
-        self._callback(received)
-
-    def on_sent(self, sent: Sent) -> None:
-        pass
-
-    def on_event(self, event: LinkEvent) -> None:
-        pass
+        return ReceivedCallback(callback)
