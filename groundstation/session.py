@@ -15,6 +15,7 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 
 from groundstation.clock import ClockModel
+from groundstation.commands import PendingCommand, PendingCommands, refusal
 from groundstation.dumps import Dump, DumpTracker
 from groundstation.errors import (
     CommandError,
@@ -31,7 +32,6 @@ from groundstation.links import Link
 from groundstation.params import Parameter, ParamTable, load_cached, parse_value, save_cached
 from groundstation.stats import LinkStats
 from protocol import (
-    AckResult,
     DumpKind,
     Frame,
     FrameEncoder,
@@ -57,18 +57,6 @@ class SessionConfig:
     fetch_params: bool = True
     node_id: int = field(default_factory=lambda: int.from_bytes(os.urandom(4), "little"))
     key: bytes | None = field(default=None, repr=False)  # signing key: every frame sent is signed (SPEC s. 12)
-
-
-@dataclass
-class _Pending:
-    message: Message
-    seq: int
-    wire: bytes
-    first_sent_s: float
-    deadline_s: float
-    attempts: int = 1
-    ack: m.Ack | None = None
-    done: threading.Event = field(default_factory=threading.Event)
 
 
 _SEQUENCED = (m.EpisodeStart, m.EpisodeEnd)
@@ -98,7 +86,7 @@ class Session:
         self._start_s = time.monotonic()
         self._cond = threading.Condition()
         self._send_lock = threading.Lock()
-        self._pending: dict[int, _Pending] = {}
+        self._pending = PendingCommands()
         self._episodes_seen: set[tuple[int, int, int]] = set()
         self._log_ranges = 0
         self._stop = threading.Event()
@@ -144,10 +132,8 @@ class Session:
             self._emit_stats()
         self.link.close()
         self.link_up = False
+        self._pending.release_all()
         with self._cond:
-            for pending in self._pending.values():
-                pending.done.set()
-            self._pending.clear()
             self._cond.notify_all()
 
     def __enter__(self) -> Session:
@@ -175,9 +161,8 @@ class Session:
             encoded = self.encoder.encode(message)
             pending = None
             if message.DEFINITION.needs_ack:
-                pending = _Pending(message, encoded.seq, encoded.wire, now, now + self._ack_timeout_s())
-                with self._cond:
-                    self._pending[encoded.seq] = pending
+                pending = PendingCommand(message, encoded.seq, encoded.wire, now, now + self._ack_timeout_s())
+                self._pending.add(pending)
             try:
                 self._write(message, encoded.seq, encoded.wire)
             except LinkError:
@@ -189,21 +174,16 @@ class Session:
             return None
         limit = timeout_s if timeout_s is not None else self._ack_timeout_s() * (self.config.retries + 1) + 1.0
         pending.done.wait(limit)
-        with self._cond:
-            self._pending.pop(pending.seq, None)
+        self._pending.discard(pending.seq)
         name = message.DEFINITION.name
         if pending.ack is None:
             if not self.link_up and self._stop.is_set():
                 raise LinkError(f"{name}: the session is closed")
             self.stats.command_timeouts += 1
             raise CommandTimeout(f"{name}: no ACK from the agent after {pending.attempts} tries")
-        if pending.ack.result != AckResult.ACCEPTED:
-            try:
-                why = AckResult(pending.ack.result).name
-            except ValueError:
-                why = f"result {pending.ack.result}"
-            reason = f" ({pending.ack.reason})" if pending.ack.reason else ""
-            raise CommandError(f"{name} refused by the agent: {why}{reason}")
+        refused = refusal(name, pending.ack)
+        if refused is not None:
+            raise refused
         return pending.ack
 
     def command(self, message: Message, timeout_s: float | None = None) -> m.Ack:
@@ -346,12 +326,9 @@ class Session:
             self._rerequest_dump_chunks(now_s)
 
     def _retransmit(self, now_s: float) -> None:
-        with self._cond:
-            late = [p for p in self._pending.values() if p.ack is None and now_s >= p.deadline_s]
-        for pending in late:
+        for pending in self._pending.late(now_s):
             if pending.attempts > self.config.retries:
-                with self._cond:
-                    self._pending.pop(pending.seq, None)
+                self._pending.discard(pending.seq)
                 pending.done.set()
                 continue
             pending.attempts += 1
@@ -417,16 +394,12 @@ class Session:
             self.listeners.received(received)
 
     def _on_ack(self, ack: m.Ack) -> None:
+        pending = self._pending.acknowledge(ack)
+        if pending is None:
+            return
+        if pending.attempts == 1:  # Karn: a retried command's RTT is ambiguous
+            self.stats.round_trip(time.monotonic() - pending.first_sent_s)
         with self._cond:
-            pending = self._pending.get(ack.cmd_seq)
-            if pending is None or pending.message.MSG_ID != ack.cmd_msg_id or pending.ack is not None:
-                return
-            pending.ack = ack
-            if pending.attempts == 1:  # Karn: a retried command's RTT is ambiguous
-                self.stats.round_trip(time.monotonic() - pending.first_sent_s)
-            if not pending.done.is_set():
-                pending.done.set()
-            self._pending.pop(ack.cmd_seq, None)
             self._cond.notify_all()
 
     def _on_hello(self, hello: m.Hello) -> None:

@@ -1,0 +1,73 @@
+"""Commands in flight: sent, waiting for their ACK, retried with the same seq (SPEC.md section 5)."""
+
+from __future__ import annotations
+
+import threading
+from dataclasses import dataclass, field
+
+from groundstation.errors import CommandError
+from protocol import AckResult, Message
+from protocol import messages as m
+
+
+@dataclass
+class PendingCommand:
+    message: Message
+    seq: int
+    wire: bytes
+    first_sent_s: float
+    deadline_s: float
+    attempts: int = 1
+    ack: m.Ack | None = None
+    done: threading.Event = field(default_factory=threading.Event)
+
+
+class PendingCommands:
+    """The commands not yet ACKed, by seq; used from the sending threads and the reader thread alike."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._by_seq: dict[int, PendingCommand] = {}
+
+    def add(self, pending: PendingCommand) -> None:
+        with self._lock:
+            self._by_seq[pending.seq] = pending
+
+    def discard(self, seq: int) -> None:
+        with self._lock:
+            self._by_seq.pop(seq, None)
+
+    def late(self, now_s: float) -> list[PendingCommand]:
+        """Commands whose ACK is overdue."""
+        with self._lock:
+            return [p for p in self._by_seq.values() if p.ack is None and now_s >= p.deadline_s]
+
+    def acknowledge(self, ack: m.Ack) -> PendingCommand | None:
+        """The command this ACK answers, now done; None for a stray or repeated ACK."""
+        with self._lock:
+            pending = self._by_seq.get(ack.cmd_seq)
+            if pending is None or pending.message.MSG_ID != ack.cmd_msg_id or pending.ack is not None:
+                return None
+            pending.ack = ack
+            del self._by_seq[ack.cmd_seq]
+        pending.done.set()
+        return pending
+
+    def release_all(self) -> None:
+        """Wake every waiter without an ACK (the session is closing)."""
+        with self._lock:
+            waiting, self._by_seq = list(self._by_seq.values()), {}
+        for pending in waiting:
+            pending.done.set()
+
+
+def refusal(name: str, ack: m.Ack) -> CommandError | None:
+    """The error for a NACK, naming the result and the agent's reason; None for an ACK that accepts."""
+    if ack.result == AckResult.ACCEPTED:
+        return None
+    try:
+        why = AckResult(ack.result).name
+    except ValueError:
+        why = f"result {ack.result}"
+    reason = f" ({ack.reason})" if ack.reason else ""
+    return CommandError(f"{name} refused by the agent: {why}{reason}")
