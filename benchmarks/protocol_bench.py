@@ -1,16 +1,21 @@
 """Throughput of our SAMPLE frames against pymavlink's MAVLink v2 ATTITUDE, measured in the same run.
 
-Run: `.venv/bin/python benchmarks/protocol_bench.py [--frames N]`. Not a test: it prints figures and ratios.
+Run: `.venv/bin/pip install -e '.[bench]' && .venv/bin/python benchmarks/protocol_bench.py [--frames N]`.
+Not a test: it prints figures and ratios.
 Goals (issue 2): decode >= 3x pymavlink, encode >= 2x.
 """
 
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 from collections.abc import Callable
 
-from pymavlink.dialects.v20 import common as mavlink2
+try:
+    from pymavlink.dialects.v20 import common as mavlink2
+except ImportError:  # the anchor lives in the `bench` extra, not in the test install
+    sys.exit("protocol_bench needs pymavlink, the anchor it measures against: pip install -e '.[bench]'")
 
 from groundstation.columns import message_array
 from protocol import FrameEncoder, StreamDecoder

@@ -4,40 +4,39 @@ from __future__ import annotations
 
 import functools
 import json
+import os
 import sys
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from enum import StrEnum
 from pathlib import Path
-from typing import Annotated, Any, TypeVar
+from typing import TYPE_CHECKING, Annotated, Any, TypeVar
 from urllib.parse import urlencode
 
 import typer
 from rich.console import Console
-from rich.progress import BarColumn, MofNCompleteColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
 
 from groundstation import view_cli
 from groundstation.errors import GroundStationError
 from groundstation.keys import keygen, resolve_key
-from groundstation.links import default_url, make_link
-from groundstation.recorder import RecorderConfig
-from groundstation.rerun_view import Viewer
-from groundstation.runner import RunConfig, RunStatus, add_marker, load_params_file, run
-from groundstation.session import Session, SessionConfig
 from groundstation.simulator_process import run_simulator_command
-from protocol import DumpKind, Mode
-from protocol import messages as m
+from groundstation.validate import UsageError, parse_speed
+from groundstation.view_options import Viewer
+
+if TYPE_CHECKING:  # the session, recorder and runner (mcap, numpy) are imported by the commands that use them
+    from groundstation.session import Session
 
 app = typer.Typer(
     name="dive",
     help="Ground station for the micro diving agent: connect, command, record (MCAP), view (Rerun), replay.",
     no_args_is_help=True,
-    add_completion=False,
     pretty_exceptions_enable=False,
     rich_markup_mode="rich",
+    context_settings={"help_option_names": ["-h", "--help"]},
 )
-log_app = typer.Typer(help="Inspect, export and repair recordings.", no_args_is_help=True)
+log_app = typer.Typer(help="Inspect, export and repair recordings.", no_args_is_help=True,
+                      context_settings={"help_option_names": ["-h", "--help"]})
 app.add_typer(log_app, name="log")
 
 _FORWARD = {"allow_extra_args": True, "ignore_unknown_options": True, "help_option_names": []}
@@ -47,12 +46,15 @@ out = Console(highlight=False)
 
 
 def _one_line_errors(func: F) -> F:
-    """Our errors (and a bad file) become one line on stderr and exit code 1; Ctrl-C exits 130."""
+    """Our errors (and a bad file) become one line on stderr and exit code 1 (a bad value: 2); Ctrl-C exits 130."""
 
     @functools.wraps(func)
     def wrapper(*args: Any, **kwargs: Any) -> Any:
         try:
             return func(*args, **kwargs)
+        except UsageError as e:
+            err.print(f"[bold red]dive:[/] {e}", markup=True, soft_wrap=True)
+            raise typer.Exit(2) from None
         except (GroundStationError, OSError) as e:
             message = str(e).replace("\n", " ") or type(e).__name__
             err.print(f"[bold red]dive:[/] {message}", markup=True, soft_wrap=True)
@@ -65,12 +67,18 @@ def _one_line_errors(func: F) -> F:
 
 @contextmanager
 def _session(url: str | None) -> Iterator[Session]:
-    session = Session(make_link(url), SessionConfig(reconnect=False, backfill=False, key=resolve_key()))
+    """A session with *the* agent: the URL given, else $DIVE_URL, else the running `dive run` (never a new sim)."""
+    from groundstation.links import make_link
+    from groundstation.runs import attach_url
+    from groundstation.session import Session, SessionConfig
+
+    session = Session(make_link(attach_url(url)), SessionConfig(reconnect=False, backfill=False, key=resolve_key()))
     with session:
         yield session
 
 
-_URL_HELP = "tcp://HOST:PORT, serial:///dev/ttyUSB0?baud=115200, sim://?speed=max (default: $DIVE_URL or sim://)"
+_URL_HELP = ("tcp://HOST:PORT, serial:///dev/ttyUSB0?baud=115200, sim://?speed=max, hub://RUN "
+             "(default: $DIVE_URL, else the running `dive run`)")
 UrlArg = Annotated[str | None, typer.Argument(help=_URL_HELP, show_default=False)]
 
 
@@ -79,9 +87,11 @@ UrlArg = Annotated[str | None, typer.Argument(help=_URL_HELP, show_default=False
 @_one_line_errors
 def run_command(
     url: UrlArg = None,
-    episodes: Annotated[int, typer.Option(help="stop after this many episodes (0 = until Ctrl-C)")] = 0,
+    episodes: Annotated[int, typer.Option(min=0, max=2**32 - 1,
+                                          help="stop after this many episodes (0 = until Ctrl-C)")] = 0,
     speed: Annotated[str | None, typer.Option(help="built-in virtual agent only: time factor or 'max'")] = None,
-    seed: Annotated[int | None, typer.Option(help="built-in virtual agent only: random seed")] = None,
+    seed: Annotated[int | None, typer.Option(min=0, max=2**32 - 1,
+                                             help="built-in virtual agent only: random seed")] = None,
     preset: Annotated[str | None, typer.Option(
         help="built-in virtual agent only: plant preset, paper (default) or hardware")] = None,
     learner: Annotated[str | None, typer.Option(
@@ -89,19 +99,29 @@ def run_command(
     viewer: view_cli.ViewerOption = None,
     rrd: Annotated[Path | None, typer.Option(help="also save the live Rerun stream to this .rrd file")] = None,
     web_port: view_cli.WebPortOption = 9090,
-    target_depth: Annotated[float | None, typer.Option(help="target depth z_d [m]")] = None,
-    z_tol: Annotated[float | None, typer.Option(help="half-height of the learning region [m]")] = None,
-    zdot_tol: Annotated[float | None, typer.Option(help="velocity bound of the learning region [m/s]")] = None,
-    success_time: Annotated[float | None, typer.Option(help="time in the region that counts as success [s]")] = None,
+    grpc_port: view_cli.GrpcPortOption = 9876,
+    target_depth: Annotated[float | None, typer.Option(help="target depth z_d \\[m]")] = None,
+    z_tol: Annotated[float | None, typer.Option(help="half-height of the learning region \\[m]")] = None,
+    zdot_tol: Annotated[float | None, typer.Option(help="velocity bound of the learning region \\[m/s]")] = None,
+    success_time: Annotated[float | None, typer.Option(
+        help="time in the region that counts as success \\[s]")] = None,
     param: Annotated[list[str] | None, typer.Option(help="NAME=VALUE, any agent parameter (repeatable)")] = None,
     params: Annotated[Path | None, typer.Option(help="file of parameters: JSON or `name = value` lines")] = None,
     out_path: Annotated[Path | None, typer.Option("--out", help="recording directory, or a .mcap file name")] = None,
-    split_mb: Annotated[float, typer.Option(help="start a new file after this many MB (0 = never)")] = 0.0,
-    split_minutes: Annotated[float, typer.Option(help="start a new file after this many minutes (0 = never)")] = 0.0,
+    split_mb: Annotated[float, typer.Option(min=0, help="start a new file after this many MB (0 = never)")] = 0.0,
+    split_minutes: Annotated[float, typer.Option(
+        min=0, help="start a new file after this many minutes (0 = never)")] = 0.0,
     reconnect: Annotated[bool, typer.Option(help="reconnect after a link loss and backfill the gap")] = True,
     key_file: Annotated[Path | None, typer.Option(help="sign commands with this key (default: $DIVE_KEY_FILE)")] = None,
 ) -> None:
     """Connect, set parameters, start learning and record everything to MCAP until N episodes or Ctrl-C."""
+    from groundstation.recorder import RecorderConfig
+    from groundstation.run_progress import RunDisplay, simulator_compile_note
+    from groundstation.runner import RunConfig, load_params_file, run
+    from groundstation.session import SessionConfig
+
+    if speed is not None:
+        parse_speed(speed)  # now, not 10 s later inside the virtual agent
     url = _with_sim_options(url, speed=speed, seed=seed, preset=preset, learner=learner)
     values: dict[str, str] = load_params_file(params) if params else {}
     for name, value in (("target_depth_m", target_depth), ("z_tol_m", z_tol), ("zdot_tol_mps", zdot_tol),
@@ -120,53 +140,36 @@ def run_command(
     recorder = RecorderConfig(recorder.directory, recorder.path, int(split_mb * 1e6), split_minutes * 60.0)
     config = RunConfig(url=url, episodes=episodes, params=values, recorder=recorder,
                        session=SessionConfig(reconnect=reconnect, key=resolve_key(key_file)))
-    view = view_cli.open_live_view(viewer, rrd, web_port, name=url, headless_default=Viewer.NONE)
-    columns = (SpinnerColumn(), TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
-               TimeElapsedColumn())
-    with view_cli.closing_view(view), Progress(*columns, console=err, transient=False) as bar:
-        task = bar.add_task(f"connecting to {url}", total=episodes or None)
-        shown = 0
-
-        def show(status: RunStatus) -> None:
-            nonlocal shown
-            for line in status.messages[shown:]:
-                bar.console.print(f"[yellow]{line}[/]")
-            shown = len(status.messages)
-            bar.update(task, completed=status.episodes, description=_describe(status))
-
-        result = run(config, show, listeners=[view] if view is not None else [])
+    view = view_cli.open_live_view(viewer, rrd, web_port, name=url, headless_default=Viewer.NONE,
+                                   grpc_port=grpc_port)
+    note = simulator_compile_note(url)
+    with view_cli.closing_view(view), RunDisplay(err, episodes, f"connecting to {url}{note}") as display:
+        result = run(config, display.show, listeners=[view] if view is not None else [])
     for path in result.paths:
         typer.echo(str(path))
     if result.paths:
         err.print(f"next: dive log info {result.paths[-1]}\n      dive replay {result.paths[-1]}"
                   + ("" if view is not None else "\n      (dive run --viewer web shows the run live in a browser)"),
                   style="dim")
-    if result.interrupted:
-        err.print("stopped by Ctrl-C; the recording is complete", style="dim")
     if result.still_missing:
         err.print(f"{result.still_missing} samples could not be backfilled (no longer in the agent's log)",
                   style="yellow")
-
-
-def _describe(s: RunStatus) -> str:
-    link = s.link
-    last = f"{s.last_duration_s:.1f} s {s.last_reason}" if s.last_duration_s is not None else "-"
-    rtt = link.get("rtt_median_ms")
-    quality = (f"loss {100 * link.get('loss_fraction', 0.0):.1f}%"
-               + (f" rtt {rtt:.1f} ms" if rtt is not None else "")) if link else "link -"
-    state = "" if s.link_up else " [red]link down[/]"
-    return f"episodes: {s.successes} ok / {s.failures} failed, last {last}, {quality}{state}"
+    if result.interrupted:
+        err.print("stopped by Ctrl-C; the recording is complete", style="dim")
+        raise typer.Exit(130)  # the one convention: interrupted = 130, whatever was saved
 
 
 def _with_sim_options(url: str | None, **sim_options: object) -> str:
     """Add the built-in agent's options (`--speed`, `--seed`, ...) to a sim:// URL as query parameters."""
-    url = url or default_url()
+    from groundstation.runs import run_url_default
+
+    url = run_url_default(url)
     options = {k: str(v) for k, v in sim_options.items() if v is not None}
     if not options:
         return url
     if not url.startswith("sim://"):
         flags = ", ".join(f"--{k}" for k in options)
-        raise typer.BadParameter(f"{flags} apply to the built-in virtual agent (sim://) only")
+        raise UsageError(f"{flags} apply to the built-in virtual agent (sim://) only")
     return url + ("&" if "?" in url else "?") + urlencode(options)
 
 
@@ -184,6 +187,8 @@ def status(url: UrlArg = None) -> None:
         out.print(f"agent {hello.name!r} id {hello.node_id:08x} firmware "
                   f"{hello.firmware_major}.{hello.firmware_minor}.{hello.firmware_patch} boot {hello.boot_id:08x}")
         if hb is not None:
+            from protocol import Mode
+
             mode = Mode(hb.mode).name if hb.mode in Mode._value2member_map_ else str(hb.mode)
             out.print(f"mode {mode}, battery {hb.battery_mv / 1000:.2f} V, uptime {hb.uptime_ms / 1000:.0f} s, "
                       f"episode {hb.episode}, log samples [{hb.log_first_sample}, {hb.log_next_sample})")
@@ -193,53 +198,102 @@ def status(url: UrlArg = None) -> None:
                   f"{snap['rx_rejects']} rejected" + (f", rtt {rtt:.1f} ms" if rtt is not None else ""))
 
 
-class ParamAction(StrEnum):
-    get = "get"
-    set = "set"
+_PARAM_ACTIONS = ("get", "set", "save", "diff", "load")
+_TAKES_NEGATIVE = {"ignore_unknown_options": True}  # `-5` is a value, not an unknown option
 
 
-@app.command("params")
+def _split_url(args: list[str], actions: tuple[str, ...] = ()) -> tuple[str | None, list[str]]:
+    """An optional URL first (it has `://` or is a /dev path), then the command's own words."""
+    if args and ("://" in args[0] or args[0].startswith("/dev/")) and args[0] not in actions:
+        return args[0], args[1:]
+    return None, args
+
+
+@app.command("params", context_settings=_TAKES_NEGATIVE)
 @_one_line_errors
 def params_command(
-    url: Annotated[str, typer.Argument(help="the agent's URL")],
-    action: Annotated[ParamAction | None, typer.Argument(help="get NAME | set NAME VALUE")] = None,
-    name: Annotated[str | None, typer.Argument(show_default=False)] = None,
-    value: Annotated[str | None, typer.Argument(show_default=False)] = None,
+    args: Annotated[list[str] | None, typer.Argument(
+        help="[URL] [get NAME | set NAME VALUE | save FILE | diff FILE | load FILE]", show_default=False)] = None,
 ) -> None:
-    """List the agent's parameters, or get / set one."""
+    """List the agent's parameters, get / set one, or save, compare with or load a TOML file of them."""
+    from groundstation.paramfile import read_params, write_params
+
+    url, words = _split_url(list(args or []), _PARAM_ACTIONS)
+    action, rest = (words[0], words[1:]) if words else (None, [])
+    wanted = {"get": 1, "set": 2, "save": 1, "diff": 1, "load": 1}
+    if action is not None and action not in wanted:
+        raise UsageError(f"unknown params action {action!r}: use get NAME, set NAME VALUE, save/diff/load FILE")
+    if action is not None and len(rest) != wanted[action]:
+        shape = {"get": "get NAME", "set": "set NAME VALUE"}.get(action, f"{action} FILE")
+        raise UsageError(f"expected `dive params [URL] {shape}`")
+    from_file = read_params(Path(rest[0])) if action in ("diff", "load") else {}
     with _session(url) as s:
         if action is None:
             for p in s.params:
-                out.print(f"{p.index:3d} {p.name:24s} {p.display_value:>12s}   [{p.minimum:g} .. {p.maximum:g}]")
-            return
-        if name is None:
-            raise typer.BadParameter("give a parameter NAME", param_hint="NAME")
-        if action == ParamAction.get:
-            p = s.get_param(name)
+                out.print(f"{p.index:3d} {p.name:24s} {p.display_value:>12s}   \\[{p.minimum:g} .. {p.maximum:g}]")
+        elif action == "get":
+            p = s.get_param(rest[0])
+            out.print(f"{p.name} = {p.display_value}")
+        elif action == "set":
+            p = s.set_param(rest[0], rest[1])
+            out.print(f"{p.name} = {p.display_value}")
+        elif action == "save":
+            write_params(Path(rest[0]), s.params)
+            out.print(f"{rest[0]}: {len(s.params)} parameters")
+        elif action == "diff":
+            differ = [(n, s.params.get(n), v) for n, v in from_file.items()
+                      if s.params.get(n).value != _param_number(s, n, v)]
+            for name, p, v in differ:
+                out.print(f"{name}: agent {p.display_value}, file {v}")
+            out.print(f"{len(differ)} of {len(from_file)} differ")
         else:
-            if value is None:
-                raise typer.BadParameter("give a VALUE to set", param_hint="VALUE")
-            p = s.set_param(name, value)
-        out.print(f"{p.name} = {p.display_value}")
+            for name in from_file:
+                s.params.get(name)  # every name checked (with did-you-mean) before the first is set
+            for name, value in from_file.items():
+                p = s.set_param(name, value)
+                out.print(f"{p.name} = {p.display_value}")
+
+
+def _param_number(s: Session, name: str, text: str) -> float:
+    import struct
+
+    from groundstation.params import ParamType, parse_value
+
+    p = s.params.get(name)
+    value = parse_value(p, text)
+    return struct.unpack("<f", struct.pack("<f", value))[0] if p.param_type == ParamType.F32 else value
 
 
 @app.command()
 @_one_line_errors
 def surface(url: UrlArg = None) -> None:
     """Emergency surface: maximum volume now, in any mode."""
+    from protocol import messages as m
+
     with _session(url) as s:
         s.command(m.Surface())
-    out.print("surfacing")
+        name = s.link.url
+    out.print(f"surfacing ({name})")
 
 
-@app.command()
+@app.command(context_settings=_TAKES_NEGATIVE)
 @_one_line_errors
-def hover(url: Annotated[str, typer.Argument(help="the agent's URL")],
-          depth: Annotated[float, typer.Argument(help="depth to hold [m]")]) -> None:
+def hover(args: Annotated[list[str], typer.Argument(help="[URL] DEPTH: the depth to hold \\[m]",
+                                                    show_default=False)]) -> None:
     """Hold a depth with the recovery controller (no learning)."""
+    url, words = _split_url(args)
+    if len(words) != 1:
+        raise UsageError("expected `dive hover [URL] DEPTH`")
+    try:
+        depth = float(words[0])
+    except ValueError:
+        raise UsageError(f"DEPTH must be a number of metres, not {words[0]!r}") from None
+    from protocol import messages as m
+
     with _session(url) as s:
         s.command(m.Hover(depth_m=depth))
-    out.print(f"hovering at {depth:g} m")
+        name = s.link.url
+    out.print(f"hovering at {depth:g} m ({name})")
 
 
 class DumpChoice(StrEnum):
@@ -249,8 +303,8 @@ class DumpChoice(StrEnum):
     counts = "counts"
 
 
-_DUMP_KINDS = {DumpChoice.values: DumpKind.VALUES, DumpChoice.policy: DumpKind.POLICY,
-               DumpChoice.q: DumpKind.Q_VALUES, DumpChoice.counts: DumpKind.COUNTS}
+_DUMP_KINDS = {DumpChoice.values: "VALUES", DumpChoice.policy: "POLICY", DumpChoice.q: "Q_VALUES",
+               DumpChoice.counts: "COUNTS"}  # DumpKind names (protocol is imported by the command)
 
 
 @app.command()
@@ -259,16 +313,25 @@ def dump(url: UrlArg = None, kind: Annotated[DumpChoice, typer.Option(help="what
          ) -> None:
     """Fetch the value function, policy, Q values or model counts and print them as JSON."""
     with _session(url) as s:
-        snapshot = s.dump(_DUMP_KINDS[kind], timeout_s=10.0)
+        from protocol import DumpKind
+
+        snapshot = s.dump(DumpKind[_DUMP_KINDS[kind]], timeout_s=10.0)
     out.print_json(json.dumps(snapshot.as_dict()))
 
 
 @app.command()
 @_one_line_errors
-def mark(text: Annotated[str, typer.Argument(help="what happened (recorded on /marker by a running `dive run`)")]
+def mark(text: Annotated[str, typer.Argument(help="what happened (recorded on /marker by the run)")],
+         run: Annotated[str | None, typer.Option(help="the run (hub://RUN's RUN) when several are running")] = None,
          ) -> None:
-    """Put a marker into the recording of the `dive run` running on this machine."""
-    add_marker(text)
+    """Put a marker into the recording of the `dive run` running on this machine (the one named with --run)."""
+    from groundstation.marker import send_marker
+    from groundstation.runs import find_run
+
+    info = find_run(run.removeprefix("hub://") if run else None)
+    send_marker(info, text)
+    where = f" ({info.recording})" if info.recording else ""
+    out.print(f"marked in run {info.run}{where}")
 
 
 # ---------------------------------------------------------------------- recordings
@@ -341,10 +404,18 @@ app.command(name="keygen")(keygen)
 
 
 def main() -> None:
+    """Exit codes (README): 0 done, 1 failed, 2 bad usage, 130 interrupted. A bug is one line too, not a traceback
+    (DIVE_DEBUG=1 shows it)."""
     try:
         app()
     except KeyboardInterrupt:
         sys.exit(130)
+    except Exception as e:  # noqa: BLE001 the last line of defence: a traceback reaching a user is a bug
+        if os.environ.get("DIVE_DEBUG"):
+            raise
+        err.print(f"[bold red]dive: internal error:[/] {type(e).__name__}: {e} (DIVE_DEBUG=1 shows where)",
+                  markup=True, soft_wrap=True, highlight=False)
+        sys.exit(1)
 
 
 if __name__ == "__main__":

@@ -10,8 +10,6 @@ from typing import Annotated
 import typer
 
 from groundstation.errors import GroundStationError
-from protocol import SigningError
-from protocol.signing import KEY_SIZE, format_key, parse_key
 
 KEY_FILE_ENV = "DIVE_KEY_FILE"
 DEFAULT_KEY_FILE = Path("dive.key")
@@ -31,6 +29,8 @@ def write_key_file(path: Path, force: bool = False) -> Path:
                            ) from e
     except OSError as e:
         raise KeyFileError(f"cannot write key file {path}: {e.strerror or e}") from e
+    from protocol.signing import KEY_SIZE, format_key  # here: `dive --help` does not load the protocol
+
     with os.fdopen(fd, "w", encoding="ascii") as f:
         os.fchmod(f.fileno(), 0o600)  # O_TRUNC on an existing file keeps its old mode
         f.write(format_key(secrets.token_bytes(KEY_SIZE)))
@@ -38,6 +38,9 @@ def write_key_file(path: Path, force: bool = False) -> Path:
 
 
 def read_key_file(path: Path) -> bytes:
+    from protocol import SigningError
+    from protocol.signing import parse_key
+
     try:
         return parse_key(path.read_text(encoding="ascii"))
     except (OSError, UnicodeDecodeError) as e:

@@ -9,7 +9,6 @@ import threading
 import time
 import uuid
 from dataclasses import dataclass
-from enum import StrEnum
 from pathlib import Path
 from types import TracebackType
 from typing import Any
@@ -22,6 +21,7 @@ import rerun.blueprint as rrb
 from groundstation.events import LinkEvent, Received, Sent
 from groundstation.view_errors import ViewError
 from groundstation.view_model import ENTITIES, Batch, Kind, Rows, ViewModel
+from groundstation.view_options import Viewer
 
 APPLICATION_ID = "diving_agent"
 _COLOURS: dict[str, tuple[int, int, int]] = {
@@ -40,12 +40,6 @@ _COLOURS: dict[str, tuple[int, int, int]] = {
     "learning_curve/moving_average_s": (230, 120, 30),
     "learning_curve/success_line_s": (60, 180, 75),
 }
-
-
-class Viewer(StrEnum):
-    SPAWN = "spawn"  # the native viewer, where there is a display
-    WEB = "web"  # Rerun's web viewer served on a local port, for headless machines
-    NONE = "none"  # no viewer (an .rrd file only, or nothing)
 
 
 @dataclass(frozen=True)

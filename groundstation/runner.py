@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-import json
+import os
 import threading
 import time
 from collections.abc import Callable, Sequence
@@ -11,77 +11,22 @@ from pathlib import Path
 from typing import Any
 from urllib.parse import parse_qsl, urlsplit
 
-from groundstation.errors import CommandError, GroundStationError, LinkError, ParameterError
+from groundstation.errors import CommandError, LinkError
 from groundstation.events import EventKind, LinkEvent, Received, Sent, SessionListener
+from groundstation.hub import Hub
 from groundstation.links import make_link
-from groundstation.params import cache_dir
 from groundstation.recorder import Recorder, RecorderConfig
+from groundstation.runs import RunInfo, announce, new_run, withdraw
 from groundstation.session import Session, SessionConfig
 from protocol import EndReason, Mode
 from protocol import messages as m
 
 
-def marker_file() -> Path:
-    """Where `dive mark` appends and a running `dive run` looks (one JSON line per marker)."""
-    return cache_dir() / "markers.jsonl"
-
-
-def add_marker(text: str) -> Path:
-    path = marker_file()
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        with path.open("a") as f:
-            f.write(json.dumps({"text": text, "host_time_ns": time.time_ns()}) + "\n")
-    except OSError as e:
-        raise GroundStationError(f"cannot write the marker file {path}: {e.strerror or e}") from e
-    return path
-
-
-class MarkerWatcher:
-    """Reads markers appended to the marker file since this run started."""
-
-    def __init__(self, path: Path) -> None:
-        self.path = path
-        self._offset = path.stat().st_size if path.exists() else 0
-
-    def poll(self) -> list[str]:
-        try:
-            with self.path.open() as f:
-                f.seek(self._offset)
-                lines = f.readlines()
-                self._offset = f.tell()
-        except OSError:
-            return []
-        texts = []
-        for line in lines:
-            try:
-                texts.append(str(json.loads(line)["text"]))
-            except (ValueError, KeyError, TypeError):
-                continue
-        return texts
-
-
 def load_params_file(path: Path) -> dict[str, str]:
-    """Parameters from a JSON object or `name = value` lines (# comments allowed)."""
-    try:
-        text = path.read_text()
-    except OSError as e:
-        raise ParameterError(f"cannot read parameter file {path}: {e.strerror or e}") from e
-    if text.lstrip().startswith("{"):
-        try:
-            return {str(k): str(v).lower() if isinstance(v, bool) else str(v) for k, v in json.loads(text).items()}
-        except ValueError as e:
-            raise ParameterError(f"{path}: not valid JSON ({e})") from e
-    values = {}
-    for number, line in enumerate(text.splitlines(), 1):
-        line = line.split("#", 1)[0].strip()
-        if not line:
-            continue
-        if "=" not in line:
-            raise ParameterError(f"{path}:{number}: expected `name = value`")
-        name, value = (part.strip() for part in line.split("=", 1))
-        values[name] = value
-    return values
+    """Parameters from a TOML file of `name = value` lines (groundstation/paramfile.py)."""
+    from groundstation.paramfile import read_params
+
+    return read_params(path)
 
 
 @dataclass(frozen=True, slots=True)
@@ -92,6 +37,7 @@ class RunConfig:
     recorder: RecorderConfig = field(default_factory=RecorderConfig)
     session: SessionConfig = field(default_factory=SessionConfig)
     backfill_wait_s: float = 10.0
+    hub: bool = True  # serve the session to local tools (groundstation/hub.py)
 
 
 @dataclass
@@ -107,6 +53,8 @@ class RunStatus:
     link_up: bool = False
     link: dict[str, Any] = field(default_factory=dict)
     messages: list[str] = field(default_factory=list)
+    hub: str = ""  # hub://RUN once local tools can attach
+    ends: list[tuple[int, str, float]] = field(default_factory=list)  # (episode, outcome, duration s) in order
 
 
 class _Progress:
@@ -129,6 +77,7 @@ class _Progress:
             s.failures += msg.reason == EndReason.FAILURE
             s.last_duration_s = msg.duration_s
             s.last_reason = EndReason(msg.reason).name.lower() if msg.reason in (1, 2, 3) else str(msg.reason)
+            s.ends.append((msg.episode, s.last_reason, msg.duration_s))
             self.changed.set()
 
     def on_sent(self, sent: Sent) -> None:
@@ -162,6 +111,8 @@ class _AgentWatch:
         self.first_episode = 0
         self.left_idle = False
         self.restarts = 0
+        self.hub: Hub | None = None  # a tool's CMD_SURFACE / STOP / HOVER through it: no restart
+        self._told = False
 
     def start(self) -> None:
         beat = self._wait_unless_surfacing()
@@ -184,6 +135,12 @@ class _AgentWatch:
         done = beat.episode - self.first_episode
         if self.episodes and done >= self.episodes:
             return True
+        if self.hub is not None and self.hub.taken_over is not None:
+            if not self._told:
+                self._told = True
+                self.status.messages.append(f"{self.hub.taken_over} came from another tool: not starting the agent "
+                                            "again; still recording (Ctrl-C to stop)")
+            return False
         if self.restarts >= self.MAX_RESTARTS:
             self.status.messages.append(f"the agent surfaced {self.restarts} times; stopping")
             return True
@@ -226,6 +183,17 @@ def session_info(url: str) -> dict[str, str]:
     return info
 
 
+def _announce(info: RunInfo, recorder: Recorder) -> RunInfo:
+    """Tell the machine's other dive commands where this run's hub is and which file it records (best effort)."""
+    current = RunInfo(info.run, info.pid, info.hub, info.url, str(recorder.paths[-1]) if recorder.paths else "",
+                      info.started)
+    try:
+        announce(current)
+    except OSError:
+        pass  # a read-only runtime folder must not stop the run; tools then cannot attach
+    return current
+
+
 def run(config: RunConfig, on_progress: Callable[[RunStatus], None] | None = None,
         stop: threading.Event | None = None, listeners: Sequence[SessionListener] = ()) -> RunResult:
     """Run the main job; Ctrl-C (KeyboardInterrupt) or `stop` ends it early with a complete recording.
@@ -238,23 +206,31 @@ def run(config: RunConfig, on_progress: Callable[[RunStatus], None] | None = Non
     progress = _Progress(status)
     recorder = Recorder(config.recorder, session_info(link.url))
     session = Session(link, config.session, [recorder, progress, *listeners])
-    markers = MarkerWatcher(marker_file())
     interrupted = False
     missing = 0
+    hub: Hub | None = None
+    announced: RunInfo | None = None
     try:
         session.connect()
         status.link_up = True
+        if config.hub:
+            hub = Hub(session).start()
+            session.add_listener(hub)
+            announced = _announce(new_run(os.getpid(), hub.address, link.url), recorder)
+            status.hub = f"hub://{announced.run}"
         for name, value in config.params.items():
             session.set_param(name, value)
         recorder.set_parameters(session.params.values())
         watch = _AgentWatch(session, config.episodes, status)
+        watch.hub = hub
         watch.start()
         try:
             while not stop.is_set() and not (config.episodes and status.episodes >= config.episodes):
                 progress.changed.wait(0.2)
                 progress.changed.clear()
-                for text in markers.poll():
-                    session.mark(text)
+                if announced is not None and str(recorder.paths[-1] if recorder.paths else "") != \
+                        announced.recording:
+                    announced = _announce(announced, recorder)
                 if on_progress is not None:
                     on_progress(status)
                 if watch.finished() or recorder.failure is not None:
@@ -268,6 +244,10 @@ def run(config: RunConfig, on_progress: Callable[[RunStatus], None] | None = Non
                 pass  # the recording is what matters now; the agent surfaces on link loss anyway
         missing = session.request_backfill(config.backfill_wait_s)
     finally:
+        if announced is not None:
+            withdraw(announced)
+        if hub is not None:
+            hub.close()
         session.close()
         recorder.close()
     if recorder.failure is not None:

@@ -9,31 +9,35 @@ import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
-from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
-from groundstation import replay as rp
 from groundstation.errors import GroundStationError
-from groundstation.links import make_link
-from groundstation.mcap_io import RecordingContents
-from groundstation.rerun_view import RerunView, ViewConfig, Viewer, attach_view
-from groundstation.session import Session
+from groundstation.validate import UsageError, check_port_free, parse_speed
 from groundstation.view_errors import ViewError
+from groundstation.view_options import GrpcPortOption, Viewer, ViewerOption, WebPortOption
 
-ViewerOption = Annotated[
-    Viewer | None,
-    typer.Option("--viewer", help="spawn: native viewer; web: serve the web viewer on --web-port; none. "
-                 "Default: spawn with a display, else web (none when only --rrd is given)."),
-]
-WebPortOption = Annotated[int, typer.Option("--web-port", help="Port of the web viewer (--viewer web).")]
-GrpcPortOption = Annotated[int, typer.Option("--grpc-port", help="Port of the Rerun data stream.")]
+if TYPE_CHECKING:  # Rerun, mcap and the replay code are imported by the commands that use them
+    from rich.progress import Progress
+
+    from groundstation import replay as rp
+    from groundstation.rerun_view import RerunView
+
+__all__ = ["GrpcPortOption", "ViewerOption", "WebPortOption", "closing_view", "open_live_view", "replay", "view"]
 
 
-def _fail(message: str) -> typer.Exit:
+def _fail(message: str, code: int = 1) -> typer.Exit:
     typer.echo(f"dive: {message}", err=True)  # the prefix of every dive error (cli.py)
-    return typer.Exit(1)
+    return typer.Exit(code)
+
+
+def check_viewer_ports(viewer: Viewer, web_port: int, grpc_port: int | None) -> None:
+    """A served web viewer needs both its ports free; else the address printed would show another process's data."""
+    if viewer == Viewer.WEB:
+        check_port_free(web_port, "--web-port")
+        if grpc_port is not None:
+            check_port_free(grpc_port, "--grpc-port")
 
 
 def default_viewer(viewer: Viewer | None, rrd: Path | None, headless_default: Viewer = Viewer.WEB) -> Viewer:
@@ -46,12 +50,15 @@ def default_viewer(viewer: Viewer | None, rrd: Path | None, headless_default: Vi
 
 
 def open_live_view(viewer: Viewer | None, rrd: Path | None, web_port: int, name: str,
-                   headless_default: Viewer = Viewer.WEB) -> RerunView | None:
+                   headless_default: Viewer = Viewer.WEB, grpc_port: int = 9876) -> RerunView | None:
     """The live view `dive run` attaches to its session, or None when neither a viewer nor a file is wanted."""
     chosen = default_viewer(viewer, rrd, headless_default)
     if chosen == Viewer.NONE and rrd is None:
         return None
-    live = attach_view(ViewConfig(viewer=chosen, rrd=rrd, web_port=web_port), name=name)
+    check_viewer_ports(chosen, web_port, grpc_port)
+    from groundstation.rerun_view import ViewConfig, attach_view
+
+    live = attach_view(ViewConfig(viewer=chosen, rrd=rrd, web_port=web_port, grpc_port=grpc_port), name=name)
     if live is not None and live.address:
         typer.echo(f"Rerun web viewer: {live.address}", err=True)
     return live
@@ -67,19 +74,6 @@ def closing_view(live: RerunView | None) -> Iterator[None]:
             if live.address:
                 wait_for_interrupt(f"the run is over; the web viewer stays at {live.address}")
             live.close()
-
-
-def _parse_speed(text: str) -> float | None:
-    """`max` (None) or a positive factor; `10x` and `10` both mean ten times real time."""
-    if text.strip().lower() == "max":
-        return None
-    try:
-        speed = float(text.strip().lower().removesuffix("x"))
-    except ValueError:
-        speed = 0.0
-    if speed <= 0:
-        raise ViewError(f"bad speed {text!r}: give a factor such as 1, 10 or max")
-    return speed
 
 
 def _interrupt(signum: int, frame: object) -> None:
@@ -117,11 +111,18 @@ def replay(
     """Show a recording in the live view's layout, or convert it to .rrd with --rrd."""
     signal.signal(signal.SIGTERM, _interrupt)  # a service manager's stop is a Ctrl-C: clean shutdown
     try:
-        factor = _parse_speed(speed)
+        from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
+        from groundstation import replay as rp
+        from groundstation.mcap_io import RecordingContents
+        from groundstation.rerun_view import RerunView, ViewConfig
+
+        factor = parse_speed(speed)
         bounds = (rp.parse_bound(start) if start else None, rp.parse_bound(end) if end else None)
         if not file.is_file():
             raise ViewError(f"no such recording: {file}")
         config = ViewConfig(viewer=default_viewer(viewer, rrd), rrd=rrd, web_port=web_port, grpc_port=grpc_port)
+        check_viewer_ports(config.viewer, web_port, grpc_port)
         status = RecordingContents()
         items = rp.select(rp.read_items(file, status), *bounds)
         began = time.perf_counter()
@@ -147,6 +148,8 @@ def replay(
                     view.flush()
                     typer.echo(f"Rerun web viewer: {view.address}")
                 wait_for_interrupt("serving the web viewer")
+    except UsageError as e:
+        raise _fail(str(e), 2) from None
     except GroundStationError as e:
         raise _fail(str(e)) from None
     except KeyboardInterrupt:
@@ -154,7 +157,8 @@ def replay(
 
 
 def view(
-    url: Annotated[str | None, typer.Argument(help="The agent: tcp://, serial://, sim://... (default $DIVE_URL).")]
+    url: Annotated[str | None, typer.Argument(
+        help="The agent: tcp://, serial://, sim://, hub://RUN (default: $DIVE_URL, else the running `dive run`).")]
     = None,
     viewer: ViewerOption = None,
     rrd: Annotated[Path | None, typer.Option("--rrd", help="Also save the stream to this .rrd file.")] = None,
@@ -164,15 +168,24 @@ def view(
     """Watch the agent live in the Rerun view, without commanding it."""
     signal.signal(signal.SIGTERM, _interrupt)
     try:
-        link = make_link(url)
+        from groundstation.links import make_link
+        from groundstation.rerun_view import RerunView, ViewConfig
+        from groundstation.runs import attach_url
+        from groundstation.session import Session, SessionConfig
+
+        link = make_link(attach_url(url))
         config = ViewConfig(viewer=default_viewer(viewer, None), rrd=rrd, web_port=web_port, grpc_port=grpc_port)
+        check_viewer_ports(config.viewer, web_port, grpc_port)
         with RerunView.open(config, name=link.url) as live:
             if live.address:
                 typer.echo(f"Rerun web viewer: {live.address}")
-            with Session(link, listeners=[live]) as session:
+            # Through a run's hub, the run backfills for every tool: no LOG_REQUESTs of our own.
+            with Session(link, SessionConfig(backfill=not link.url.startswith("hub://")), [live]) as session:
                 hello = session.agent_hello
                 typer.echo(f"watching {hello.name if hello else 'the agent'} at {link.url}")
                 wait_for_interrupt("watching")
+    except UsageError as e:
+        raise _fail(str(e), 2) from None
     except GroundStationError as e:
         raise _fail(str(e)) from None
     except KeyboardInterrupt:

@@ -17,6 +17,7 @@ DEFAULT_URL = "sim://"
 # scheme -> "module:Class"; imported only when a URL with that scheme is opened (pyserial, subprocess...)
 _BACKENDS: dict[str, str] = {
     "tcp": "groundstation.links.tcp:TcpLink",
+    "hub": "groundstation.links.hub:HubLink",
     "sim": "groundstation.links.sim:SimLink",
     "serial": "groundstation.links.serial_port:SerialLink",
     "socket": "groundstation.links.serial_port:SerialLink",

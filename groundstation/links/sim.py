@@ -16,7 +16,7 @@ from groundstation.links import Link
 from groundstation.links.tcp import TcpLink
 from groundstation.simulator_process import simulator_command
 
-START_TIMEOUT_S = 60.0  # first start compiles numba kernels
+START_TIMEOUT_S = 180.0  # the first start compiles numba kernels: ~30 s idle, minutes on a loaded machine
 
 
 def sim_arguments(url: str) -> list[str]:
@@ -58,7 +58,8 @@ class SimLink(Link):
             self._stop_child()
             stderr.seek(0)
             lines = [x for x in stderr.read().decode(errors="replace").splitlines() if x.strip()]
-            why = lines[-1] if lines else (f"no address within {START_TIMEOUT_S:.0f} s" if not first else repr(line))
+            why = lines[-1] if lines else (f"no address within {START_TIMEOUT_S:.0f} s" if not first or not line
+                                           else repr(line))
             raise LinkError(f"{self.url}: the virtual agent did not start: {why}")
         # Keep draining stdout so the child never blocks on a full pipe.
         threading.Thread(target=lambda: child.stdout.read() if child.stdout else None, daemon=True).start()

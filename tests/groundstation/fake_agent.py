@@ -41,6 +41,7 @@ class FakeAgent:
         self.learning = False
         self.max_episodes = 0
         self.ignore_commands = 0  # swallow this many command frames (to exercise retries)
+        self.connections = 0  # TCP connections accepted (the agent has one slot: a second one takes it)
         self._conn: socket.socket | None = None
         self._lock = threading.Lock()
         self._stop = threading.Event()
@@ -89,6 +90,7 @@ class FakeAgent:
                 continue
             with self._lock:
                 self._conn = conn
+                self.connections += 1
             self._send(m.Hello(protocol_version=self.protocol_version, node_kind=1, definitions_hash=self.defs_hash,
                                firmware_major=9, firmware_minor=8, firmware_patch=7, node_id=0xA6E47, boot_id=1234,
                                name="fake"))

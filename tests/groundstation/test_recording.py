@@ -12,9 +12,11 @@ from mcap.reader import make_reader
 
 from groundstation.export import export_csv, export_npz
 from groundstation.loginfo import summarize
+from groundstation.marker import send_marker
 from groundstation.mcap_io import is_complete, read_recording, recover
 from groundstation.recorder import RecorderConfig
-from groundstation.runner import RunConfig, add_marker, run
+from groundstation.runner import RunConfig, run
+from groundstation.runs import find_run
 from tests.groundstation.fake_agent import FakeAgent
 
 
@@ -44,15 +46,15 @@ def validate_with_mcap_library(path: Path) -> dict[str, int]:
 
 def test_main_job_records_a_complete_valid_mcap(tmp_path: Path) -> None:
     agent = FakeAgent(drop_every=9)
-    add_marker("before the run")  # not part of this run
     try:
         config = RunConfig(url=agent.url, episodes=4, params={"target_depth_m": "0.6"},
                            recorder=RecorderConfig(directory=tmp_path))
         marked = []
 
         def progress(status: object) -> None:
-            if not marked:
-                marked.append(add_marker("first progress"))
+            if not marked:  # `dive mark` as a second process would: find the run, send through its hub
+                send_marker(find_run(), "first progress")
+                marked.append(True)
 
         result = run(config, progress)
     finally:

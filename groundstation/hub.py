@@ -1,0 +1,274 @@
+"""The hub: a running `dive run` shares its one session with the agent with local tools (as MAVProxy's outputs).
+
+The agent has one TCP slot (so does the ESP8266 bridge); a second tool connecting to it would take the link
+from the run. Instead the run's session re-serves the agent's frames on a loopback TCP port, in the agent's
+own protocol, so `dive view`, `status`, `mark`, `surface`, ... attach with the same link code as to an agent:
+
+- every frame the session delivers is fanned out to every client, re-framed with the client's own seq
+  (the REPLAYED flag kept), so a client's loss count is its own link's;
+- a client's HELLO is answered with the agent's HELLO, its HEARTBEATs are dropped (the run sends its own);
+- a client's command is sent to the agent by the session, with the session's seq and signature, once (a
+  client's retry of the same seq is not sent again); the agent's ACK goes back to that client with the
+  client's seq; TIMESYNC requests are forwarded as they are (every tool here shares the host clock);
+- a client's TEXT is a marker for the run's recording (`dive mark`), confirmed by a TEXT back.
+
+A client that does not keep up is dropped (its queue is bounded): a slow viewer never slows the run.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import selectors
+import socket
+import threading
+import time
+from collections import OrderedDict
+from dataclasses import dataclass, field
+
+from groundstation.errors import LinkError
+from groundstation.events import LinkEvent, Received, Sent
+from groundstation.marker import CONFIRMATION as MARKER_CONFIRMATION
+from groundstation.session import Session
+from protocol import FrameEncoder, FrameFlag, Message, StreamDecoder
+from protocol import messages as m
+
+CLIENT_QUEUE_LIMIT = 4 * 1024 * 1024  # bytes queued for one client before it is dropped as too slow
+FORWARDED_MEMORY = 256  # forwarded commands remembered (for ACK mapping and client retries)
+_KEPT_FLAGS = int(FrameFlag.REPLAYED)
+_TAKE_OVER = (m.Surface, m.Stop, m.Hover, m.Pause)
+
+
+@dataclass(eq=False)
+class _Client:
+    sock: socket.socket
+    name: str
+    encoder: FrameEncoder = field(default_factory=FrameEncoder)
+    decoder: StreamDecoder = field(default_factory=StreamDecoder)
+    outbuf: bytearray = field(default_factory=bytearray)
+    hello_seen: bool = False
+
+
+class Hub:
+    """A session listener and a loopback TCP server; start() after the session is connected."""
+
+    def __init__(self, session: Session, host: str = "127.0.0.1", port: int = 0) -> None:
+        self.session = session
+        self._listener = socket.create_server((host, port))
+        self._listener.setblocking(False)
+        bound_host, bound_port = self._listener.getsockname()[:2]
+        self.address = f"tcp://{bound_host}:{bound_port}"
+        self._selector = selectors.DefaultSelector()
+        self._selector.register(self._listener, selectors.EVENT_READ, None)
+        self._wake_r, self._wake_w = socket.socketpair()
+        self._wake_r.setblocking(False)
+        self._wake_w.setblocking(False)
+        self._selector.register(self._wake_r, selectors.EVENT_READ, None)
+        self._lock = threading.Lock()
+        self._clients: list[_Client] = []
+        # session seq of a forwarded command -> (client, client seq); and the client's retries -> session seq
+        self._by_session_seq: OrderedDict[tuple[int, int], tuple[_Client, int]] = OrderedDict()
+        self._by_client_seq: OrderedDict[tuple[int, int, int], tuple[int, m.Ack | None]] = OrderedDict()
+        self._forwarding: Message | None = None
+        self._forwarded_seq: int | None = None
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._serve, name="dive-hub", daemon=True)
+        self.markers = 0
+        self.clients_served = 0
+        # The last command a tool sent that takes the agent out of learning (CMD_SURFACE, STOP, HOVER, PAUSE), or
+        # None after a tool's CMD_START: the run must not start learning again behind an operator's back.
+        self.taken_over: str | None = None
+
+    # ------------------------------------------------------------------ life cycle
+    def start(self) -> Hub:
+        self._thread.start()
+        return self
+
+    def close(self) -> None:
+        self._stop.set()
+        self._wake()
+        if self._thread.is_alive():
+            self._thread.join(5.0)
+        with self._lock:
+            clients, self._clients = self._clients, []
+        for client in clients:
+            with contextlib.suppress(OSError):
+                client.sock.close()
+        for sock in (self._listener, self._wake_r, self._wake_w):
+            with contextlib.suppress(OSError):
+                sock.close()
+        self._selector.close()
+
+    @property
+    def client_count(self) -> int:
+        with self._lock:
+            return len(self._clients)
+
+    # ------------------------------------------------------------------ the session's side (its reader thread)
+    def on_received(self, received: Received) -> None:
+        frame = received.frame
+        message = frame.message
+        if isinstance(message, m.Ack):
+            self._answer_forwarded(message)
+            return
+        payload = frame.payload
+        flags = frame.flags & _KEPT_FLAGS
+        with self._lock:
+            for client in self._clients:
+                if client.hello_seen:
+                    client.outbuf += client.encoder.encode_payload(frame.msg_id, payload, flags).wire
+        self._wake()
+
+    def on_sent(self, sent: Sent) -> None:
+        if self._forwarding is not None and sent.message is self._forwarding:
+            self._forwarded_seq = sent.seq
+
+    def on_event(self, event: LinkEvent) -> None:
+        pass
+
+    def _answer_forwarded(self, ack: m.Ack) -> None:
+        with self._lock:
+            target = self._by_session_seq.get((ack.cmd_msg_id, ack.cmd_seq))
+            if target is None:
+                return  # an answer to the run's own command
+            client, client_seq = target
+            mapped = m.Ack(cmd_msg_id=ack.cmd_msg_id, cmd_seq=client_seq, result=ack.result, reason=ack.reason)
+            key = (id(client), ack.cmd_msg_id, client_seq)
+            if key in self._by_client_seq:
+                self._by_client_seq[key] = (ack.cmd_seq, mapped)
+            if client in self._clients:
+                client.outbuf += client.encoder.encode(mapped).wire
+        self._wake()
+
+    # ------------------------------------------------------------------ the clients' side (the hub's thread)
+    def _wake(self) -> None:
+        with contextlib.suppress(OSError):
+            self._wake_w.send(b"\0")
+
+    def _serve(self) -> None:
+        while not self._stop.is_set():
+            for key, mask in self._selector.select(0.2):
+                if key.fileobj is self._listener:
+                    self._accept()
+                elif key.fileobj is self._wake_r:
+                    with contextlib.suppress(OSError):
+                        self._wake_r.recv(4096)
+                else:
+                    client: _Client = key.data
+                    if mask & selectors.EVENT_READ:
+                        self._read(client)
+            self._flush_all()
+
+    def _accept(self) -> None:
+        try:
+            sock, peer = self._listener.accept()
+        except OSError:
+            return
+        sock.setblocking(False)
+        sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        client = _Client(sock, f"{peer[0]}:{peer[1]}")
+        with self._lock:
+            self._clients.append(client)
+        self.clients_served += 1
+        self._selector.register(sock, selectors.EVENT_READ, client)
+
+    def _drop(self, client: _Client) -> None:
+        with self._lock:
+            if client not in self._clients:
+                return
+            self._clients.remove(client)
+            for key in [k for k, (c, _) in self._by_session_seq.items() if c is client]:
+                del self._by_session_seq[key]
+        with contextlib.suppress(KeyError, ValueError, OSError):
+            self._selector.unregister(client.sock)
+        with contextlib.suppress(OSError):
+            client.sock.close()
+
+    def _read(self, client: _Client) -> None:
+        try:
+            data = client.sock.recv(65536)
+        except (BlockingIOError, InterruptedError):
+            return
+        except OSError:
+            data = b""
+        if not data:
+            self._drop(client)
+            return
+        for frame in client.decoder.feed(data):
+            self._from_client(client, frame.message, frame.seq)
+
+    def _from_client(self, client: _Client, message: Message, seq: int) -> None:
+        if isinstance(message, m.Hello):
+            hello = self.session.agent_hello
+            with self._lock:
+                client.hello_seen = True
+                if hello is not None:
+                    client.outbuf += client.encoder.encode(hello).wire
+        elif isinstance(message, m.Text):
+            self.session.mark(message.text)
+            self.markers += 1
+            reply = m.Text(t_us=time.time_ns() // 1000, severity=1, text=MARKER_CONFIRMATION)
+            with self._lock:
+                client.outbuf += client.encoder.encode(reply).wire
+        elif isinstance(message, m.Timesync):
+            if message.receive_us == 0 and message.transmit_us == 0:
+                self._send(message)
+        elif isinstance(message, m.LogRequest):
+            pass  # the run backfills for every tool (replayed frames are fanned out); a tool's own request would
+            # replay the on-board log from before it attached, over the agent's one link
+        elif message.DEFINITION.needs_ack:
+            self._forward_command(client, message, seq)
+            if isinstance(message, _TAKE_OVER):
+                self.taken_over = message.DEFINITION.name
+            elif isinstance(message, m.StartLearning):
+                self.taken_over = None
+        # HEARTBEAT, ACK and anything else from a tool: the run's own session speaks for the ground
+
+    def _forward_command(self, client: _Client, message: Message, seq: int) -> None:
+        key = (id(client), message.MSG_ID, seq)
+        with self._lock:
+            known = self._by_client_seq.get(key)
+            if known is not None:
+                _, ack = known
+                if ack is not None:  # a retry after the ACK was lost: answer it again, do not act twice
+                    client.outbuf += client.encoder.encode(ack).wire
+                return  # still in flight: the session retries it itself
+        session_seq = self._send(message)
+        if session_seq is None:
+            return  # the link is down; the client's retry will try again
+        with self._lock:
+            self._by_session_seq[(message.MSG_ID, session_seq)] = (client, seq)
+            self._by_client_seq[key] = (session_seq, None)
+            for table in (self._by_session_seq, self._by_client_seq):
+                while len(table) > FORWARDED_MEMORY:
+                    table.popitem(last=False)  # type: ignore[call-arg]
+
+    def _send(self, message: Message) -> int | None:
+        """Send through the session; the seq it used (seen by on_sent in this thread), None if the link is down."""
+        self._forwarding, self._forwarded_seq = message, None
+        try:
+            self.session.send(message, wait=False)
+        except LinkError:
+            return None
+        finally:
+            self._forwarding = None
+        return self._forwarded_seq
+
+    def _flush_all(self) -> None:
+        with self._lock:
+            clients = list(self._clients)
+        for client in clients:
+            with self._lock:
+                if not client.outbuf:
+                    continue
+                too_slow = len(client.outbuf) > CLIENT_QUEUE_LIMIT
+                if not too_slow:
+                    try:
+                        sent = client.sock.send(client.outbuf)
+                    except (BlockingIOError, InterruptedError):
+                        sent = 0
+                    except OSError:
+                        too_slow = True
+                        sent = 0
+                    del client.outbuf[:sent]
+            if too_slow:
+                self._drop(client)

@@ -1,0 +1,80 @@
+"""Parameter files: TOML `name = value` lines (read with tomllib), the one format of `dive run`, `sim` and `params`.
+
+A top-level table of numbers and booleans; a `[params]` table is read the same (the simulator's files may
+hold other tables beside it). `dive params save` writes what `load` and `dive run --params` read back.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import struct
+import tomllib
+from pathlib import Path
+
+from groundstation.errors import ParameterError
+from groundstation.params import ParamTable
+
+
+def read_params(path: Path) -> dict[str, str]:
+    """name -> value text (booleans as true/false), for Session.set_param."""
+    try:
+        text = path.read_text()
+    except OSError as e:
+        raise ParameterError(f"cannot read parameter file {path}: {e.strerror or e}") from e
+    if text.lstrip().startswith("{"):  # a JSON object (older files): still read
+        try:
+            data = json.loads(text)
+        except ValueError as e:
+            raise ParameterError(f"{path}: not valid JSON ({e})") from e
+    else:
+        try:
+            data = tomllib.loads(text)
+        except tomllib.TOMLDecodeError as e:
+            raise ParameterError(f"{path}: not valid TOML ({e}); write `name = value` lines") from e
+    if isinstance(data.get("params"), dict):
+        data = data["params"]
+    if not isinstance(data, dict):
+        raise ParameterError(f"{path}: expected `name = value` lines")
+    values = {}
+    for name, value in data.items():
+        if isinstance(value, bool):
+            values[str(name)] = "true" if value else "false"
+        elif isinstance(value, int | float):
+            values[str(name)] = repr(value)
+        elif isinstance(value, dict):
+            continue  # another table (the simulator's plant settings, ...)
+        else:
+            raise ParameterError(f"{path}: {name} = {value!r} is not a number or true/false")
+    return values
+
+
+def format_params(table: ParamTable) -> str:
+    """The table as TOML, one `name = value` line each, with its range as a comment."""
+    lines = ["# agent parameters, written by `dive params save`; read by `dive params load` and `dive run --params`"]
+    for p in table:
+        if p.display_value in ("true", "false"):
+            value = p.display_value
+        elif p.display_value.lstrip("-").isdigit():
+            value = p.display_value
+        else:
+            value = _shortest_f32(p.value) if math.isfinite(p.value) else "nan"
+        lines.append(f"{p.name} = {value}  # [{p.minimum:g}, {p.maximum:g}]")
+    return "\n".join(lines) + "\n"
+
+
+def _shortest_f32(value: float) -> str:
+    """The shortest decimal that is the same f32 (0.4, not 0.4000000059604645: the agent stores f32)."""
+    stored = struct.pack("<f", value)
+    for digits in range(1, 18):
+        text = f"{value:.{digits}g}"
+        if struct.pack("<f", float(text)) == stored:
+            return text if any(c in text for c in ".en") else text + ".0"
+    return repr(value)
+
+
+def write_params(path: Path, table: ParamTable) -> None:
+    try:
+        path.write_text(format_params(table))
+    except OSError as e:
+        raise ParameterError(f"cannot write {path}: {e.strerror or e}") from e

@@ -1,0 +1,88 @@
+"""What `dive run` shows while it works: a live bar on a terminal, one line per episode and link event otherwise."""
+
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+from types import TracebackType
+
+from rich.console import Console
+from rich.markup import escape
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
+
+from groundstation.runner import RunStatus
+
+
+def simulator_compile_note(url: str) -> str:
+    """For sim:// when the simulator's numba kernels are not cached yet: say the wait is a one-time compile."""
+    if not url.startswith("sim://"):
+        return ""
+    spec = importlib.util.find_spec("simulator")  # finds the package without importing it (style: never import it)
+    if spec is None or spec.origin is None:
+        return ""
+    cache = Path(spec.origin).parent / "__pycache__"
+    if any(cache.glob("*.nbi")):
+        return ""
+    return " (the first start compiles the simulator once, about 30 s; later starts take seconds)"
+
+
+def describe(s: RunStatus) -> str:
+    link = s.link
+    last = f"{s.last_duration_s:.1f} s {s.last_reason}" if s.last_duration_s is not None else "-"
+    rtt = link.get("rtt_median_ms")
+    quality = (f"loss {100 * link.get('loss_fraction', 0.0):.1f}%"
+               + (f" rtt {rtt:.1f} ms" if rtt is not None else "")) if link else "link -"
+    state = "" if s.link_up else " [red]link down[/]"
+    return f"episodes: {s.successes} ok / {s.failures} failed, last {last}, {quality}{state}"
+
+
+class RunDisplay:
+    """`show` is the run's progress callback. Not a terminal (a log file, CI): plain lines, each said once."""
+
+    def __init__(self, console: Console, episodes: int, first: str) -> None:
+        self.console = console
+        self.episodes = episodes
+        self.first = first
+        self.live = console.is_terminal
+        self._progress: Progress | None = None
+        self._task: object = None
+        self._messages = 0
+        self._episodes = 0
+        self._hub = ""
+
+    def __enter__(self) -> RunDisplay:
+        if self.live:
+            columns = (SpinnerColumn(), TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
+                       TimeElapsedColumn())
+            self._progress = Progress(*columns, console=self.console, transient=False)
+            self._progress.__enter__()
+            self._task = self._progress.add_task(escape(self.first), total=self.episodes or None)
+        else:
+            self.console.print(escape(self.first), soft_wrap=True)
+        return self
+
+    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
+                 tb: TracebackType | None) -> None:
+        if self._progress is not None:
+            self._progress.__exit__(exc_type, exc, tb)
+
+    def show(self, status: RunStatus) -> None:
+        printer = self._progress.console if self._progress is not None else self.console
+        if status.hub and status.hub != self._hub:
+            self._hub = status.hub
+            printer.print(f"[dim]other tools attach to this run as {status.hub} "
+                          f"(dive view, status, mark, surface ...)[/]", soft_wrap=True)
+        for line in status.messages[self._messages:]:
+            printer.print(f"[yellow]{escape(line)}[/]", soft_wrap=True)
+        self._messages = len(status.messages)
+        if self._progress is not None:
+            self._progress.update(self._task, completed=status.episodes,  # type: ignore[arg-type]
+                                  description=describe(status))
+        else:
+            total = f" of {self.episodes}" if self.episodes else ""
+            for i in range(self._episodes, len(status.ends)):
+                episode, outcome, duration_s = status.ends[i]
+                ok = sum(end[1] == "success" for end in status.ends[: i + 1])
+                printer.print(f"episode {episode}{total}: {outcome} after {duration_s:.1f} s ({ok} ok so far)",
+                              soft_wrap=True, highlight=False)
+            self._episodes = len(status.ends)

@@ -1,0 +1,148 @@
+"""The `dive run`s on this machine: each announces its hub in a small file, keyed by run, under the runtime folder.
+
+`dive view`, `status`, `mark`, `surface`, ... find a run here and attach to its hub (groundstation/hub.py)
+instead of opening a second link to the agent, which has one TCP slot. A file whose process is gone is
+stale: it is ignored and removed.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from urllib.parse import urlsplit
+
+from groundstation.errors import LinkError
+from groundstation.links import DEFAULT_URL
+
+HUB_SCHEME = "hub"
+RUNTIME_DIR_VARIABLE = "DIVE_RUNTIME_DIR"
+
+
+class NoRunError(LinkError):
+    """No running `dive run` (or not the one named) to attach to."""
+
+
+def runs_dir() -> Path:
+    """$DIVE_RUNTIME_DIR, else the user's runtime folder (XDG_RUNTIME_DIR), else the user's cache folder."""
+    override = os.environ.get(RUNTIME_DIR_VARIABLE)
+    if override:
+        return Path(override) / "runs"
+    import platformdirs  # only the commands that look for runs pay for it
+
+    runtime = os.environ.get("XDG_RUNTIME_DIR")
+    base = platformdirs.user_runtime_dir("dive") if runtime and os.path.isdir(runtime) else \
+        platformdirs.user_cache_dir("dive")
+    return Path(base) / "runs"
+
+
+@dataclass(frozen=True, slots=True)
+class RunInfo:
+    run: str  # the run's id: its process id, unique among the processes alive
+    pid: int
+    hub: str  # tcp://127.0.0.1:PORT, where tools attach
+    url: str  # the agent's link
+    recording: str  # the current recording file ("" before the first)
+    started: float  # time.time()
+
+    @property
+    def path(self) -> Path:
+        return runs_dir() / f"{self.run}.json"
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True  # another user's process: alive
+    return True
+
+
+def announce(info: RunInfo) -> Path:
+    """Write (or rewrite, when the recording changes) the run's file atomically."""
+    path = info.path
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(".tmp")
+    tmp.write_text(json.dumps(asdict(info)))
+    tmp.replace(path)
+    return path
+
+
+def withdraw(info: RunInfo) -> None:
+    try:
+        info.path.unlink()
+    except OSError:
+        pass
+
+
+def running() -> list[RunInfo]:
+    """The runs alive on this machine, oldest first; stale files are removed."""
+    folder = runs_dir()
+    try:
+        files = sorted(folder.glob("*.json"))
+    except OSError:
+        return []
+    runs = []
+    for path in files:
+        try:
+            info = RunInfo(**json.loads(path.read_text()))
+        except (OSError, ValueError, TypeError):
+            continue
+        if not _alive(info.pid):
+            try:
+                path.unlink()
+            except OSError:
+                pass
+            continue
+        runs.append(info)
+    return sorted(runs, key=lambda r: r.started)
+
+
+def find_run(run: str | None = None, hint: str = "") -> RunInfo:
+    """The run named, or the one run there is; NoRunError with one line (and `hint`) otherwise."""
+    runs = running()
+    if run:
+        for info in runs:
+            if info.run == run:
+                return info
+        known = ", ".join(r.run for r in runs) or "none"
+        raise NoRunError(f"no dive run {run!r} on this machine (running: {known})")
+    if not runs:
+        raise NoRunError(f"no `dive run` is running on this machine{hint}")
+    if len(runs) > 1:
+        listed = ", ".join(f"hub://{r.run} ({r.url})" for r in runs)
+        raise NoRunError(f"{len(runs)} dive runs are running; name one: {listed}")
+    return runs[0]
+
+
+def hub_address(url: str) -> tuple[RunInfo, str]:
+    """hub:// (the one run) or hub://RUN: the run and its hub's tcp:// address."""
+    info = find_run(urlsplit(url).netloc or None)
+    return info, info.hub
+
+
+def attach_url(url: str | None) -> str:
+    """The URL a command that acts on *the* agent uses: the one given, else $DIVE_URL, else the running run's hub.
+
+    Never the built-in virtual agent: surfacing a fresh simulator and saying "surfacing" would be a lie.
+    """
+    if url:
+        return url
+    env = os.environ.get("DIVE_URL")
+    if env:
+        return env
+    info = find_run(None, hint=": give the agent's URL (or set DIVE_URL)")
+    return f"{HUB_SCHEME}://{info.run}"
+
+
+def run_url_default(url: str | None) -> str:
+    """`dive run`'s link: the one given, else $DIVE_URL, else the built-in virtual agent."""
+    return url or os.environ.get("DIVE_URL") or DEFAULT_URL
+
+
+def new_run(pid: int, hub: str, url: str) -> RunInfo:
+    return RunInfo(run=str(pid), pid=pid, hub=hub, url=url, recording="", started=time.time())

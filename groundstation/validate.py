@@ -1,0 +1,37 @@
+"""Checks made before anything starts, so bad input is one line at once, not an error from a child 10 s later."""
+
+from __future__ import annotations
+
+import errno
+import socket
+
+from groundstation.errors import GroundStationError
+
+
+class UsageError(GroundStationError, ValueError):
+    """A value the user gave that cannot work (the CLI exits 2, like a usage error)."""
+
+
+def check_port_free(port: int, option: str) -> None:
+    """Fail at once when another process listens on `port` (its viewer would show that process's data)."""
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
+        try:
+            probe.bind(("0.0.0.0", port))
+        except OSError as e:
+            if e.errno in (errno.EADDRINUSE, errno.EACCES):
+                why = "is in use by another process" if e.errno == errno.EADDRINUSE else "needs privileges"
+                raise UsageError(f"port {port} {why}: choose another with {option}") from None
+            raise
+
+
+def parse_speed(text: str) -> float | None:
+    """`max` (None) or a positive factor; `10x` and `10` both mean ten times real time."""
+    if text.strip().lower() == "max":
+        return None
+    try:
+        speed = float(text.strip().lower().removesuffix("x"))
+    except ValueError:
+        speed = 0.0
+    if not speed > 0 or speed == float("inf"):
+        raise UsageError(f"bad speed {text!r}: give a factor such as 1, 10 or max")
+    return speed

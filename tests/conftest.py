@@ -1,0 +1,15 @@
+"""Every test gets its own runtime folder: a `dive run` a test starts announces its hub there, never where a
+developer's own runs (or another test's) would find it."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+
+@pytest.fixture(autouse=True)
+def _isolated_runs(tmp_path_factory: pytest.TempPathFactory, monkeypatch: pytest.MonkeyPatch) -> Path:
+    folder = tmp_path_factory.mktemp("runtime")
+    monkeypatch.setenv("DIVE_RUNTIME_DIR", str(folder))
+    return folder
