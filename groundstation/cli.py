@@ -199,6 +199,7 @@ def status(url: UrlArg = None) -> None:
 
 
 _PARAM_ACTIONS = ("get", "set", "save", "diff", "load")
+HOVER_RANGE_M = (0.0, 2.5)
 _TAKES_NEGATIVE = {"ignore_unknown_options": True}  # `-5` is a value, not an unknown option
 
 
@@ -288,6 +289,8 @@ def hover(args: Annotated[list[str], typer.Argument(help="[URL] DEPTH: the depth
         depth = float(words[0])
     except ValueError:
         raise UsageError(f"DEPTH must be a number of metres, not {words[0]!r}") from None
+    if not HOVER_RANGE_M[0] <= depth <= HOVER_RANGE_M[1]:  # the agent refuses it too (SPEC: CMD_HOVER)
+        raise GroundStationError(f"hover depth {depth:g} m is outside [{HOVER_RANGE_M[0]:g}, {HOVER_RANGE_M[1]:g}] m")
     from protocol import messages as m
 
     with _session(url) as s:

@@ -110,6 +110,7 @@ def replay(
 ) -> None:
     """Show a recording in the live view's layout, or convert it to .rrd with --rrd."""
     signal.signal(signal.SIGTERM, _interrupt)  # a service manager's stop is a Ctrl-C: clean shutdown
+    stopped = False
     try:
         from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
@@ -148,12 +149,15 @@ def replay(
                     view.flush()
                     typer.echo(f"Rerun web viewer: {view.address}")
                 wait_for_interrupt("serving the web viewer")
+                stopped = True
     except UsageError as e:
         raise _fail(str(e), 2) from None
     except GroundStationError as e:
         raise _fail(str(e)) from None
     except KeyboardInterrupt:
         raise typer.Exit(130) from None
+    if stopped:
+        raise typer.Exit(130)  # ended by Ctrl-C, after a clean shutdown: the one convention (README)
 
 
 def view(
@@ -167,6 +171,7 @@ def view(
 ) -> None:
     """Watch the agent live in the Rerun view, without commanding it."""
     signal.signal(signal.SIGTERM, _interrupt)
+    stopped = False
     try:
         from groundstation.links import make_link
         from groundstation.rerun_view import RerunView, ViewConfig
@@ -184,9 +189,12 @@ def view(
                 hello = session.agent_hello
                 typer.echo(f"watching {hello.name if hello else 'the agent'} at {link.url}")
                 wait_for_interrupt("watching")
+                stopped = True
     except UsageError as e:
         raise _fail(str(e), 2) from None
     except GroundStationError as e:
         raise _fail(str(e)) from None
     except KeyboardInterrupt:
         raise typer.Exit(130) from None
+    if stopped:
+        raise typer.Exit(130)  # ended by Ctrl-C, after a clean shutdown: the one convention (README)

@@ -16,6 +16,7 @@ PARAMS = [  # name, type, value, min, max
     ("z_tol_m", 5, 0.1, 0.01, 0.5),
     ("zdot_tol_mps", 5, 0.05, 0.001, 0.5),
     ("success_time_s", 5, 20.0, 1.0, 600.0),
+    ("term_reward", 5, -10.0, -100.0, 0.0),
 ]
 
 

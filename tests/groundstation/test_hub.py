@@ -1,0 +1,144 @@
+"""One agent, many tools: `dive run` is the hub every other `dive` command on the machine attaches to.
+
+Real processes and real TCP: a fake agent with one slot, `dive run` as a child process, and the tools
+(`status`, `mark`, `params`, `surface`, `view`) as further child processes, as a user types them.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+import pytest
+
+from groundstation.loginfo import summarize
+from groundstation.mcap_io import read_recording
+from tests.groundstation.fake_agent import FakeAgent
+
+DIVE = [sys.executable, "-m", "groundstation.cli"]
+
+
+def _env(runtime: Path) -> dict[str, str]:
+    env = {k: v for k, v in os.environ.items() if k not in ("DIVE_URL", "DIVE_KEY_FILE")}
+    return {**env, "DIVE_RUNTIME_DIR": str(runtime), "COLUMNS": "200"}
+
+
+def dive(runtime: Path, *args: str, timeout: float = 30.0) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([*DIVE, *args], env=_env(runtime), capture_output=True, text=True, timeout=timeout)
+
+
+@contextmanager
+def running(runtime: Path, url: str, out: Path) -> Iterator[subprocess.Popen[str]]:
+    """`dive run URL` until the block ends with a Ctrl-C (SIGINT)."""
+    before = set((runtime / "runs").glob("*.json")) if (runtime / "runs").is_dir() else set()
+    proc = subprocess.Popen([*DIVE, "run", url, "--out", str(out)], env=_env(runtime), stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 30
+        while time.monotonic() < deadline and proc.poll() is None:
+            if set((runtime / "runs").glob("*.json")) - before:
+                break
+            time.sleep(0.05)
+        assert proc.poll() is None, proc.communicate()
+        yield proc
+    finally:
+        if proc.poll() is None:
+            proc.send_signal(signal.SIGINT)
+        try:
+            proc.wait(30)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+
+
+def _one_line_failure(done: subprocess.CompletedProcess[str], text: str, code: int = 1) -> None:
+    assert done.returncode == code, (done.stdout, done.stderr)
+    lines = [line for line in done.stderr.splitlines() if line.strip()]
+    assert len(lines) == 1 and text in lines[0] and "Traceback" not in done.stderr, done.stderr
+
+
+@pytest.mark.slow
+def test_tools_attach_to_the_running_session_without_taking_the_agents_link(tmp_path: Path) -> None:
+    agent = FakeAgent()
+    runtime = tmp_path / "runtime"
+    try:
+        with running(runtime, agent.url, tmp_path / "rec") as run:
+            viewer = subprocess.Popen([*DIVE, "view", "--viewer", "none", "--rrd", str(tmp_path / "live.rrd")],
+                                      env=_env(runtime), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+            status = dive(runtime, "status")
+            assert status.returncode == 0, status.stderr
+            assert "agent 'fake' id 000a6e47" in status.stdout and "rtt" in status.stdout
+            marked = dive(runtime, "mark", "tapped the tank")
+            assert marked.returncode == 0 and f"marked in run {run.pid}" in marked.stdout, marked.stderr
+            got = dive(runtime, "params", "get", "z_tol_m")
+            assert got.returncode == 0 and "z_tol_m = " in got.stdout, got.stderr
+            negative = dive(runtime, "params", "set", "term_reward", "-5")  # a negative value without `--`
+            assert negative.returncode == 0 and "term_reward = -5" in negative.stdout, negative.stderr
+            surfaced = dive(runtime, "surface")
+            assert surfaced.returncode == 0 and f"surfacing (hub://{run.pid})" in surfaced.stdout, surfaced.stderr
+            time.sleep(1.0)
+            viewer.send_signal(signal.SIGINT)
+            _, view_err = viewer.communicate(timeout=30)
+            assert viewer.returncode == 130, view_err
+        _, run_err = run.communicate()
+        assert run.returncode == 130, run_err  # stopped by Ctrl-C: the one convention
+        assert "another tool: not starting the agent again" in run_err  # the operator's surface stands
+    finally:
+        agent.close()
+    assert agent.connections == 1  # every tool went through the run's one link
+    assert agent.executed.count("CMD_SURFACE") == 1 and agent.executed.count("PARAM_SET") == 1
+    [recording] = sorted((tmp_path / "rec").glob("*.mcap"))
+    contents = read_recording(recording, {"/marker", "/ground/CMD_SURFACE", "/ground/PARAM_SET"})
+    topics = [m.topic for m in contents.messages]
+    assert [m.json()["text"] for m in contents.messages if m.topic == "/marker"] == ["tapped the tank"]
+    assert topics.count("/ground/CMD_SURFACE") == 1  # the forwarded command is in the run's recording
+    assert summarize(recording).link_losses == 0
+    assert (tmp_path / "live.rrd").stat().st_size > 10_000  # the viewer got the telemetry fanned out
+    assert not list((runtime / "runs").glob("*.json"))  # the run withdrew its announcement
+
+
+def test_without_a_run_emergency_commands_fail_in_one_line_and_start_nothing(tmp_path: Path) -> None:
+    runtime = tmp_path / "runtime"
+    for command in (["surface"], ["hover", "0.5"], ["status"], ["dump"], ["params"]):
+        _one_line_failure(dive(runtime, *command), "no `dive run` is running on this machine")
+    _one_line_failure(dive(runtime, "mark", "lost?"), "no `dive run` is running on this machine")
+
+
+@pytest.mark.slow
+def test_mark_reaches_only_the_run_it_names(tmp_path: Path) -> None:
+    runtime = tmp_path / "runtime"
+    agents = [FakeAgent(), FakeAgent()]
+    try:
+        with running(runtime, agents[0].url, tmp_path / "a") as first, \
+                running(runtime, agents[1].url, tmp_path / "b"):
+            _one_line_failure(dive(runtime, "mark", "which?"), "2 dive runs are running")
+            _one_line_failure(dive(runtime, "surface"), "2 dive runs are running")
+            named = dive(runtime, "mark", "--run", str(first.pid), "only in a")
+            assert named.returncode == 0 and f"marked in run {first.pid}" in named.stdout, named.stderr
+            _one_line_failure(dive(runtime, "mark", "--run", "999999999", "nowhere"), "no dive run '999999999'")
+    finally:
+        for agent in agents:
+            agent.close()
+    markers = {}
+    for folder in ("a", "b"):
+        [recording] = list((tmp_path / folder).glob("*.mcap"))
+        contents = read_recording(recording, {"/marker"})
+        markers[folder] = [m.json()["text"] for m in contents.messages]
+    assert markers == {"a": ["only in a"], "b": []}
+
+
+@pytest.mark.parametrize(("command", "why"), [(["hover", "{url}", "-1"], "outside [0, 2.5] m"),
+                                             (["params", "{url}", "set", "z_tol_m", "-5"], "outside [0.01, 0.5]")])
+def test_negative_values_reach_the_check_not_the_option_parser(tmp_path: Path, command: list[str], why: str) -> None:
+    agent = FakeAgent()
+    try:
+        done = dive(tmp_path, *(part.format(url=agent.url) for part in command))
+    finally:
+        agent.close()
+    _one_line_failure(done, why)
