@@ -225,6 +225,8 @@ class Hub:
 
     def _forward_command(self, client: _Client, message: Message, seq: int) -> None:
         key = (id(client), message.MSG_ID, seq)
+        # Under the lock from sending to filing the seq: the agent's ACK can come back (and be looked up by the
+        # session's reader thread in _answer_forwarded) before session.send has even returned.
         with self._lock:
             known = self._by_client_seq.get(key)
             if known is not None:
@@ -232,10 +234,9 @@ class Hub:
                 if ack is not None:  # a retry after the ACK was lost: answer it again, do not act twice
                     client.outbuf += client.encoder.encode(ack).wire
                 return  # still in flight: the session retries it itself
-        session_seq = self._send(message)
-        if session_seq is None:
-            return  # the link is down; the client's retry will try again
-        with self._lock:
+            session_seq = self._send(message)
+            if session_seq is None:
+                return  # the link is down; the client's retry will try again
             self._by_session_seq[(message.MSG_ID, session_seq)] = (client, seq)
             self._by_client_seq[key] = (session_seq, None)
             for table in (self._by_session_seq, self._by_client_seq):

@@ -20,7 +20,10 @@ from simulator.server_transport import PtyTransport, TcpTransport, Transport
 
 SLICE_S = 0.004  # longest the program runs before the sockets are served again
 MAX_WAIT_S = 0.02  # longest select() waits, so pty opens and delayed bytes are noticed
-HIGH_WATER_BYTES = 256 * 1024  # --speed max waits for the client above this; real time drops frames
+HIGH_WATER_BYTES = 256 * 1024  # real time drops frames above this (a UART FIFO does not wait for a slow reader)
+# --speed max runs the program only while the client takes what it sends: a few frames queued at most, so a
+# command's ACK is never behind seconds of backlog (flow control from the send side; issue 14).
+MAX_SPEED_QUEUE_BYTES = 2 * 1024
 STEPS_PER_CLOCK_READ = 8
 
 
@@ -180,7 +183,7 @@ class AgentServer:
             now = time.monotonic()
             if speed is None:
                 due_us = 2**63
-                blocked = len(transport.outbuf) > HIGH_WATER_BYTES
+                blocked = len(transport.outbuf) > MAX_SPEED_QUEUE_BYTES
             else:
                 due_us = agent0_us + int((now - wall0) * speed * 1e6)
                 blocked = False
@@ -196,7 +199,7 @@ class AgentServer:
                 if steps % STEPS_PER_CLOCK_READ == 0:
                     if time.monotonic() >= deadline:
                         break
-                    if speed is None and len(transport.outbuf) > HIGH_WATER_BYTES:
+                    if speed is None and len(transport.outbuf) > MAX_SPEED_QUEUE_BYTES:
                         break
             if speed is not None and program.t_us < due_us and steps and time.monotonic() >= deadline:
                 # Cannot keep up with the requested speed: do not try to catch up in a burst later.
@@ -205,7 +208,7 @@ class AgentServer:
 
     def _wait_s(self, speed: float | None, due_us: int) -> float:
         if speed is None:
-            wait = MAX_WAIT_S if len(self.transport.outbuf) > HIGH_WATER_BYTES else 0.0
+            wait = MAX_WAIT_S if len(self.transport.outbuf) > MAX_SPEED_QUEUE_BYTES else 0.0
         else:
             # Sleep until the next control step is due in agent time.
             wait = min(MAX_WAIT_S, max(0.0, (self.program.t_us + 1 - due_us) / 1e6 / speed))

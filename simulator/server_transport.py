@@ -14,6 +14,9 @@ from collections.abc import Callable
 from simulator.errors import SimulatorError
 
 READ_BYTES = 65536
+# The kernel's send buffer for a client: small and fixed (no autotuning to megabytes), so bytes the ground has not
+# taken wait in our out buffer, where the server sees them and paces the program (server.py), not in the kernel.
+SEND_BUFFER_BYTES = 4 * 1024
 
 
 class TransportError(SimulatorError, OSError):
@@ -87,6 +90,7 @@ class TcpTransport(Transport):
         self.drop_client()
         sock.setblocking(False)
         sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, SEND_BUFFER_BYTES)
         self.client = sock
         self.selector.register(sock, selectors.EVENT_READ, self._ready)
         self.on_connect()

@@ -10,6 +10,11 @@ from groundstation.errors import LinkError, LinkTimeout
 from groundstation.links import Link
 
 CONNECT_TIMEOUT_S = 3.0
+# A small, fixed receive buffer (set before connecting, so the kernel does not autotune it to megabytes): when the
+# ground falls behind a fast sender (the virtual agent at --speed max), the backlog stays at the sender, which then
+# waits, instead of piling up here where every command's ACK would queue behind it. 8 KiB is still ~0.7 s of a
+# 115200-baud link, far above what the agent sends per round trip over Wi-Fi (benchmarks/link_latency_bench.py).
+RECEIVE_BUFFER_BYTES = 8 * 1024
 
 
 def parse_host_port(url: str) -> tuple[str, int]:
@@ -23,6 +28,22 @@ def parse_host_port(url: str) -> tuple[str, int]:
     return parts.hostname, port
 
 
+def _connect(host: str, port: int) -> socket.socket:
+    """socket.create_connection, with the receive buffer set before the handshake (it fixes the window scale)."""
+    error: OSError | None = None
+    for family, kind, proto, _, address in socket.getaddrinfo(host, port, type=socket.SOCK_STREAM):
+        sock = socket.socket(family, kind, proto)
+        try:
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, RECEIVE_BUFFER_BYTES)
+            sock.settimeout(CONNECT_TIMEOUT_S)
+            sock.connect(address)
+            return sock
+        except OSError as e:
+            sock.close()
+            error = e
+    raise error if error is not None else OSError(f"cannot resolve {host}")
+
+
 class TcpLink(Link):
     def __init__(self, url: str) -> None:
         super().__init__(url)
@@ -31,7 +52,7 @@ class TcpLink(Link):
 
     def _connect(self) -> None:
         try:
-            sock = socket.create_connection((self.host, self.port), timeout=CONNECT_TIMEOUT_S)
+            sock = _connect(self.host, self.port)
         except TimeoutError as e:
             raise LinkTimeout(f"{self.url}: no answer within {CONNECT_TIMEOUT_S:.0f} s") from e
         except OSError as e:
