@@ -29,12 +29,27 @@ if TYPE_CHECKING:  # the session, recorder and runner (mcap, numpy) are imported
 
 app = typer.Typer(
     name="dive",
-    help="Ground station for the micro diving agent: connect, command, record (MCAP), view (Rerun), replay.",
+    help="Ground station for the micro diving agent: connect, command, record (MCAP), view (Rerun), replay.\n\n"
+         "Exit codes: 0 done, 1 failed (one line on stderr says why), 2 bad usage, 130 stopped by Ctrl-C.",
     no_args_is_help=True,
     pretty_exceptions_enable=False,
     rich_markup_mode="rich",
     context_settings={"help_option_names": ["-h", "--help"]},
 )
+def _version(value: bool) -> None:
+    if value:
+        from groundstation.hello import tool_version
+
+        typer.echo(f"dive {tool_version()}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _options(version: Annotated[bool, typer.Option("--version", callback=_version, is_eager=True,
+                                                   help="Print dive's version and exit.")] = False) -> None:
+    """Options of dive itself (the app's help text is the Typer's)."""
+
+
 log_app = typer.Typer(help="Inspect, export and repair recordings.", no_args_is_help=True,
                       context_settings={"help_option_names": ["-h", "--help"]})
 app.add_typer(log_app, name="log")
@@ -243,7 +258,7 @@ def params_command(
             out.print(f"{rest[0]}: {len(s.params)} parameters")
         elif action == "diff":
             differ = [(n, s.params.get(n), v) for n, v in from_file.items()
-                      if s.params.get(n).value != _param_number(s, n, v)]
+                      if _param_number(s, n, str(s.params.get(n).value)) != _param_number(s, n, v)]
             for name, p, v in differ:
                 out.print(f"{name}: agent {p.display_value}, file {v}")
             out.print(f"{len(differ)} of {len(from_file)} differ")
@@ -256,6 +271,7 @@ def params_command(
 
 
 def _param_number(s: Session, name: str, text: str) -> float:
+    """A value as the agent stores it (F32 parameters as f32), to compare a file's value with the agent's."""
     import struct
 
     from groundstation.params import ParamType, parse_value

@@ -38,6 +38,9 @@ class Parameter:
         return f"{self.value:g}"
 
 
+_WHOLE = (ParamType.U8, ParamType.I32, ParamType.U32, ParamType.BOOL)  # the agent refuses 3.7 for these
+
+
 def parse_value(param: Parameter, text: str) -> float:
     """A user's value for a parameter, checked against its type and range."""
     lowered = text.strip().lower()
@@ -49,6 +52,8 @@ def parse_value(param: Parameter, text: str) -> float:
         raise ParameterError(f"{param.name}: {text!r} is not a number") from None
     if not param.minimum <= value <= param.maximum:
         raise ParameterError(f"{param.name}: {text} is outside [{param.minimum:g}, {param.maximum:g}]")
+    if param.param_type in _WHOLE and not value.is_integer():
+        raise ParameterError(f"{param.name}: {text} is not a whole number ({param.param_type.name.lower()})")
     return value
 
 

@@ -210,6 +210,8 @@ class Session:
         return self.params
 
     def get_param(self, name: str, timeout_s: float = 2.0) -> Parameter:
+        if len(self.params):
+            self.params.get(name)  # an unknown name: the same "did you mean" as set_param, before asking the agent
         before = self._param_updates
         self.command(m.ParamGet(index=-1, name=name))
         with self._cond:

@@ -17,6 +17,7 @@ PARAMS = [  # name, type, value, min, max
     ("zdot_tol_mps", 5, 0.05, 0.001, 0.5),
     ("success_time_s", 5, 20.0, 1.0, 600.0),
     ("term_reward", 5, -10.0, -100.0, 0.0),
+    ("max_episodes", 4, 0, 0, 100000),
 ]
 
 

@@ -47,7 +47,8 @@ def test_wrong_protocol_version() -> None:
 
 def test_bad_parameter(fake_agent: FakeAgent) -> None:
     _fails_with_one_line(["params", fake_agent.url, "set", "target_depth_m", "99"], "outside [0.05, 2]")
-    _fails_with_one_line(["params", fake_agent.url, "get", "nope"], "refused by the agent: BAD_VALUE")
+    _fails_with_one_line(["params", fake_agent.url, "get", "nope"], "unknown parameter 'nope'")
+    _fails_with_one_line(["params", fake_agent.url, "get", "z_tol"], "did you mean z_tol_m")  # as set does
 
 
 def test_params_list_get_set_and_commands(fake_agent: FakeAgent) -> None:

@@ -1,0 +1,122 @@
+"""`dive` as people type it: validation before acting, one exit-code convention, units in help, quick start-up,
+plain lines when not on a terminal, TOML parameter files. Real processes and real TCP where a user would see one."""
+
+from __future__ import annotations
+
+import os
+import socket
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner, Result
+
+from groundstation.cli import app
+from tests.groundstation.fake_agent import FakeAgent
+
+DIVE = [sys.executable, "-m", "groundstation.cli"]
+
+
+def dive(*args: str, cwd: Path | None = None, timeout: float = 60.0) -> subprocess.CompletedProcess[str]:
+    env = {k: v for k, v in os.environ.items() if k not in ("DIVE_URL", "DIVE_KEY_FILE")}
+    return subprocess.run([*DIVE, *args], env={**env, "COLUMNS": "200"}, capture_output=True, text=True,
+                          timeout=timeout, cwd=cwd)
+
+
+def _one_line(done: subprocess.CompletedProcess[str], code: int, text: str) -> None:
+    assert done.returncode == code, (done.stdout, done.stderr)
+    assert "Traceback" not in done.stderr and text in done.stderr, done.stderr
+
+
+@pytest.mark.parametrize(("args", "text"), [
+    (["run", "--episodes", "-3"], "--episodes"),
+    (["run", "--episodes", "4294967296"], "--episodes"),
+    (["run", "--web-port", "0"], "--web-port"),
+    (["run", "--grpc-port", "65536"], "--grpc-port"),
+    (["replay", "x.mcap", "--web-port", "70000"], "--web-port"),
+    (["run", "--speed", "fast"], "bad speed 'fast'"),
+    (["run", "tcp://127.0.0.1:9", "--speed", "10"], "apply to the built-in virtual agent"),
+    (["params", "set", "x"], "expected `dive params [URL] set NAME VALUE`"),
+    (["hover", "deep"], "DEPTH must be a number"),
+])
+def test_bad_usage_is_exit_2_before_anything_starts(args: list[str], text: str) -> None:
+    done = CliRunner().invoke(app, args, env={"COLUMNS": "200"})
+    assert done.exit_code == 2 and text in done.stderr, done.stderr
+    assert "virtual agent did not start" not in done.stderr and "connecting" not in done.stderr
+
+
+def test_a_web_port_in_use_is_refused_before_the_run_starts() -> None:
+    with socket.socket() as busy:
+        busy.bind(("0.0.0.0", 0))
+        busy.listen()
+        port = busy.getsockname()[1]
+        done = CliRunner().invoke(app, ["run", "--viewer", "web", "--web-port", str(port)])
+    assert done.exit_code == 2
+    assert f"port {port} is in use by another process: choose another with --web-port" in done.stderr
+
+
+def test_version_short_help_and_units_in_help() -> None:
+    version = CliRunner().invoke(app, ["--version"])
+    assert version.exit_code == 0 and version.stdout.startswith("dive ")
+    helped = CliRunner().invoke(app, ["run", "-h"], env={"COLUMNS": "200"})
+    assert helped.exit_code == 0
+    for unit in ("target depth z_d [m]", "learning region [m/s]", "counts as success [s]", "--grpc-port"):
+        assert unit in helped.stdout, unit
+    assert "--install-completion" in CliRunner().invoke(app, ["-h"]).stdout
+
+
+def test_help_imports_neither_rerun_nor_numba_nor_matplotlib() -> None:
+    done = subprocess.run([sys.executable, "-X", "importtime", "-m", "groundstation.cli", "--help"],
+                          capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0
+    imported = {line.split("|")[-1].strip() for line in done.stderr.splitlines() if line.startswith("import time")}
+    for heavy in ("rerun", "numba", "matplotlib", "mcap", "numpy", "simulator", "learning"):
+        assert heavy not in imported, heavy
+
+
+def test_not_on_a_terminal_dive_run_prints_one_line_per_episode(tmp_path: Path) -> None:
+    agent = FakeAgent(episode_len=10)
+    try:
+        done = dive("run", agent.url, "--episodes", "3", "--out", str(tmp_path))
+    finally:
+        agent.close()
+    assert done.returncode == 0, done.stderr
+    lines = done.stderr.splitlines()
+    assert lines[0] == f"connecting to {agent.url}"
+    episodes = [line for line in lines if line.startswith("episode ")]
+    assert [line.split(":")[0] for line in episodes][:3] == ["episode 1 of 3", "episode 2 of 3", "episode 3 of 3"]
+    assert not any("\r" in line or "━" in line for line in lines)  # no progress bar redrawn into a log
+
+
+def _cli(*args: str) -> Result:
+    return CliRunner().invoke(app, list(args), env={"COLUMNS": "200"})
+
+
+def test_params_save_diff_load_and_run_share_one_toml_format(tmp_path: Path) -> None:
+    agent = FakeAgent()
+    saved = tmp_path / "agent.toml"
+    try:
+        assert _cli("params", agent.url, "save", str(saved)).exit_code == 0
+        text = saved.read_text()
+        assert "z_tol_m = 0.1" in text and "max_episodes = 0" in text
+        assert "0 of 6 differ" in _cli("params", agent.url, "diff", str(saved)).stdout
+        saved.write_text(text.replace("z_tol_m = 0.1", "z_tol_m = 0.25"))
+        diff = _cli("params", agent.url, "diff", str(saved))
+        assert "z_tol_m: agent 0.1, file 0.25" in diff.stdout and "1 of 6 differ" in diff.stdout
+        loaded = _cli("params", agent.url, "load", str(saved))
+        assert loaded.exit_code == 0 and "z_tol_m = 0.25" in loaded.stdout, loaded.stderr
+        assert "0 of 6 differ" in _cli("params", agent.url, "diff", str(saved)).stdout
+        whole = _cli("params", agent.url, "set", "max_episodes", "3.7")
+        assert whole.exit_code == 1 and "3.7 is not a whole number" in whole.stderr
+        bad = tmp_path / "bad.toml"
+        bad.write_text("z_tol = 0.2\n")
+        guess = _cli("params", agent.url, "load", str(bad))
+        assert guess.exit_code == 1 and "did you mean z_tol_m" in guess.stderr
+        run_file = tmp_path / "run.toml"
+        run_file.write_text("target_depth_m = 0.7\n")
+        done = _cli("run", agent.url, "--episodes", "1", "--params", str(run_file), "--out", str(tmp_path / "r"))
+        assert done.exit_code == 0, done.stderr
+    finally:
+        agent.close()
+    assert agent.params["target_depth_m"][1] == pytest.approx(0.7)
