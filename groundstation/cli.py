@@ -153,10 +153,11 @@ def run_command(
     else:
         recorder = RecorderConfig(directory=out_path or Path("recordings"))
     recorder = RecorderConfig(recorder.directory, recorder.path, int(split_mb * 1e6), split_minutes * 60.0)
-    config = RunConfig(url=url, episodes=episodes, params=values, recorder=recorder,
-                       session=SessionConfig(reconnect=reconnect, key=resolve_key(key_file)))
     view = view_cli.open_live_view(viewer, rrd, web_port, name=url, headless_default=Viewer.NONE,
                                    grpc_port=grpc_port)
+    config = RunConfig(url=url, episodes=episodes, params=values, recorder=recorder,
+                       session=SessionConfig(reconnect=reconnect, key=resolve_key(key_file)),
+                       dumps_each_episode=view is not None)
     note = simulator_compile_note(url)
     with view_cli.closing_view(view), RunDisplay(err, episodes, f"connecting to {url}{note}") as display:
         result = run(config, display.show, listeners=[view] if view is not None else [])

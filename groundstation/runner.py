@@ -29,6 +29,9 @@ def load_params_file(path: Path) -> dict[str, str]:
     return read_params(path)
 
 
+DUMP_EACH_EPISODE_NAMES = ("dump_each_episode", "dump_each_ep")  # SPEC 1.1's name, and the agents' older one
+
+
 @dataclass(frozen=True, slots=True)
 class RunConfig:
     url: str | None = None
@@ -38,6 +41,7 @@ class RunConfig:
     session: SessionConfig = field(default_factory=SessionConfig)
     backfill_wait_s: float = 10.0
     hub: bool = True  # serve the session to local tools (groundstation/hub.py)
+    dumps_each_episode: bool = False  # a viewer is attached: the agent sends VALUES and POLICY after every episode
 
 
 @dataclass
@@ -218,7 +222,13 @@ def run(config: RunConfig, on_progress: Callable[[RunStatus], None] | None = Non
             session.add_listener(hub)
             announced = _announce(new_run(os.getpid(), hub.address, link.url), recorder)
             status.hub = f"hub://{announced.run}"
-        for name, value in config.params.items():
+        values = dict(config.params)
+        if config.dumps_each_episode:
+            # The view's value and policy heatmaps fill from these; the user's own setting wins.
+            name = next((n for n in DUMP_EACH_EPISODE_NAMES if n in session.params), None)
+            if name is not None and not any(n in values for n in DUMP_EACH_EPISODE_NAMES):
+                values[name] = "1"
+        for name, value in values.items():
             session.set_param(name, value)
         recorder.set_parameters(session.params.values())
         watch = _AgentWatch(session, config.episodes, status)

@@ -18,6 +18,7 @@ PARAMS = [  # name, type, value, min, max
     ("success_time_s", 5, 20.0, 1.0, 600.0),
     ("term_reward", 5, -10.0, -100.0, 0.0),
     ("max_episodes", 4, 0, 0, 100000),
+    ("dump_each_episode", 1, 0, 0, 1),
 ]
 
 

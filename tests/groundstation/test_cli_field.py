@@ -100,13 +100,13 @@ def test_params_save_diff_load_and_run_share_one_toml_format(tmp_path: Path) -> 
         assert _cli("params", agent.url, "save", str(saved)).exit_code == 0
         text = saved.read_text()
         assert "z_tol_m = 0.1" in text and "max_episodes = 0" in text
-        assert "0 of 6 differ" in _cli("params", agent.url, "diff", str(saved)).stdout
+        assert "0 of 7 differ" in _cli("params", agent.url, "diff", str(saved)).stdout
         saved.write_text(text.replace("z_tol_m = 0.1", "z_tol_m = 0.25"))
         diff = _cli("params", agent.url, "diff", str(saved))
-        assert "z_tol_m: agent 0.1, file 0.25" in diff.stdout and "1 of 6 differ" in diff.stdout
+        assert "z_tol_m: agent 0.1, file 0.25" in diff.stdout and "1 of 7 differ" in diff.stdout
         loaded = _cli("params", agent.url, "load", str(saved))
         assert loaded.exit_code == 0 and "z_tol_m = 0.25" in loaded.stdout, loaded.stderr
-        assert "0 of 6 differ" in _cli("params", agent.url, "diff", str(saved)).stdout
+        assert "0 of 7 differ" in _cli("params", agent.url, "diff", str(saved)).stdout
         whole = _cli("params", agent.url, "set", "max_episodes", "3.7")
         assert whole.exit_code == 1 and "3.7 is not a whole number" in whole.stderr
         bad = tmp_path / "bad.toml"
@@ -120,3 +120,14 @@ def test_params_save_diff_load_and_run_share_one_toml_format(tmp_path: Path) -> 
     finally:
         agent.close()
     assert agent.params["target_depth_m"][1] == pytest.approx(0.7)
+
+
+def test_a_run_with_a_viewer_has_the_agent_dump_its_values_and_policy_each_episode(tmp_path: Path) -> None:
+    agent = FakeAgent()
+    try:
+        watched = _cli("run", agent.url, "--episodes", "1", "--viewer", "none", "--rrd", str(tmp_path / "v.rrd"),
+                       "--out", str(tmp_path / "a"))
+        assert watched.exit_code == 0, watched.stderr
+        assert agent.params["dump_each_episode"][1] == 1  # the heatmaps get a dump at every episode end
+    finally:
+        agent.close()
