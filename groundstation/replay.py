@@ -95,24 +95,42 @@ def read_items(path: Path, info: RecordingContents | None = None) -> Iterator[It
             yield item
 
 
+def check_order(start: Bound | None, end: Bound | None) -> None:
+    """A reversed window is one clear line before anything is read or written."""
+    if start is None or end is None:
+        return
+    if start.episode is not None and end.episode is not None and start.episode > end.episode:
+        raise ReplayError(f"--from episode {start.episode} is after --to episode {end.episode}")
+    if start.offset_s is not None and end.offset_s is not None and start.offset_s > end.offset_s:
+        raise ReplayError(f"--from {start.offset_s:g} s is after --to {end.offset_s:g} s (agent time)")
+
+
 def select(items: Iterator[Item], start: Bound | None, end: Bound | None) -> Iterator[Item]:
-    """Only the items inside [start, end]: episodes by the agent's episode number, times since the first item."""
-    first_ns: int | None = None
+    """Only the items inside [start, end]: episodes by the agent's episode number, times in agent time.
+
+    Agent time (the messages' own clock) is the timeline the viewer shows and --speed plays: at --speed max a
+    minute of host time holds hours of agent time. A record without a clock of its own (an event, a marker)
+    takes the agent time of the frame before it. Backfilled frames come later in the file than their time:
+    past a time bound the rest of the file is still read for them.
+    """
+    first_s: float | None = None
+    latest_s = 0.0
     episode = 0
     for item in items:
-        first_ns = item.host_time_ns if first_ns is None else first_ns
+        if item.agent_time_s is not None:
+            first_s = item.agent_time_s if first_s is None else first_s
+            latest_s = item.agent_time_s
         episode = item.episode if item.episode is not None else episode
-        offset_s = (item.host_time_ns - first_ns) / 1e9
+        offset_s = latest_s - first_s if first_s is not None else 0.0
         if start is not None and (
             (start.episode is not None and episode < start.episode)
             or (start.offset_s is not None and offset_s < start.offset_s)
         ):
             continue
-        if end is not None and (
-            (end.episode is not None and episode > end.episode)
-            or (end.offset_s is not None and offset_s > end.offset_s)
-        ):
+        if end is not None and end.episode is not None and episode > end.episode:
             break
+        if end is not None and end.offset_s is not None and offset_s > end.offset_s:
+            continue
         yield item
 
 

@@ -76,6 +76,17 @@ def closing_view(live: RerunView | None) -> Iterator[None]:
             live.close()
 
 
+@contextmanager
+def _removed_on_error(path: Path | None) -> Iterator[None]:
+    """A failed conversion (an empty window, a file with no frames) leaves no partial .rrd behind."""
+    try:
+        yield
+    except GroundStationError:
+        if path is not None:
+            path.unlink(missing_ok=True)
+        raise
+
+
 def _interrupt(signum: int, frame: object) -> None:
     raise KeyboardInterrupt
 
@@ -120,6 +131,7 @@ def replay(
 
         factor = parse_speed(speed)
         bounds = (rp.parse_bound(start) if start else None, rp.parse_bound(end) if end else None)
+        rp.check_order(*bounds)
         if not file.is_file():
             raise ViewError(f"no such recording: {file}")
         config = ViewConfig(viewer=default_viewer(viewer, rrd), rrd=rrd, web_port=web_port, grpc_port=grpc_port)
@@ -127,7 +139,8 @@ def replay(
         status = RecordingContents()
         items = rp.select(rp.read_items(file, status), *bounds)
         began = time.perf_counter()
-        with RerunView.open(config, name=file.stem) as view:
+        partial = rrd if rrd is not None and not rrd.exists() else None  # removed again if nothing is shown
+        with _removed_on_error(partial), RerunView.open(config, name=file.stem) as view:
             if view.address and factor is not None:
                 typer.echo(f"Rerun web viewer: {view.address}")
             if factor is None:
