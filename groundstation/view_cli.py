@@ -130,8 +130,11 @@ def replay(
         from groundstation.rerun_view import RerunView, ViewConfig
 
         factor = parse_speed(speed)
-        bounds = (rp.parse_bound(start) if start else None, rp.parse_bound(end) if end else None)
-        rp.check_order(*bounds)
+        try:
+            bounds = (rp.parse_bound(start) if start else None, rp.parse_bound(end) if end else None)
+            rp.check_order(*bounds)
+        except ViewError as e:
+            raise UsageError(str(e)) from None
         if not file.is_file():
             raise ViewError(f"no such recording: {file}")
         config = ViewConfig(viewer=default_viewer(viewer, rrd), rrd=rrd, web_port=web_port, grpc_port=grpc_port)

@@ -30,17 +30,19 @@ def test_a_one_minute_window_is_a_minute_of_agent_time(fast_recording: tuple[Pat
     done = CliRunner().invoke(app, ["replay", str(path), "--from", "60s", "--to", "2m", "--rrd", str(out)])
     assert done.exit_code == 0, done.output
     frames = int(done.stdout.split(": ")[1].split()[0])
-    assert 601 <= frames < total / 3  # the 601 samples from 60.0 to 120.0 s at 10 Hz, dumps and events beside them
+    assert 601 <= frames < total / 2  # the 601 samples from 60.0 to 120.0 s at 10 Hz, dumps and events beside them
 
 
-@pytest.mark.parametrize(("window", "why"), [(["--from", "2m", "--to", "1m"], "--from 120 s is after --to 60 s"),
-                                             (["--from", "12", "--to", "3"], "--from episode 12 is after"),
-                                             (["--from", "2h"], "holds no agent frames")])
+@pytest.mark.parametrize(("window", "why", "code"), [
+    (["--from", "2m", "--to", "1m"], "--from 120 s is after --to 60 s", 2),  # bad usage
+    (["--from", "12", "--to", "3"], "--from episode 12 is after", 2),
+    (["--from", "2h"], "holds no agent frames", 1),  # a valid window with nothing in it
+])
 def test_a_reversed_or_empty_window_is_one_line_and_no_rrd(fast_recording: tuple[Path, int], tmp_path: Path,
-                                                          window: list[str], why: str) -> None:
+                                                          window: list[str], why: str, code: int) -> None:
     out = tmp_path / "none.rrd"
     done = CliRunner().invoke(app, ["replay", str(fast_recording[0]), *window, "--rrd", str(out)])
-    assert done.exit_code == 1
+    assert done.exit_code == code
     lines = [line for line in done.stderr.splitlines() if line.strip()]
     assert len(lines) == 1 and why in lines[0], done.stderr
     assert not out.exists()
