@@ -100,10 +100,13 @@ class ParamTable:
 
 
 def cache_dir() -> Path:
-    base = os.environ.get("DIVE_CACHE_DIR") or os.path.join(
-        os.environ.get("XDG_CACHE_HOME") or os.path.expanduser("~/.cache"), "dive"
-    )
-    return Path(base)
+    """$DIVE_CACHE_DIR, else the platform's cache folder for dive (~/.cache/dive on Linux, honouring XDG)."""
+    override = os.environ.get("DIVE_CACHE_DIR")
+    if override:
+        return Path(override)
+    import platformdirs  # only sessions that cache a parameter table pay for it
+
+    return Path(platformdirs.user_cache_dir("dive"))
 
 
 def cache_path(definitions_hash: int, agent_id: int) -> Path:
