@@ -22,6 +22,7 @@ from simulator.faults import FaultConfig
 from simulator.parameters import PlantParams, preset, with_overrides
 from simulator.params_table import Scope, binding, check_value
 from simulator.server import AgentServer, ServeConfig
+from simulator.signing_mark import mark_path
 
 EXIT_BAD_ARGUMENT = 2
 
@@ -116,6 +117,9 @@ def serve(
     key_file: Annotated[
         Path | None, typer.Option(help="Signing key file (dive keygen): commands must then be signed.")
     ] = None,
+    state_dir: Annotated[
+        Path | None, typer.Option(help="Where the signing mark survives restarts (default: beside the key file).")
+    ] = None,
     report: Annotated[
         Path | None, typer.Option(help="At exit, write what the faults did and the samples produced (JSON).")
     ] = None,
@@ -133,6 +137,7 @@ def serve(
             faults=FaultConfig(drop, corrupt, delay, disconnect_every, blackout_below),
             host=host, port=port, pty=pty, speed=parse_speed(speed), seed=seed,
             key=read_key_file(key_file) if key_file is not None else None,
+            mark_file=mark_path(key_file, state_dir) if key_file is not None else None,
         )
         server = AgentServer(config)
     except (SimulatorError, LearningError) as e:
