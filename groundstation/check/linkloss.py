@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from groundstation.check.agent import overridden, reach
-from groundstation.check.probe import Probe
+from groundstation.check.probe import Probe, mode_of
 from groundstation.check.registry import check, expect
 from protocol import Mode
 
@@ -12,13 +12,14 @@ TIMEOUT_S = 1.0  # link_timeout_s while the check runs
 GRACE_S = 3.0  # wall seconds past the timeout the agent may take to notice
 
 
-def _silence(probe: Probe, seconds: float) -> list[Mode]:
-    """Send nothing for `seconds` of wall time; the modes the agent showed meanwhile."""
+def _silence(probe: Probe, seconds: float, until: set[Mode] | None = None) -> list[Mode]:
+    """Send nothing for `seconds` of wall time (less once a mode in `until` shows); the modes shown meanwhile."""
     start = probe.end
     with probe.quiet():
-        probe.settle(seconds)
-    from groundstation.check.probe import mode_of
-
+        if until:
+            probe.wait(lambda f: mode_of(f) in until, start, seconds)
+        else:
+            probe.settle(seconds)
     return [x for f in probe.frames(start) if (x := mode_of(f)) is not None]
 
 
@@ -31,7 +32,7 @@ def surfaces(probe: Probe) -> str:
         early = _silence(probe, TIMEOUT_S * 0.5)
         expect(Mode.SURFACING not in early, f"the agent surfaced after {TIMEOUT_S * 0.5:g} s of silence, before "
                f"link_timeout_s = {TIMEOUT_S:g} s (agent time instead of the link's real clock?)")
-        modes = _silence(probe, TIMEOUT_S * 0.5 + GRACE_S)
+        modes = _silence(probe, TIMEOUT_S * 0.5 + GRACE_S, {Mode.SURFACING, Mode.IDLE})
         expect(Mode.SURFACING in modes or Mode.IDLE in modes,
                f"after {TIMEOUT_S + GRACE_S:g} s of silence the agent still shows {modes[-1].name if modes else '-'}")
     reach(probe, Mode.IDLE)
