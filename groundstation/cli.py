@@ -305,11 +305,14 @@ def check_command(
     = False,
 ) -> None:
     """Conformance suite: drive the agent over its link and report, per SPEC.md section, what passes and fails."""
-    from groundstation.check import CheckOptions, Timeouts, run_checks
+    from groundstation.check import CheckOptions, Timeouts, run_checks, selected
     from groundstation.check.report import print_report
 
     if timeout <= 0 or mode_timeout <= 0:
         raise typer.BadParameter("timeouts must be positive", param_hint="--timeout/--mode-timeout")
+    checks = selected(tuple(only or ()))
+    if not checks:
+        raise typer.BadParameter(f"no check matches {', '.join(only or ())}", param_hint="--only")
     url = url or default_url()
     key = resolve_key(key_file)
     if key_file is None and os.environ.get(KEY_FILE_ENV):
@@ -327,9 +330,7 @@ def check_command(
                            timeouts=Timeouts(reply_s=timeout, heartbeat_s=max(3.0, timeout), mode_s=mode_timeout))
     with Progress(SpinnerColumn(), TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
                   TimeElapsedColumn(), console=err, transient=True, disable=as_json) as bar:
-        from groundstation.check import selected
-
-        task = bar.add_task(f"checking {url}", total=len(selected(options.only)))
+        task = bar.add_task(f"checking {url}", total=len(checks))
         report = run_checks(options, lambda o: bar.update(task, advance=1, description=o.check.id))
     if as_json:
         out.print_json(json.dumps(report.as_dict()))
