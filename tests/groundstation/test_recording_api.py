@@ -92,3 +92,43 @@ def test_observation_bounds_are_the_environments() -> None:
     from groundstation import minari_export
 
     assert tuple(gym_env._OBS_LOW) == minari_export.OBS_LOW and tuple(gym_env._OBS_HIGH) == minari_export.OBS_HIGH
+
+
+def _layout_references(layout: dict) -> set[tuple[str, str]]:
+    """(topic, field path) pairs the Foxglove layout reads from a recording, its script's inputs included."""
+    import re
+
+    wanted: set[tuple[str, str]] = set()
+    outputs = set()
+    for node in layout["userNodes"].values():
+        source = node["sourceCode"]
+        outputs.add(re.search(r'output = "([^"]+)"', source).group(1))  # type: ignore[union-attr]
+        (topic,) = re.findall(r'inputs = \["([^"]+)"\]', source)
+        wanted |= {(topic, name) for name in re.findall(r"start\.(\w+)", source)}
+    for config in layout["configById"].values():
+        for value in [p["value"] for p in config.get("paths", [])] + [config.get("topicPath", "")]:
+            if not value:
+                continue
+            topic, _, field = value.partition(".")
+            if topic not in outputs:
+                wanted.add((topic, field))
+    return wanted
+
+
+def test_foxglove_layout_plots_only_what_is_recorded(two_boots: Path) -> None:
+    import json
+
+    from scripts.foxglove_layout import OUT, layout
+
+    shipped = json.loads(OUT.read_text())
+    assert shipped == layout(), "docs/foxglove layout is stale: run python scripts/foxglove_layout.py"
+    rec = open_recording(two_boots / "run3.mcap")
+    references = _layout_references(shipped)
+    assert {"/agent/SAMPLE", "/agent/EPISODE_END", "/link", "/agent/TEXT"} <= {t for t, _ in references}
+    for topic, field in sorted(references):
+        assert topic in rec.topics, f"the layout reads {topic}, which a recording does not hold"
+        if field:
+            body = next(rec.messages({topic})).json()
+            for part in field.split("."):
+                assert isinstance(body, dict) and part in body, f"{topic} has no field {field}"
+                body = body[part]
