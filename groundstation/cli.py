@@ -362,19 +362,41 @@ def log_info(file: Path, as_json: Annotated[bool, typer.Option("--json", help="m
 class ExportFormat(StrEnum):
     csv = "csv"
     npz = "npz"
+    minari = "minari"
 
 
 @log_app.command("export")
 @_one_line_errors
-def log_export(file: Path, format: Annotated[ExportFormat, typer.Option(help="csv: samples; npz: offline-RL dataset")]
+def log_export(file: Path, format: Annotated[ExportFormat, typer.Option(
+                   help="csv: samples; npz: offline-RL transitions; minari: a Minari dataset (FILE may be a folder)")]
                = ExportFormat.csv,
-               out_path: Annotated[Path | None, typer.Option("--out", help="output file")] = None) -> None:
-    """Export samples as CSV, or (s, a, r, s', terminated, truncated) transitions per episode as .npz."""
+               out_path: Annotated[Path | None, typer.Option(
+                   "--out", help="output file; for minari the datasets folder (default: Minari's own)")] = None,
+               ) -> None:
+    """Export samples as CSV, (s, a, r, s', terminated, truncated) transitions as .npz, or a Minari dataset."""
     from groundstation.export import export_csv, export_npz
 
+    if format == ExportFormat.minari:
+        _export_minari(file, out_path)
+        return
     target = out_path or _existing(file).with_suffix(f".{format.value}")
     rows = (export_csv if format == ExportFormat.csv else export_npz)(_existing(file), target)
     out.print(f"{target} ({rows} rows)")
+
+
+def _export_minari(file: Path, root: Path | None) -> None:
+    from groundstation.minari_export import dataset_id_for, export_minari
+    from groundstation.recording import open_recording
+
+    if not file.exists():
+        raise GroundStationError(f"no such recording: {file}")
+    result = export_minari(open_recording(file), dataset_id_for(file), root)
+    left = f", {result.left_out} left out (holes or no end)" if result.left_out else ""
+    out.print(f"Minari dataset {result.dataset_id} in {result.root}: {result.episodes} episodes, "
+              f"{result.steps} steps{left}", markup=False, soft_wrap=True)
+    root_hint = f"MINARI_DATASETS_PATH={result.root} " if root is not None else ""
+    out.print(f"load it: {root_hint}python -c \"import minari; minari.load_dataset('{result.dataset_id}')\"",
+              markup=False, soft_wrap=True)
 
 
 @log_app.command("recover")
