@@ -12,7 +12,9 @@ void     rng_seed(rng_t *r, uint64_t state);
 uint64_t rng_next_u64(rng_t *r);
 /* true with probability 1/2: the same draw as Python's uniform(state) < 0.5 */
 int      rng_coin(rng_t *r);
-/* uniform(state) < p, decided on the 53-bit draw as Python does (p in [0, 1]) */
-int      rng_below(rng_t *r, float p);
+/* The 53-bit draw behind Python's uniform(state) = draw / 2^53. */
+uint64_t rng_draw53(rng_t *r);
+/* p * 2^53, exact for p in [0, 1]: draw < rng_scale53(p) is exactly uniform < p. */
+uint64_t rng_scale53(float p);
 
 #endif
