@@ -1,0 +1,14 @@
+/* Instruction counts of the agent's steps for the resource benchmark (QEMU run with -icount shift=0:
+   one instruction is one nanosecond of virtual time, read on the 25 MHz timer). */
+#ifndef QEMU_BENCH_H
+#define QEMU_BENCH_H
+
+#include <stdbool.h>
+#include <stdint.h>
+
+/* Calibration: timer ticks of a loop of a known instruction count, printed on UART1. */
+void bench_calibrate(void);
+/* One agent step of mode (planning: a planning run was in progress before the step) took ticks. */
+void bench_record(uint8_t mode, bool planning, uint32_t ticks);
+
+#endif
