@@ -14,12 +14,13 @@ import typer
 
 from learning import LearnerConfig, LearningError, learner_names, learner_preset
 from protocol import SigningError
+from protocol.parameters import BY_NAME
 from protocol.signing import parse_key
 from simulator.agent_mission import MissionConfig
 from simulator.errors import ParamsError, SimulatorError
 from simulator.faults import FaultConfig
 from simulator.parameters import PlantParams, preset, with_overrides
-from simulator.params_table import PARAM_DEFS, Scope, coerce
+from simulator.params_table import Scope, binding, check_value
 from simulator.server import AgentServer, ServeConfig
 
 EXIT_BAD_ARGUMENT = 2
@@ -69,20 +70,22 @@ def apply_param_file(
     path: Path, plant: PlantParams, learner: LearnerConfig, mission: MissionConfig
 ) -> tuple[PlantParams, LearnerConfig, MissionConfig]:
     """Agent parameter names (PARAM_LIST names) set those; any other key must be a PlantParams field."""
-    by_name = {d.name: d for d in PARAM_DEFS}
     changes: dict[Scope, dict[str, Any]] = {scope: {} for scope in Scope}
     plant_rest: dict[str, Any] = {}
     for key, value in _read_table(path).items():
-        definition = by_name.get(key)
+        definition = BY_NAME.get(key)
         if definition is None:
             plant_rest[key] = value
             continue
         if not isinstance(value, int | float):
             raise ParamsError(f"parameter {key!r} must be a number or true/false")
-        stored = coerce(definition, float(value))
-        kind = type(getattr({Scope.LEARNER: learner, Scope.PLANT: plant, Scope.MISSION: mission}[definition.scope],
-                            definition.field))
-        changes[definition.scope][definition.field] = kind(stored)
+        stored = check_value(definition, float(value))
+        where = binding(definition)
+        if where.inverted:
+            stored = 1.0 - stored
+        kind = type(getattr({Scope.LEARNER: learner, Scope.PLANT: plant, Scope.MISSION: mission}[where.scope],
+                            where.field))
+        changes[where.scope][where.field] = kind(stored)
     plant = with_overrides(replace(plant, **changes[Scope.PLANT]), plant_rest)
     try:
         learner = replace(learner, **changes[Scope.LEARNER])

@@ -9,7 +9,7 @@ import time
 import pytest
 
 from protocol import AckResult, DumpKind, FrameFlag, Mode, definitions_hash, messages
-from simulator.params_table import PARAM_DEFS
+from protocol.parameters import PARAMS as PARAM_DEFS
 from tests.simulator.agent_client import ROOT, AgentClient, connected
 
 FAST = ("--speed", "max", "--seed", "5")
@@ -42,10 +42,11 @@ def test_every_command_is_answered_with_ack_or_the_right_nack() -> None:
         assert c.command(messages.ParamListRequest()).result == AckResult.ACCEPTED
         listed = [c.wait_message(messages.ParamValue, index=i) for i in range(len(PARAM_DEFS))]
         assert [p.name for p in listed] == [d.name for d in PARAM_DEFS]
-        assert all(len(p.name.encode()) <= 16 and p.minimum <= p.value <= p.maximum for p in listed)
+        assert all(len(p.name.encode()) <= 24 and p.minimum <= p.value <= p.maximum for p in listed)
         assert _param(c, "gamma").value == pytest.approx(0.99)
-        assert c.command(messages.ParamSet(index=-1, name="max_episodes", value=7.9)).result == AckResult.ACCEPTED
-        assert c.wait_message(messages.ParamValue, name="max_episodes").value == 7  # rounded toward zero
+        assert c.command(messages.ParamSet(index=-1, name="max_episodes", value=7.9)).result == AckResult.BAD_VALUE
+        assert c.command(messages.ParamSet(index=-1, name="max_episodes", value=7)).result == AckResult.ACCEPTED
+        assert c.wait_message(messages.ParamValue, name="max_episodes").value == 7
         assert c.command(messages.ParamSet(index=-1, name="gamma", value=1.5)).result == AckResult.BAD_VALUE
         assert c.command(messages.ParamSet(index=-1, name="nonsense", value=1)).result == AckResult.BAD_VALUE
         assert c.command(messages.ParamGet(index=999)).result == AckResult.BAD_VALUE
@@ -54,7 +55,7 @@ def test_every_command_is_answered_with_ack_or_the_right_nack() -> None:
         assert _param(c, "target_depth_m").value == pytest.approx(0.5)
         # Modes: what IDLE refuses, hover, start, and what learning refuses.
         assert c.command(messages.Pause()).result == AckResult.NOT_ALLOWED_IN_MODE
-        assert c.command(messages.Stop()).result == AckResult.NOT_ALLOWED_IN_MODE
+        assert c.command(messages.Stop()).result == AckResult.ACCEPTED  # SPEC 1.1: stays IDLE
         assert c.command(messages.ResetModel()).result == AckResult.ACCEPTED
         assert c.command(messages.Hover(depth_m=7.0)).result == AckResult.BAD_VALUE
         assert c.command(messages.Hover(depth_m=0.3)).result == AckResult.ACCEPTED
