@@ -8,6 +8,10 @@
 #define MODES 8u
 #define CAL_LOOPS 1000000u       /* 2 instructions per loop (subs, bne) */
 #define DECIMAL_DIGITS 21u
+#define STACK_PAINT_BYTES 16384u  /* painted below the stack top at boot; the untouched rest shows the peak */
+#define STACK_PAINT_WORD 0xA5C3A5C3u
+
+extern uint32_t _stack_top;
 
 typedef struct {
     uint32_t count;
@@ -37,6 +41,27 @@ static void put_field(const char *name, uint64_t v)
     uart1_write_text(name);
     uart1_write_text("=");
     put_u64(v);
+}
+
+void bench_paint_stack(void)
+{
+    /* Paint from the bottom of the window up to a little below the current stack pointer. */
+    uint32_t *bottom = &_stack_top - STACK_PAINT_BYTES / sizeof(uint32_t);
+    uintptr_t sp;
+    __asm volatile("mov %0, sp" : "=r"(sp));
+    for (volatile uint32_t *w = bottom; (uintptr_t)w < sp - 64u; w++) {
+        *w = STACK_PAINT_WORD;
+    }
+}
+
+static uint32_t stack_peak_bytes(void)
+{
+    const uint32_t *bottom = &_stack_top - STACK_PAINT_BYTES / sizeof(uint32_t);
+    const volatile uint32_t *w = bottom;
+    while (w < &_stack_top && *w == STACK_PAINT_WORD) {
+        w++;
+    }
+    return (uint32_t)((uintptr_t)&_stack_top - (uintptr_t)w);
 }
 
 void bench_calibrate(void)
@@ -74,6 +99,8 @@ static void print_stats(void)
     put_field("last", learner_last_sweeps());
     put_field("max", max_sweeps_per_episode);
     put_field("states", learner_n_states());
+    put_field("learner_bytes", learner_used_bytes());
+    put_field("stack_peak_bytes", stack_peak_bytes());
     uart1_write_text("\n");
 }
 

@@ -6,6 +6,8 @@
 #include <stdbool.h>
 #include <stdint.h>
 
+/* Paint the stack window at boot, so the peak use can be read later (printed with the SWEEPS line). */
+void bench_paint_stack(void);
 /* Calibration: timer ticks of a loop of a known instruction count, printed on UART1. */
 void bench_calibrate(void);
 /* One agent step of mode (planning: a planning run was in progress before the step) took ticks. */

@@ -180,6 +180,7 @@ int main(void)
     board_init();
     const bootargs_t *args = bootargs();
     if (args->bench != 0u) {
+        bench_paint_stack();
         bench_calibrate();
     }
     agent_init(args->node_id != 0u ? args->node_id : NODE_ID_DEFAULT, NULL);

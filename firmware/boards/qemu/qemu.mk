@@ -18,7 +18,7 @@ QEMU_SRCS := $(QEMU_CORE_SRCS) $(CTL_SIM_SRCS) $(wildcard $(QEMU_BOARD_DIR)/*.c)
 QEMU_OBJS := $(patsubst %.c,$(QEMU_BUILD_DIR)/%.o,$(QEMU_SRCS))
 
 QEMU_ARCH := -mcpu=cortex-m4 -mthumb -mfloat-abi=soft
-QEMU_CFLAGS := -std=c99 $(QEMU_ARCH) -O2 -g -MMD -MP -Wall -Wextra -Werror -ffunction-sections -fdata-sections \
+QEMU_CFLAGS := -std=c99 $(QEMU_ARCH) -O2 -g -MMD -MP -Wall -Wextra -Werror -Wdouble-promotion -Wshadow -ffunction-sections -fdata-sections \
 	-Isrc -Iinclude -Igenerated -I$(QEMU_BOARD_DIR) $(QEMU_EXTRA_CFLAGS)
 QEMU_LDFLAGS := $(QEMU_ARCH) -T $(QEMU_BOARD_DIR)/mps2_an386.ld -nostartfiles --specs=nano.specs \
 	--specs=nosys.specs -Wl,--gc-sections -Wl,-Map=$(QEMU_BUILD_DIR)/agent.map
