@@ -21,7 +21,7 @@ from simulator.errors import ParamsError, SimulatorError
 from simulator.faults import FaultConfig
 from simulator.parameters import PlantParams, preset, with_overrides
 from simulator.params_table import Scope, binding, check_value
-from simulator.server import AgentServer, ServeConfig
+from simulator.server import FIRMWARES, AgentServer, ServeConfig
 
 EXIT_BAD_ARGUMENT = 2
 
@@ -45,6 +45,13 @@ def parse_speed(text: str) -> float | None:
     if not speed > 0 or speed == float("inf"):
         raise ParamsError(f"--speed wants a positive number or 'max', got {text!r}")
     return speed
+
+
+def parse_firmware(text: str) -> str:
+    """One of FIRMWARES."""
+    if text not in FIRMWARES:
+        raise ParamsError(f"--firmware wants one of {', '.join(FIRMWARES)}, got {text!r}")
+    return text
 
 
 def read_key_file(path: Path) -> bytes:
@@ -116,6 +123,9 @@ def serve(
     key_file: Annotated[
         Path | None, typer.Option(help="Signing key file (dive keygen): commands must then be signed.")
     ] = None,
+    firmware: Annotated[str, typer.Option(help=(
+        "The on-board program: python (the reference in simulator/) or c (the C firmware of firmware/, its host "
+        "build, made on demand; it starts from the real agent's parameter defaults)."))] = "python",
     report: Annotated[
         Path | None, typer.Option(help="At exit, write what the faults did and the samples produced (JSON).")
     ] = None,
@@ -132,7 +142,7 @@ def serve(
             plant=plant, learner=learner_config, mission=mission,
             faults=FaultConfig(drop, corrupt, delay, disconnect_every, blackout_below),
             host=host, port=port, pty=pty, speed=parse_speed(speed), seed=seed,
-            key=read_key_file(key_file) if key_file is not None else None,
+            key=read_key_file(key_file) if key_file is not None else None, firmware=parse_firmware(firmware),
         )
         server = AgentServer(config)
     except (SimulatorError, LearningError) as e:
