@@ -32,6 +32,7 @@ QEMU_ENV = "DIVE_QEMU"  # the qemu-system-arm to run
 MACHINE = "mps2-an386"
 BOOTARGS_ADDR = 0x20000000 + 4 * 1024 * 1024 - 256  # RAM end - 256 (mps2_an386.ld)
 BOOTARGS_MAGIC = 0x41524753
+KEY_BYTES = 32
 START_TIMEOUT_S = 20.0  # QEMU up and its port listening
 _PTY_LINE = re.compile(r"char device redirected to (\S+) \(label serial0\)")
 
@@ -50,6 +51,7 @@ class QemuConfig:
     speed: float | None = None  # times real time; None = as fast as the emulated CPU goes
     seed: int | None = None  # sensor noise and the learner's tie-break stream (default: random)
     node_id: int = 0  # 0: the board's default
+    key: bytes | None = None  # the 32-byte signing key: commands must then be signed
     bench: bool = False  # print instruction counts on UART1 (with icount)
     icount: bool = False  # -icount shift=0: virtual time counts instructions (1 ns each)
     diag_path: Path | None = None  # where UART1 (the board's diagnostics) goes; None = discarded
@@ -96,7 +98,11 @@ def _bootargs(config: QemuConfig) -> list[str]:
     seed = config.seed if config.seed is not None else int.from_bytes(os.urandom(8), "little")
     speed_milli = 0 if config.speed is None else max(1, round(config.speed * 1000))
     words = [BOOTARGS_MAGIC, config.node_id, seed & 0xFFFFFFFF, (seed >> 32) & 0xFFFFFFFF, speed_milli,
-             int(config.bench)]
+             int(config.bench), int(config.key is not None)]
+    if config.key is not None:
+        if len(config.key) != KEY_BYTES:
+            raise QemuError(f"the signing key must be {KEY_BYTES} bytes")
+        words += [int.from_bytes(config.key[i:i + 4], "little") for i in range(0, KEY_BYTES, 4)]
     args: list[str] = []
     for i, word in enumerate(words):
         args += ["-device", f"loader,addr={BOOTARGS_ADDR + 4 * i:#x},data={word:#x},data-len=4"]

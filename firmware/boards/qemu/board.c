@@ -183,7 +183,7 @@ int main(void)
         bench_paint_stack();
         bench_calibrate();
     }
-    agent_init(args->node_id != 0u ? args->node_id : NODE_ID_DEFAULT, NULL);
+    agent_init(args->node_id != 0u ? args->node_id : NODE_ID_DEFAULT, args->has_key ? args->key : NULL);
     uint64_t due_real_us = timer_real_us();
     for (;;) {
         agent_poll_link();

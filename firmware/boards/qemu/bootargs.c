@@ -15,6 +15,10 @@ const bootargs_t *bootargs(void)
             args.seed = ((uint64_t)raw->seed_hi << 32) | raw->seed_lo;
             args.speed_milli = raw->speed_milli;
             args.bench = raw->bench;
+            args.has_key = raw->has_key == 1u;
+            for (uint32_t i = 0u; i < BOOTARGS_KEY_BYTES; i++) {
+                args.key[i] = raw->key[i];
+            }
         } else {
             args.seed = 1u;
         }
