@@ -19,6 +19,7 @@ from protocol.signing import parse_key
 from simulator.agent_mission import MissionConfig
 from simulator.errors import ParamsError, SimulatorError
 from simulator.faults import FaultConfig
+from simulator.firmware_qemu import QemuConfig, serve_qemu
 from simulator.parameters import PlantParams, preset, with_overrides
 from simulator.params_table import Scope, binding, check_value
 from simulator.server import FIRMWARES, AgentServer, ServeConfig
@@ -101,6 +102,25 @@ def apply_param_file(
     return plant, learner, replace(mission, **changes[Scope.MISSION])
 
 
+def serve_on_qemu(tcp: str, pty: bool, speed: str, seed: int | None, key_file: Path | None,
+                  refused: list[str]) -> None:
+    """`serve --firmware qemu`: the whole firmware on QEMU, its own C plant; QEMU serves the link."""
+    try:
+        if refused:
+            raise ParamsError(f"--firmware qemu runs its own C plant: {', '.join(refused)} do not apply")
+        host, port = parse_tcp(tcp)
+        config = QemuConfig(host=host, port=port, pty=pty, speed=parse_speed(speed), seed=seed,
+                            key=read_key_file(key_file) if key_file is not None else None)
+    except SimulatorError as e:
+        typer.echo(f"error: {e}", err=True)
+        raise typer.Exit(EXIT_BAD_ARGUMENT) from None
+    try:
+        serve_qemu(config)
+    except SimulatorError as e:
+        typer.echo(f"error: {e}", err=True)
+        raise typer.Exit(1) from None
+
+
 def serve(
     tcp: Annotated[str, typer.Option(help="HOST:PORT to listen on (port 0 = a free one).")] = "127.0.0.1:2323",
     pty: Annotated[bool, typer.Option("--pty", help="Serve on a new pseudo-terminal instead of TCP.")] = False,
@@ -125,12 +145,20 @@ def serve(
     ] = None,
     firmware: Annotated[str, typer.Option(help=(
         "The on-board program: python (the reference in simulator/) or c (the C firmware of firmware/, its host "
-        "build, made on demand; it starts from the real agent's parameter defaults)."))] = "python",
+        "build, made on demand; it starts from the real agent's parameter defaults) or qemu (the whole firmware "
+        "with a C port of the hardware plant on an emulated Cortex-M4; only --tcp, --pty, --speed, --seed and "
+        "--key-file apply)."))] = "python",
     report: Annotated[
         Path | None, typer.Option(help="At exit, write what the faults did and the samples produced (JSON).")
     ] = None,
 ) -> None:
     """Serve a virtual diving agent over TCP or a pseudo-terminal; prints what to connect to first."""
+    if firmware == "qemu":
+        refused = {"--preset": preset_name != "paper", "--learner": learner != "paper", "--params": params is not None,
+                   "--report": report is not None, "fault options": bool(drop or corrupt or delay or disconnect_every)
+                   or blackout_below is not None}
+        serve_on_qemu(tcp, pty, speed, seed, key_file, [name for name, given in refused.items() if given])
+        return
     try:
         host, port = parse_tcp(tcp)
         plant = preset(preset_name)

@@ -21,7 +21,8 @@ SLICE_S = 0.004  # longest the program runs before the sockets are served again
 MAX_WAIT_S = 0.02  # longest select() waits, so pty opens and delayed bytes are noticed
 HIGH_WATER_BYTES = 256 * 1024  # --speed max waits for the client above this; real time drops frames
 STEPS_PER_CLOCK_READ = 8
-FIRMWARES = ("python", "c")  # --firmware: the Python reference, the C firmware's host build
+# --firmware: the Python reference, the C firmware's host build, the C firmware on an emulated Cortex-M4
+FIRMWARES = ("python", "c", "qemu")
 
 
 @dataclass(frozen=True)

@@ -1,13 +1,15 @@
 /* The model-based learner of paper Section III over the sparse slot model, in one static arena.
 
-   The arena holds, for S states and P = 2 S (state, action) pairs:
+   The arena holds, for S states and P = 2 S (state, action) pairs, in this order (each array starts
+   aligned for its type without padding, so the sizes add up exactly):
      float    reward_sum[P]          reward sum per pair
      float    values[S]              v, terminal last (always 0)
      float    new_values[S]          Jacobi sweep buffer (absent with in-place sweeps)
      uint16_t succ_cnt[P][slots]     transition counts per successor slot
      uint8_t  succ_idx[P][slots]     successor state per slot (uint16_t past 256 states)
      uint8_t  policy[S]
-   The first, fourth and fifth make the model whose size learning's model_memory_bytes states. */
+   reward_sum, succ_cnt and succ_idx are the model (learning's model_memory_bytes); with values and
+   policy they make learning's learner_memory_bytes; the sweep buffer comes on top. */
 #include "learner.h"
 
 #include <math.h>
@@ -38,6 +40,7 @@ static struct {
     bool planning;
     uint32_t sweeps;            /* of the planning run in progress */
     uint32_t last_sweeps;
+    uint32_t used_bytes;        /* end of the carved arrays */
 } L;
 
 /* ------------------------------------------------------------------ configuration and memory */
@@ -68,25 +71,26 @@ static uint32_t states_of(const learner_config_t *c)
     return (uint32_t)c->z_cells * c->zdot_cells * c->act_bins + 1u;
 }
 
-static uint32_t round4(uint32_t n)
-{
-    return (n + 3u) & ~3u;
-}
-
-uint32_t learner_memory_bytes(const learner_config_t *c)
+static uint32_t model_bytes(const learner_config_t *c)
 {
     uint32_t pairs = states_of(c) * LEARNER_ACTIONS;
     uint32_t index_bytes = states_of(c) <= STATE_INDEX_U8_LIMIT ? 1u : 2u;
     return pairs * c->slots * (index_bytes + (uint32_t)sizeof(uint16_t)) + pairs * (uint32_t)sizeof(float);
 }
 
+uint32_t learner_memory_bytes(const learner_config_t *c)
+{
+    return model_bytes(c) + states_of(c) * ((uint32_t)sizeof(float) + (uint32_t)sizeof(uint8_t));
+}
+
 uint32_t learner_total_bytes(const learner_config_t *c)
 {
-    uint32_t s = states_of(c);
-    uint32_t sweep_buffer = c->in_place_sweeps ? 0u : s * (uint32_t)sizeof(float);
-    /* Each array starts 4-aligned; the model's own arrays are already multiples of 4 but its index
-       array may not be, so the policy after it is padded. */
-    return round4(learner_memory_bytes(c)) + s * (uint32_t)sizeof(float) + sweep_buffer + round4(s);
+    return learner_memory_bytes(c) + (c->in_place_sweeps ? 0u : states_of(c) * (uint32_t)sizeof(float));
+}
+
+uint32_t learner_used_bytes(void)
+{
+    return L.used_bytes;
 }
 
 uint32_t learner_arena_bytes(void)
@@ -143,7 +147,9 @@ static void carve_arena(void)
         L.succ_idx8 = base + off;
         off += cells;
     }
-    L.policy = base + round4(off);
+    L.policy = base + off;
+    off += s;
+    L.used_bytes = off;
 }
 
 bool learner_configure(const learner_config_t *c)

@@ -48,11 +48,15 @@ typedef struct {
 /* The defaults of learning/config.py LearnerConfig (the paper's simulation values). */
 void learner_default_config(learner_config_t *c);
 
-/* Bytes of the count model as the Teensy holds it: successor indices (uint8 up to 256 states, else
-   uint16), uint16 counts, float reward sums. Equals learning's model_memory_bytes. */
+/* Bytes of the learner as the Teensy holds it: the count model (successor indices, uint8 up to 256
+   states, else uint16; uint16 counts; float reward sums), float values and uint8 policy. Equals
+   learning's learner_memory_bytes. */
 uint32_t learner_memory_bytes(const learner_config_t *c);
-/* Everything the learner keeps for c: the model plus values, sweep buffer and policy (<= the arena). */
+/* learner_memory_bytes plus the Jacobi sweep buffer (float per state, none with in-place sweeps):
+   everything the learner keeps for c; it must fit the arena. */
 uint32_t learner_total_bytes(const learner_config_t *c);
+/* Bytes the configured learner's arrays occupy in the arena (== learner_total_bytes of its config). */
+uint32_t learner_used_bytes(void);
 uint32_t learner_arena_bytes(void);
 
 /* Takes c (copied) and resets; false, with nothing changed, if invalid or larger than the arena. */

@@ -84,6 +84,7 @@ _SIGNATURES: dict[str, tuple[object, list[object]]] = {
     "learner_memory_bytes": (ctypes.c_uint32, [ctypes.POINTER(LearnerConfigC)]),
     "learner_total_bytes": (ctypes.c_uint32, [ctypes.POINTER(LearnerConfigC)]),
     "learner_arena_bytes": (ctypes.c_uint32, []),
+    "learner_used_bytes": (ctypes.c_uint32, []),
     "learner_configure": (ctypes.c_bool, [ctypes.POINTER(LearnerConfigC)]),
     "learner_seed": (None, [ctypes.c_uint64]),
     "learner_reset": (None, []),

@@ -15,7 +15,7 @@ from dataclasses import dataclass, fields, replace
 import numpy as np
 import pytest
 
-from learning import Learner, LearnerConfig, model_memory_bytes, n_states
+from learning import Learner, LearnerConfig, learner_memory_bytes, n_states
 from learning.presets import learner_preset
 from learning.rng import new_stream
 from simulator.env import DivingEnv
@@ -68,12 +68,15 @@ def test_default_config_is_the_python_default(ctl: ctypes.CDLL) -> None:
 ], ids=["paper", "actuator3", "wide", "slots4"])
 def test_memory_bytes_equal_python_figure(ctl: ctypes.CDLL, config: LearnerConfig) -> None:
     c = c_config(ctl, config)
-    assert ctl.learner_memory_bytes(ctypes.byref(c)) == model_memory_bytes(config)
+    assert ctl.learner_memory_bytes(ctypes.byref(c)) == learner_memory_bytes(config)
+    # On top: the Jacobi sweep buffer, one float per state (Python's figure leaves it out).
     total = ctl.learner_total_bytes(ctypes.byref(c))
+    assert total == learner_memory_bytes(config) + 4 * n_states(config)
     fits = total <= ctl.learner_arena_bytes()
     assert ctl.learner_configure(ctypes.byref(c)) == fits
     if fits:
         assert ctl.learner_n_states() == n_states(config)
+        assert ctl.learner_used_bytes() == total  # the arrays as carved take exactly that
 
 
 def test_oversized_model_refused(ctl: ctypes.CDLL) -> None:
