@@ -39,6 +39,7 @@ HOST_RX_BYTES = 4096
 HOST_TX_BYTES = 262144
 HOST_NV_BYTES = 64
 HOST_LOG_MAX_BYTES = 512 * 1024
+HOST_COUNTERS = 5
 _SOURCE_DIRS = ("src", "include", "generated", "boards/host")
 
 
@@ -212,6 +213,7 @@ class FirmwareAgent:
         """Nothing to do: the firmware notices a new link at the next link_up (as a serial agent never knows)."""
 
     def counters(self) -> dict[str, int]:
-        values = (ctypes.c_uint32 * 4)()
+        values = (ctypes.c_uint32 * HOST_COUNTERS)()
         self._lib.host_counters(values)
-        return {"next_sample": values[0], "signing_rejects": values[1], "rx_lost": values[2], "rx_rejects": values[3]}
+        names = ("next_sample", "signing_rejects", "rx_lost", "rx_rejects", "rx_frames")
+        return dict(zip(names, (int(v) for v in values), strict=True))
