@@ -137,7 +137,7 @@ class FirmwareAgent:
     """The C on-board program against the Python plant and sensor, one library per process (static state)."""
 
     def __init__(self, plant: PlantParams, learner: LearnerConfig, mission: MissionConfig, rng: np.random.Generator,
-                 write: Write, node_id: int, key: bytes | None, seed: int) -> None:
+                 write: Write, node_id: int, key: bytes | None, seed: int, nv: bytes = b"") -> None:
         # The firmware has its own parameter defaults (protocol/parameters.py); learner and mission presets of the
         # Python agent do not apply to it (a ground station sets parameters with PARAM_SET, as on the real agent).
         del learner, mission
@@ -147,6 +147,11 @@ class FirmwareAgent:
         self._io = self._lib.host_io().contents
         self._io.log_capacity_bytes = HOST_LOG_MAX_BYTES
         self._io.entropy_state = (seed & 0xFFFFFFFF) or 1
+        # The non-volatile area (the signing mark) as a fresh board has it, or as given; the library is one per
+        # process, so an earlier agent's area must not leak into this one.
+        nv = nv[:HOST_NV_BYTES]
+        ctypes.memmove(ctypes.addressof(self._io.nv), nv, len(nv))
+        self._io.nv_len = len(nv)
         self._wall0 = time.monotonic()
         self._fill_inputs()
         self._lib.host_init(node_id & 0xFFFFFFFF, key)
