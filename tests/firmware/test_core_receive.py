@@ -12,11 +12,9 @@ from typing import Any
 import numpy as np
 import pytest
 
-from learning import LearnerConfig
 from protocol import AckResult, FrameFlag, Mode, StreamDecoder, messages
 from protocol.cobs import cobs_encode
 from protocol.frame import build_inner
-from simulator.agent_mission import MissionConfig
 from simulator.parameters import preset
 from tests.firmware.core_build import ROOT, require_cc
 
@@ -31,8 +29,8 @@ class Agent:
 
         self.decoder = StreamDecoder()
         self.frames: list[Any] = []
-        self.agent = FirmwareAgent(preset("hardware"), LearnerConfig(), MissionConfig(), np.random.default_rng(1),
-                                   self._write, node_id=7, key=None, seed=1)
+        self.agent = FirmwareAgent(preset("hardware"), np.random.default_rng(1), self._write, node_id=7, key=None,
+                                   seed=1)
         self.seq = 1
 
     def _write(self, wire: bytes) -> None:

@@ -11,10 +11,8 @@ from typing import Any
 import numpy as np
 import pytest
 
-from learning import LearnerConfig
 from protocol import AckResult, FrameEncoder, FrameFlag, StreamDecoder, messages
 from protocol.signing import Signer
-from simulator.agent_mission import MissionConfig
 from simulator.parameters import preset
 from tests.firmware.core_build import require_cc
 
@@ -38,8 +36,8 @@ class KeyedAgent:
 
         self.decoder = StreamDecoder()
         self.frames: list[Any] = []
-        self.agent = FirmwareAgent(preset("hardware"), LearnerConfig(), MissionConfig(), np.random.default_rng(2),
-                                   self.frames_in, node_id=9, key=KEY, seed=2)
+        self.agent = FirmwareAgent(preset("hardware"), np.random.default_rng(2), self.frames_in, node_id=9, key=KEY,
+                                   seed=2)
 
     def frames_in(self, wire: bytes) -> None:
         self.frames += self.decoder.feed(wire)
