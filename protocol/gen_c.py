@@ -121,7 +121,7 @@ def _message_source(d: MessageDef) -> list[str]:
         lines.append(f"    return {d.fixed_size}u;")
     lines += ["}", "", f"void msg_{name}_unpack({type_name} *m, const uint8_t *payload, size_t n) {{",
               f"    uint8_t buf[{d.fixed_size}];",
-              f"    const uint8_t *p = wire_zero_extend(buf, sizeof buf, payload, n);"]
+              "    const uint8_t *p = wire_zero_extend(buf, sizeof buf, payload, n);"]
     lines += [_get(f.wire, f.name, f.offset) for f in fixed]
     if d.has_tail:
         tail = d.fields[-1].name
@@ -211,6 +211,42 @@ def messages_source() -> str:
     return "\n".join(lines)
 
 
+# ---------------------------------------------------------------- field descriptors (test builds only)
+
+_TYPE_CODES = {"u8": 1, "u16": 2, "u32": 3, "u64": 4, "i8": 5, "i16": 6, "i32": 7, "i64": 8, "f32": 9, "f64": 10,
+               "char[24]": 11, "bytes[]": 12, "text[]": 13}
+
+
+def fields_source() -> str:
+    """proto_fields.c: every field's name, offset and type, and a repack through the generated functions.
+
+    Only the host tests link it (tests/firmware/codec_harness.c): the firmware itself needs no names.
+    """
+    lines = [
+        BANNER, "#include <stddef.h>", "#include <stdint.h>", "", '#include "proto_messages.h"', "",
+        "/* type: 1 u8 2 u16 3 u32 4 u64 5 i8 6 i16 7 i32 8 i64 9 f32 10 f64 11 char[24] 12 bytes[] 13 text[] */",
+        "typedef struct { uint8_t msg_id; uint8_t offset; uint8_t type; const char *name; } proto_field_t;",
+        "const proto_field_t proto_fields[] = {",
+    ]
+    count = 0
+    for d in definitions():
+        for f in d.fields:
+            lines.append(f'    {{0x{d.msg_id:02X}u, {f.offset}u, {_TYPE_CODES[f.wire.spec_name]}u, "{f.name}"}},')
+            count += 1
+    lines += ["};", f"const size_t proto_field_count = {count}u;", "",
+              "/* Unpacks a payload with the generated function of its message and packs it again. */",
+              "size_t proto_repack(uint8_t msg_id, const uint8_t *payload, size_t n, uint8_t *out) {",
+              "    switch (msg_id) {"]
+    for d in definitions():
+        if not d.fields:
+            continue
+        name = _snake(d.name)
+        lines += [f"    case MSG_{d.name}_ID: {{", f"        msg_{name}_t m;",
+                  f"        msg_{name}_unpack(&m, payload, n);", f"        return msg_{name}_pack(&m, out);", "    }"]
+    lines += ["    default: return 0u;", "    }", "}", ""]
+    return "\n".join(lines)
+
+
 # ---------------------------------------------------------------- parameters (protocol/parameters.py)
 
 
@@ -233,6 +269,7 @@ def _f32(value: float) -> str:
 def generated_files() -> dict[str, str]:
     """File name -> text of everything this module writes."""
     files = {"proto_messages.h": messages_header(), "proto_messages.c": messages_source()}
+    files["test/proto_fields.c"] = fields_source()
     params = _parameters_module()
     if params is not None:
         from protocol import gen_c_params  # the parameter half lives beside this module
@@ -246,6 +283,7 @@ def write(directory: Path) -> list[Path]:
     written = []
     for name, text in generated_files().items():
         path = directory / name
+        path.parent.mkdir(parents=True, exist_ok=True)
         if not path.exists() or path.read_text() != text:
             path.write_text(text)
         written.append(path)

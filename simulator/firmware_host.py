@@ -23,8 +23,6 @@ from pathlib import Path
 
 import numpy as np
 
-from learning import LearnerConfig
-from simulator.agent_mission import MissionConfig
 from simulator.errors import SimulatorError
 from simulator.onboard_agent import Write
 from simulator.onboard_hw import SimulatedHardware
@@ -39,6 +37,7 @@ HOST_RX_BYTES = 4096
 HOST_TX_BYTES = 262144
 HOST_NV_BYTES = 64
 HOST_LOG_MAX_BYTES = 512 * 1024
+HOST_COUNTERS = 5
 _SOURCE_DIRS = ("src", "include", "generated", "boards/host")
 
 
@@ -132,23 +131,56 @@ def load_library(path: Path | None = None) -> ctypes.CDLL:
     return lib
 
 
+def _read_nv(path: Path) -> bytes:
+    try:
+        return path.read_bytes()[:HOST_NV_BYTES]
+    except FileNotFoundError:
+        return b""
+    except OSError as e:
+        raise FirmwareBuildError(f"cannot read the agent's state file {path}: {e.strerror or e}") from e
+
+
+def _write_nv(path: Path, data: bytes) -> None:
+    """As an EEPROM write: the file is replaced whole, never left half written."""
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        scratch = path.with_name(path.name + ".tmp")
+        scratch.write_bytes(data)
+        os.replace(scratch, path)
+    except OSError as e:
+        raise FirmwareBuildError(f"cannot write the agent's state file {path}: {e.strerror or e}") from e
+
+
 class FirmwareAgent:
     """The C on-board program against the Python plant and sensor, one library per process (static state)."""
 
-    def __init__(self, plant: PlantParams, learner: LearnerConfig, mission: MissionConfig, rng: np.random.Generator,
-                 write: Write, node_id: int, key: bytes | None, seed: int) -> None:
-        # The firmware has its own parameter defaults (protocol/parameters.py); learner and mission presets of the
-        # Python agent do not apply to it (a ground station sets parameters with PARAM_SET, as on the real agent).
-        del learner, mission
+    def __init__(self, plant: PlantParams, rng: np.random.Generator, write: Write, node_id: int, key: bytes | None,
+                 seed: int, wall_link_clock: bool = True, nv_file: Path | None = None, nv: bytes = b"") -> None:
+        """The firmware has its own parameter defaults (protocol/parameters.py): learner and mission presets of
+        the Python agent do not apply to it (a ground station sets parameters with PARAM_SET, as on the real agent).
+
+        wall_link_clock: the link's clock is wall time (an agent faster than real time), else agent time.
+        nv_file: where the non-volatile area (the signing mark) survives a restart; `nv` is its content otherwise.
+        """
         self._write = write
+        self._wall_link_clock = wall_link_clock
+        self._nv_file = nv_file
+        if nv_file is not None:
+            nv = _read_nv(nv_file)
         self.hw = SimulatedHardware(plant, rng)
         self._lib = load_library()
         self._io = self._lib.host_io().contents
         self._io.log_capacity_bytes = HOST_LOG_MAX_BYTES
         self._io.entropy_state = (seed & 0xFFFFFFFF) or 1
+        # The non-volatile area (the signing mark) as a fresh board has it, or as given; the library is one per
+        # process, so an earlier agent's area must not leak into this one.
+        nv = nv[:HOST_NV_BYTES]
+        ctypes.memmove(ctypes.addressof(self._io.nv), nv, len(nv))
+        self._io.nv_len = len(nv)
         self._wall0 = time.monotonic()
         self._fill_inputs()
         self._lib.host_init(node_id & 0xFFFFFFFF, key)
+        self._nv_writes = self._io.nv_writes
         self._drain()
 
     @property
@@ -163,11 +195,14 @@ class FirmwareAgent:
     def true_depth_m(self) -> float:
         return self.hw.true_depth_m
 
+    def _link_time_us(self) -> int:
+        # Link silence, HELLO repeats and signature ages run on the link's real clock (SPEC s. 4, time base).
+        return int((time.monotonic() - self._wall0) * 1e6) if self._wall_link_clock else self.hw.t_us
+
     def _fill_inputs(self) -> None:
         io, hw = self._io, self.hw
         io.time_us = hw.t_us
-        # Link silence, HELLO repeats and signature ages run on the link's real clock: wall time (decisions O10).
-        io.link_time_us = int((time.monotonic() - self._wall0) * 1e6)
+        io.link_time_us = self._link_time_us()
         io.pressure_pa = hw.read_pressure_pa()
         io.stepper_deg = hw.actuator_deg
         io.battery_v = hw.battery_v
@@ -183,6 +218,9 @@ class FirmwareAgent:
                 end = data.index(0, start) + 1
                 self._write(data[start:end])
                 start = end
+        if self._nv_file is not None and io.nv_writes != self._nv_writes:
+            self._nv_writes = io.nv_writes
+            _write_nv(self._nv_file, ctypes.string_at(ctypes.addressof(io.nv), io.nv_len))
 
     def step(self) -> None:
         self._fill_inputs()
@@ -200,9 +238,14 @@ class FirmwareAgent:
             view = view[HOST_RX_BYTES:]
             ctypes.memmove(ctypes.addressof(io.rx), bytes(chunk), len(chunk))
             io.rx_pos, io.rx_len = 0, len(chunk)
-            io.link_time_us = int((time.monotonic() - self._wall0) * 1e6)
+            io.link_time_us = self._link_time_us()
             self._lib.host_poll()
             self._drain()
+
+    def service(self) -> None:
+        self._io.link_time_us = self._link_time_us()
+        self._lib.host_poll()  # pending replies, the HELLO repeat until the ground is heard
+        self._drain()
 
     def link_up(self) -> None:
         self._lib.host_link_up()
@@ -212,6 +255,7 @@ class FirmwareAgent:
         """Nothing to do: the firmware notices a new link at the next link_up (as a serial agent never knows)."""
 
     def counters(self) -> dict[str, int]:
-        values = (ctypes.c_uint32 * 4)()
+        values = (ctypes.c_uint32 * HOST_COUNTERS)()
         self._lib.host_counters(values)
-        return {"next_sample": values[0], "signing_rejects": values[1], "rx_lost": values[2], "rx_rejects": values[3]}
+        names = ("next_sample", "signing_rejects", "rx_lost", "rx_rejects", "rx_frames")
+        return dict(zip(names, (int(v) for v in values), strict=True))

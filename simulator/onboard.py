@@ -64,6 +64,10 @@ class Downlink(Protocol):
 
     def episode_dumps(self) -> None: ...
 
+    def link_silence_s(self) -> float: ...
+
+    def model_changed(self) -> None: ...
+
 
 def _not_allowed(mode: Mode) -> Verdict:
     return AckResult.NOT_ALLOWED_IN_MODE, f"not allowed in {mode.name}"
@@ -101,7 +105,6 @@ class OnboardProgram:
         self.depth_m = 0.0
         self.velocity_mps = 0.0
         self.pressure_pa = hw.read_pressure_pa()
-        self.last_ground_rx_us = 0  # the link layer stamps every valid frame from the ground
         self.successes = 0
         self.episodes_left = 0  # 0 = no limit
         self._dive_start_us = 0
@@ -205,7 +208,7 @@ class OnboardProgram:
         elif mission.max_dive_s and hw.t_us - self._dive_start_us >= mission.max_dive_s * 1e6:
             why = "maximum dive time"
         elif (mission.surface_on_link_loss and mission.link_timeout_s
-              and hw.t_us - self.last_ground_rx_us >= mission.link_timeout_s * 1e6):
+              and self.down.link_silence_s() >= mission.link_timeout_s):
             why = "link lost"
         if why:
             self.surface(why)
@@ -246,6 +249,7 @@ class OnboardProgram:
             reward = float(self._reward(self.depth_m, self.params.target_depth_m, state, self._lspec))
             self._return += reward
             self.learner.observe(self._prev_state, self._prev_action, reward, state)
+            self.down.model_changed()
         limit = round(self.params.episode_limit_s / self.params.control_period_s)
         if state == self._terminal or self._steps >= limit:
             self._sample(Action.NONE, reward, state)
@@ -319,6 +323,7 @@ class OnboardProgram:
         if self.mode == Mode.LEARNING:
             return _not_allowed(self.mode)
         self.learner.reset()
+        self.down.model_changed()
         self.successes = 0
         self._reset_episode()
         self.text("model reset")
@@ -348,6 +353,7 @@ class OnboardProgram:
             self.learner = Learner(new_config, self.rng)
             self._lspec = kernel_spec(new_config)
             self._terminal = n_states(new_config) - 1
+            self.down.model_changed()
             self.successes = 0
             self._reset_episode()
             self.text(f"{definition.name} changed: learner restarted")

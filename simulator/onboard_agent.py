@@ -7,6 +7,7 @@ agent itself does: its link layer, its program and the simulated hardware it run
 from __future__ import annotations
 
 from collections.abc import Callable
+from pathlib import Path
 from typing import Protocol
 
 import numpy as np
@@ -42,6 +43,9 @@ class OnboardAgent(Protocol):
     def receive(self, data: bytes) -> None:
         """Whatever the link delivered."""
 
+    def service(self) -> None:
+        """Called every loop of the server, steps or not: the HELLO repeat until the ground is heard."""
+
     def link_up(self) -> None:
         """A new connection: sequence tracking restarts, HELLO goes out."""
 
@@ -56,8 +60,9 @@ class PythonAgent:
     """The Python reference: AgentLink + OnboardProgram over SimulatedHardware."""
 
     def __init__(self, plant: PlantParams, learner: LearnerConfig, mission: MissionConfig, rng: np.random.Generator,
-                 write: Write, node_id: int, key: bytes | None) -> None:
-        self.link = AgentLink(write, node_id=node_id, key=key)
+                 write: Write, node_id: int, key: bytes | None, link_clock_s: Callable[[], float] | None = None,
+                 mark_file: Path | None = None) -> None:
+        self.link = AgentLink(write, node_id=node_id, key=key, link_clock_s=link_clock_s, mark_file=mark_file)
         self.hw = SimulatedHardware(plant, rng)
         self.program = OnboardProgram(plant, learner, mission, self.hw, rng, self.link)
         self.link.attach(self.program)
@@ -80,6 +85,9 @@ class PythonAgent:
 
     def receive(self, data: bytes) -> None:
         self.link.receive(data)
+
+    def service(self) -> None:
+        self.link.service()
 
     def link_up(self) -> None:
         self.link.on_connect()

@@ -23,6 +23,7 @@ from simulator.firmware_qemu import QemuConfig, serve_qemu
 from simulator.parameters import PlantParams, preset, with_overrides
 from simulator.params_table import Scope, binding, check_value
 from simulator.server import FIRMWARES, AgentServer, ServeConfig
+from simulator.signing_mark import mark_path
 
 EXIT_BAD_ARGUMENT = 2
 
@@ -143,6 +144,9 @@ def serve(
     key_file: Annotated[
         Path | None, typer.Option(help="Signing key file (dive keygen): commands must then be signed.")
     ] = None,
+    state_dir: Annotated[
+        Path | None, typer.Option(help="Where the signing mark survives restarts (default: beside the key file).")
+    ] = None,
     firmware: Annotated[str, typer.Option(help=(
         "The on-board program: python (the reference in simulator/) or c (the C firmware of firmware/, its host "
         "build, made on demand; it starts from the real agent's parameter defaults) or qemu (the whole firmware "
@@ -170,7 +174,9 @@ def serve(
             plant=plant, learner=learner_config, mission=mission,
             faults=FaultConfig(drop, corrupt, delay, disconnect_every, blackout_below),
             host=host, port=port, pty=pty, speed=parse_speed(speed), seed=seed,
-            key=read_key_file(key_file) if key_file is not None else None, firmware=parse_firmware(firmware),
+            key=read_key_file(key_file) if key_file is not None else None,
+            mark_file=mark_path(key_file, state_dir) if key_file is not None else None,
+            firmware=parse_firmware(firmware),
         )
         server = AgentServer(config)
     except (SimulatorError, LearningError) as e:

@@ -7,6 +7,7 @@ import selectors
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
@@ -39,6 +40,7 @@ class ServeConfig:
     speed: float | None = 1.0  # None = as fast as possible
     seed: int | None = None
     key: bytes | None = None  # signing key: commands must be signed (SPEC s. 12)
+    mark_file: Path | None = None  # where the signing mark survives a restart (SPEC s. 12)
     firmware: str = "python"  # the on-board program: python (the reference), c (firmware/ host build)
 
 
@@ -216,6 +218,7 @@ class AgentServer:
     def _io(self, timeout_s: float) -> None:
         transport = self.transport
         transport.poll()
+        self.agent.service()
         transport.flush()
         for key, mask in self.selector.select(timeout_s):
             key.data(mask)
@@ -233,9 +236,18 @@ class AgentServer:
 
 def _onboard_agent(config: ServeConfig, rng: np.random.Generator, write: Callable[[bytes], None], node_id: int,
                    seed: int) -> OnboardAgent:
-    """The on-board program the configuration names: the Python reference, or the C firmware's host build."""
+    """The on-board program the configuration names: the Python reference, or the C firmware's host build.
+
+    SPEC s. 4, time base: faster than real time, link silence, the HELLO repeat and signing ages are in wall
+    seconds, because the ground lives in wall time; otherwise in agent time, as on the real agent.
+    """
+    fast = config.speed is None or config.speed > 1.0
     if config.firmware == "c":
         from simulator.firmware_host import FirmwareAgent  # builds or loads the C library only when asked for
 
-        return FirmwareAgent(config.plant, config.learner, config.mission, rng, write, node_id, config.key, seed)
-    return PythonAgent(config.plant, config.learner, config.mission, rng, write, node_id, config.key)
+        # The firmware keeps its non-volatile area (the signing mark) in its own format, beside the Python agent's.
+        nv_file = config.mark_file.with_name(config.mark_file.name + ".fw-nv") if config.mark_file else None
+        return FirmwareAgent(config.plant, rng, write, node_id, config.key, seed, wall_link_clock=fast,
+                             nv_file=nv_file)
+    return PythonAgent(config.plant, config.learner, config.mission, rng, write, node_id, config.key,
+                       link_clock_s=time.monotonic if fast else None, mark_file=config.mark_file)

@@ -13,12 +13,12 @@
 #define PROTO_CRC_BYTES 2u
 #define PROTO_MIN_INNER 7u
 #define PROTO_MAX_INNER 254u
-#define PROTO_MAX_CHUNK 256u  /* longest COBS chunk kept, delimiter excluded */
+#define PROTO_MAX_CHUNK 255u  /* longest COBS chunk kept, delimiter excluded */
 #define PROTO_TRAILER_BYTES 13u  /* signature trailer (SPEC.md s. 12) */
-#define PROTO_INCOMPATIBLE_FLAGS_MASK 0xF0u  /* unknown bits here: drop */
+#define PROTO_INCOMPATIBLE_FLAGS_MASK 0xE0u  /* unknown bits here: drop */
 #define FRAME_FLAG_ACK_REQUESTED 0x01u
 #define FRAME_FLAG_REPLAYED 0x02u
-#define FRAME_FLAG_SIGNED 0x04u
+#define FRAME_FLAG_SIGNED 0x10u
 #define PROTO_COMMAND_IDS_FROM 0x80u  /* ids 0x80-0xFF are commands, each answered by one ACK */
 
 typedef enum {  /* NodeKind */
@@ -108,7 +108,7 @@ size_t msg_hello_pack(const msg_hello_t *m, uint8_t *out);
 /* A short payload reads as zeros, extra bytes are ignored (SPEC.md s. 1, append-only). */
 void msg_hello_unpack(msg_hello_t *m, const uint8_t *p, size_t n);
 
-/* 0x02 HEARTBEAT: About 1 Hz each way; the agent surfaces when no valid frame arrives for `link_timeout_s`. */
+/* 0x02 HEARTBEAT: Once per second of the sender's clock, each way; counters as SPEC.md section 4 defines them. */
 #define MSG_HEARTBEAT_ID 0x02u
 #define MSG_HEARTBEAT_FIXED_BYTES 35u
 #define MSG_HEARTBEAT_OFF_UPTIME_MS 0u
@@ -138,7 +138,7 @@ size_t msg_heartbeat_pack(const msg_heartbeat_t *m, uint8_t *out);
 /* A short payload reads as zeros, extra bytes are ignored (SPEC.md s. 1, append-only). */
 void msg_heartbeat_unpack(msg_heartbeat_t *m, const uint8_t *p, size_t n);
 
-/* 0x03 TIMESYNC: Clock sync round trip: request has receive_us = transmit_us = 0; the reply echoes origin_us. */
+/* 0x03 TIMESYNC: Clock sync round trip: a request has receive_us = transmit_us = 0; a reply echoes origin_us, transmit_us != 0. */
 #define MSG_TIMESYNC_ID 0x03u
 #define MSG_TIMESYNC_FIXED_BYTES 24u
 #define MSG_TIMESYNC_OFF_ORIGIN_US 0u
@@ -192,7 +192,7 @@ size_t msg_text_pack(const msg_text_t *m, uint8_t *out);
 /* A short payload reads as zeros, extra bytes are ignored (SPEC.md s. 1, append-only). */
 void msg_text_unpack(msg_text_t *m, const uint8_t *p, size_t n);
 
-/* 0x20 SAMPLE: One control step (10 Hz learning, 40 Hz recovery); also kept in the on-board log. */
+/* 0x20 SAMPLE: One control step (rates by mode: SPEC.md section 7); also kept in the on-board log. */
 #define MSG_SAMPLE_ID 0x20u
 #define MSG_SAMPLE_FIXED_BYTES 48u
 #define MSG_SAMPLE_OFF_T_US 0u
@@ -366,7 +366,7 @@ size_t msg_cmd_start_pack(const msg_cmd_start_t *m, uint8_t *out);
 /* A short payload reads as zeros, extra bytes are ignored (SPEC.md s. 1, append-only). */
 void msg_cmd_start_unpack(msg_cmd_start_t *m, const uint8_t *p, size_t n);
 
-/* 0x81 CMD_STOP: Stop learning or hovering (the episode is aborted) and return to the surface. */
+/* 0x81 CMD_STOP: Stop learning or hovering (the episode is aborted) and return to the surface; no effect in IDLE, SURFACING. */
 #define MSG_CMD_STOP_ID 0x81u
 #define MSG_CMD_STOP_FIXED_BYTES 0u
 
@@ -390,7 +390,7 @@ void msg_cmd_set_target_unpack(msg_cmd_set_target_t *m, const uint8_t *p, size_t
 #define MSG_CMD_SURFACE_ID 0x84u
 #define MSG_CMD_SURFACE_FIXED_BYTES 0u
 
-/* 0x85 CMD_HOVER: Hold a depth with the recovery controller (no learning). */
+/* 0x85 CMD_HOVER: Hold a depth in [0, 2.5] m with the recovery controller (no learning). */
 #define MSG_CMD_HOVER_ID 0x85u
 #define MSG_CMD_HOVER_FIXED_BYTES 4u
 #define MSG_CMD_HOVER_OFF_DEPTH_M 0u
@@ -420,7 +420,7 @@ size_t msg_cmd_dump_pack(const msg_cmd_dump_t *m, uint8_t *out);
 /* A short payload reads as zeros, extra bytes are ignored (SPEC.md s. 1, append-only). */
 void msg_cmd_dump_unpack(msg_cmd_dump_t *m, const uint8_t *p, size_t n);
 
-/* 0x87 CMD_RESET_MODEL: Forget the learned model, values and episode count (not allowed while LEARNING). */
+/* 0x87 CMD_RESET_MODEL: Forget model, values, policy, episode count and successes (not allowed while LEARNING). */
 #define MSG_CMD_RESET_MODEL_ID 0x87u
 #define MSG_CMD_RESET_MODEL_FIXED_BYTES 0u
 
@@ -442,7 +442,7 @@ size_t msg_param_get_pack(const msg_param_get_t *m, uint8_t *out);
 /* A short payload reads as zeros, extra bytes are ignored (SPEC.md s. 1, append-only). */
 void msg_param_get_unpack(msg_param_get_t *m, const uint8_t *p, size_t n);
 
-/* 0x8A PARAM_SET: Set one parameter; answered by ACK (or NACK BAD_VALUE / NOT_ALLOWED_IN_MODE), then PARAM_VALUE. */
+/* 0x8A PARAM_SET: Set one parameter: ACK then PARAM_VALUE, or a NACK (BAD_VALUE, NOT_ALLOWED_IN_MODE) and nothing else. */
 #define MSG_PARAM_SET_ID 0x8Au
 #define MSG_PARAM_SET_FIXED_BYTES 34u
 #define MSG_PARAM_SET_OFF_INDEX 0u

@@ -27,3 +27,8 @@ uint32_t agent_step(void) {
 }
 
 void agent_link_up(void) { link_reset(); }
+
+void agent_surface(void) {
+    verdict_t v;
+    modes_cmd_surface(true, &v);
+}

@@ -13,5 +13,7 @@ void     agent_poll_link(void);
 uint32_t agent_step(void);
 /* A new link came up (TCP connection, port opened): sequence tracking restarts and HELLO goes out. */
 void     agent_link_up(void);
+/* The board's button (or any local safety input): surface now, as CMD_SURFACE does. */
+void     agent_surface(void);
 
 #endif

@@ -131,7 +131,6 @@ void link_tick(void) {
         g_next_heartbeat_us = hal_time_us() + LINK_HEARTBEAT_US;
         send_heartbeat();
     }
-    if (!g_heard && hal_link_time_us() >= g_next_hello_us) { send_hello(); }
 }
 
 static void send_ack(const frame_t *f, uint8_t result, const char *reason) {
@@ -243,6 +242,7 @@ void link_poll(void) {
         }
     }
     (void)commands_pump(COMMANDS_REPLIES_PER_POLL);
+    if (!g_heard && hal_link_time_us() >= g_next_hello_us) { send_hello(); }  /* until the ground is heard */
 }
 
 uint64_t link_last_ground_rx_us(void) { return g_last_ground_rx_us; }

@@ -16,9 +16,9 @@
 void link_init(uint32_t node_id, const uint8_t *key_or_null);
 /* A new link (TCP connection, port opened): sequence tracking restarts, HELLO goes out. */
 void link_reset(void);
-/* Reads the bytes the board has and handles every frame in them. */
+/* Reads the bytes the board has and handles every frame in them; pending replies; the HELLO repeat. */
 void link_poll(void);
-/* After each control step: HEARTBEAT when due, HELLO repeat while unheard. */
+/* After each control step: HEARTBEAT when due. */
 void link_tick(void);
 
 /* Outbound (the mode machine and the command handlers use these). */

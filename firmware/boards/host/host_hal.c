@@ -95,10 +95,11 @@ void host_link_up(void) { agent_link_up(); }
 
 uint16_t host_next_seq(void) { return link_next_seq(); }
 
-void host_counters(uint32_t out[4]) {
+void host_counters(uint32_t out[HOST_COUNTERS]) {
     const frame_stats_t *s = link_stats();
     out[0] = modes_next_sample();
     out[1] = link_signing_rejects();
     out[2] = s->lost;
     out[3] = frame_rejects(s);
+    out[4] = s->frames;
 }

@@ -43,7 +43,8 @@ void host_poll(void);
 uint32_t host_step(void);
 void host_link_up(void);
 uint16_t host_next_seq(void);
-/* next_sample, signing_rejects, rx_lost, rx_rejects (serve --report) */
-void host_counters(uint32_t out[4]);
+#define HOST_COUNTERS 5u
+/* next_sample, signing_rejects, rx_lost, rx_rejects, rx_frames (serve --report, tests) */
+void host_counters(uint32_t out[HOST_COUNTERS]);
 
 #endif
