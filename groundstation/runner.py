@@ -11,11 +11,12 @@ from pathlib import Path
 from typing import Any
 from urllib.parse import parse_qsl, urlsplit
 
-from groundstation.errors import CommandError, GroundStationError, LinkError, ParameterError
+from groundstation.errors import CommandError, GroundStationError, LinkError, ParameterError, RecordingExistsError
 from groundstation.events import EventKind, LinkEvent, Received, Sent, SessionListener
 from groundstation.links import make_link
 from groundstation.params import cache_dir
 from groundstation.recorder import Recorder, RecorderConfig
+from groundstation.safe_output import one_line
 from groundstation.session import Session, SessionConfig
 from protocol import EndReason, Mode
 from protocol import messages as m
@@ -233,6 +234,10 @@ def run(config: RunConfig, on_progress: Callable[[RunStatus], None] | None = Non
     `listeners` get the session's traffic too (the live Rerun view is one).
     """
     stop = stop or threading.Event()
+    target = config.recorder.path
+    if target is not None and target.exists():  # before connecting: the agent is not started for nothing
+        raise RecordingExistsError(f"{one_line(target)} exists; a recording is never overwritten: give another name "
+                                   "or a directory")
     link = make_link(config.url)
     status = RunStatus()
     progress = _Progress(status)

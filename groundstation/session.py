@@ -373,6 +373,7 @@ class Session:
             with self._cond:
                 self._expected_params = msg.count
                 self.params.update(Parameter.from_message(msg))
+                self.dumps.assembler.saw_parameter(msg.name, msg.value)  # the grid bounds a dump's size
                 self._param_updates += 1
                 self._cond.notify_all()
         elif isinstance(msg, m.DumpChunk):
