@@ -5,6 +5,7 @@ from __future__ import annotations
 import functools
 import json
 import sys
+import threading
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -27,6 +28,7 @@ from groundstation.runner import RunConfig, RunStatus, add_marker, load_params_f
 from groundstation.safe_files import replaced_atomically, unused_name
 from groundstation.safe_output import SafeConsole, one_line, printable, styled
 from groundstation.session import Session, SessionConfig
+from groundstation.signals import stop_on_signals
 from groundstation.simulator_process import run_simulator_command
 from protocol import DumpKind, Mode
 from protocol import messages as m
@@ -125,7 +127,9 @@ def run_command(
     view = view_cli.open_live_view(viewer, rrd, web_port, name=url, headless_default=Viewer.NONE)
     columns = (SpinnerColumn(), TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
                TimeElapsedColumn())
-    with view_cli.closing_view(view), Progress(*columns, console=err, transient=False) as bar:
+    stop, signalled = threading.Event(), list[str]()
+    with stop_on_signals(stop, signalled), view_cli.closing_view(view), \
+            Progress(*columns, console=err, transient=False) as bar:
         task = bar.add_task(f"connecting to {url}", total=episodes or None)
         shown = 0
 
@@ -136,18 +140,20 @@ def run_command(
             shown = len(status.messages)
             bar.update(task, completed=status.episodes, description=_describe(status))
 
-        result = run(config, show, listeners=[view] if view is not None else [])
-    for path in result.paths:
-        typer.echo(printable(path))
+        result = run(config, show, stop=stop, listeners=[view] if view is not None else [])
+        for path in result.paths:  # before a served web viewer waits: the path is printed however the run ends
+            typer.echo(printable(path))
     if result.paths:
         err.print(f"next: dive log info {result.paths[-1]}\n      dive replay {result.paths[-1]}"
                   + ("" if view is not None else "\n      (dive run --viewer web shows the run live in a browser)"),
                   style="dim")
-    if result.interrupted:
-        err.print("stopped by Ctrl-C; the recording is complete", style="dim")
-    if result.still_missing:
-        err.print(f"{result.still_missing} samples could not be backfilled (no longer in the agent's log)",
-                  style="yellow")
+    if result.interrupted or signalled:
+        err.print(f"stopped by {signalled[0] if signalled else 'Ctrl-C'}; the recording is complete", style="dim")
+    if result.lost:
+        err.print(f"{result.lost} samples lost: the agent's log no longer held them", style="yellow")
+    if result.still_missing - result.lost:
+        err.print(f"{result.still_missing - result.lost} samples not backfilled though the agent's log still "
+                  "holds them (the link did not bring them in time)", style="yellow")
 
 
 def _describe(s: RunStatus) -> str:

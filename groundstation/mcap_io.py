@@ -243,7 +243,10 @@ def iter_messages(path: Path, topics: set[str] | None = None,
     seen = 0
     damaged = [0]
     for record in _summary_channels(path):  # a damaged chunk may have held a channel later chunks use
-        (schemas if isinstance(record, Schema) else channels)[record.id] = record  # type: ignore[index]
+        if isinstance(record, Schema):
+            schemas[record.id] = record
+        else:
+            channels[record.id] = record
     try:
         for record in _records(path, damaged):
             seen += 1
