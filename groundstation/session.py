@@ -57,6 +57,7 @@ class SessionConfig:
     reconnect: bool = True
     backoff_s: tuple[float, float] = (0.2, 5.0)  # first and longest wait between reconnect attempts
     backfill: bool = True
+    backfill_retry_s: tuple[float, float] = (1.0, 4.0)  # first and longest wait before a LOG_REQUEST is sent again
     fetch_params: bool = True
     node_id: int = field(default_factory=lambda: int.from_bytes(os.urandom(4), "little"))
     key: bytes | None = field(default=None, repr=False)  # signing key: every frame sent is signed (SPEC s. 12)
@@ -81,7 +82,7 @@ class Session:
         self.stats = LinkStats()
         self.clock = ClockModel()
         self.params = ParamTable()
-        self.backfill = BackfillPlanner()
+        self.backfill = BackfillPlanner(*self.config.backfill_retry_s)
         self.dumps = DumpTracker()
         self.agent_hello: m.Hello | None = None
         self.last_heartbeat: m.Heartbeat | None = None
@@ -397,6 +398,8 @@ class Session:
             self._on_ack(msg)
         elif isinstance(msg, m.Hello):
             self._on_hello(msg)
+            if self.failure is not None:
+                return  # another agent: nothing of it reaches the recording
         elif isinstance(msg, m.Heartbeat):
             self.last_heartbeat = msg
             self.backfill.saw_log_window(msg.log_first_sample, msg.log_next_sample)
