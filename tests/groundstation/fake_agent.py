@@ -44,6 +44,7 @@ class FakeAgent:
         # identity and misbehaviour, for the safety tests (tests/reliability/test_safety_*.py)
         self.name, self.node_id, self.boot_id = "fake", 0xA6E47, 1234
         self.nack_reason = ""  # the reason text of every NACK
+        self.refuse = 0  # non-zero: refuse every command (but PARAM_LIST, LOG_REQUEST) with this AckResult
         self.hello_on_accept = True  # send HELLO when a connection comes (else only in answer to the ground's)
         self.unanswered_hellos = 0  # leave this many ground HELLOs unanswered (a HELLO lost on the link)
         self.duplicate_frames = False  # send every live frame twice, byte for byte
@@ -173,6 +174,8 @@ class FakeAgent:
 
     def _execute(self, msg: Message) -> tuple[int, list[tuple[Message, int]]]:
         self.executed.append(msg.DEFINITION.name)
+        if self.refuse and not isinstance(msg, m.ParamListRequest | m.LogRequest):
+            return self.refuse, []
         names = list(self.params)
         if isinstance(msg, m.ParamListRequest):
             return 0, [(self._param(i, n), 0) for i, n in enumerate(names)]
