@@ -99,6 +99,9 @@ class Session:
         self._last_rx_s = 0.0
         self._next_tick_s = 0.0
         self._next_backfill_s = 0.0
+        self._next_backfill_view_s = 0.0
+        self._retry_backfill_now = False
+        self._backfill_view: tuple[bool, int, int] = (False, 0, 0)  # (pending, samples held, missing)
         self._restoring = False
         self._hello_problem: str | None = None
         self._hello_resend_s: float | None = None  # while our HELLO is unanswered: when to send it again
@@ -260,21 +263,27 @@ class Session:
         """Ask for every missing sample now and wait until none the agent holds is missing; returns how many are.
 
         The wait ends `timeout_s` after the last progress (a sample or episode frame filled in), or after `limit_s`
-        in all (default: 6 x timeout_s), or when the link is down with no reconnect to wait for.
+        in all (default: 6 x timeout_s), or when the link is down with no reconnect to wait for. The planner
+        belongs to the reader thread; this thread sees only what it publishes (`_backfill_view`).
         """
-        self.backfill.retry_now()
-        self._next_backfill_s = 0.0
+        self._retry_backfill_now = True
         now = time.monotonic()
         hard_deadline = now + (limit_s if limit_s is not None else 6 * timeout_s)
-        deadline, held = now + timeout_s, len(self.backfill.held)
+        deadline, held = now + timeout_s, -1
         with self._cond:
-            while self.backfill.pending() and time.monotonic() < min(deadline, hard_deadline):
+            self._cond.wait_for(lambda: not self._retry_backfill_now or self._stop.is_set(), 2.0)
+            while self._backfill_view[0] and time.monotonic() < min(deadline, hard_deadline):
                 if not self.link_up and (not self.config.reconnect or self._stop.is_set()):
                     break
                 self._cond.wait(0.1)
-                if len(self.backfill.held) != held:
-                    deadline, held = time.monotonic() + timeout_s, len(self.backfill.held)
-        return sum(b - a for a, b in self.backfill.missing())
+                if self._backfill_view[1] != held:
+                    deadline, held = time.monotonic() + timeout_s, self._backfill_view[1]
+            return self._backfill_view[2]
+
+    @property
+    def samples_held(self) -> int:
+        """Distinct SAMPLE indices received (as last published by the reader thread, at most 0.1 s old)."""
+        return self._backfill_view[1]
 
     def backfill_status(self) -> tuple[int, int]:
         """(lost, still held): missing samples the agent's log no longer holds, and those it still does."""
@@ -347,6 +356,14 @@ class Session:
             self.send(m.Timesync(origin_us=time.time_ns() // 1000, receive_us=0, transmit_us=0))
             self._emit_stats()
         self._retransmit(now_s)
+        if self._retry_backfill_now:  # the run's final backfill: every range again, now
+            self._retry_backfill_now = False
+            self.backfill.retry_now()
+            self._next_backfill_s = 0.0
+            self._publish_backfill()
+        if now_s >= self._next_backfill_view_s:
+            self._next_backfill_view_s = now_s + 0.1
+            self._publish_backfill()
         if self.link_up and now_s >= self._next_backfill_s:
             self._next_backfill_s = now_s + 0.5
             if self.config.backfill:
@@ -365,6 +382,13 @@ class Session:
             with self._send_lock:  # the same seq (re-signed if signing): the agent ACKs again without re-executing
                 pending.wire = self.encoder.retry(pending.wire)
                 self._write(pending.message, pending.seq, pending.wire, retry=True)
+
+    def _publish_backfill(self) -> None:
+        """What request_backfill() waits on, computed here on the reader thread that owns the planner."""
+        with self._cond:
+            self._backfill_view = (self.backfill.pending(), len(self.backfill.held),
+                                   sum(b - a for a, b in self.backfill.missing()))
+            self._cond.notify_all()
 
     def _rerequest_dump_chunks(self, now_s: float) -> None:
         for kind, dump_id, start, end in self.dumps.due_rerequests(now_s):

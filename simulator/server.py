@@ -66,6 +66,7 @@ class AgentServer:
         self.lost_by_connection: list[list[int]] = []
         self.connection_end_seqs: list[int] = []  # the seq after the last frame of each finished connection
         self._logged = 0
+        self._connected_wall_s = 0.0
         # SPEC s. 4, time base: faster than real time, link silence, the HELLO repeat and signing ages are in wall
         # seconds, because the ground lives in wall time; otherwise in agent time, as on the real agent.
         fast = config.speed is None or config.speed > 1.0
@@ -133,6 +134,7 @@ class AgentServer:
         self.link.on_disconnect()
 
     def _connected(self) -> None:
+        self._connected_wall_s = time.monotonic()
         self.lost_by_connection.append([self.link.next_seq])
         self.in_faults.reset()
         self.out_delay.clear()
@@ -196,7 +198,8 @@ class AgentServer:
                 program.step()
                 link.tick()
                 steps += 1
-                if hw.t_us >= self._next_disconnect_us:
+                if hw.t_us >= self._next_disconnect_us and \
+                        time.monotonic() - self._connected_wall_s >= self.config.faults.min_connection_s:
                     self._next_disconnect_us = program.t_us + self._disconnect_period_us()
                     transport.drop_client()
                 if steps % STEPS_PER_CLOCK_READ == 0:

@@ -101,7 +101,7 @@ def test_an_impossible_sample_index_opens_no_gap(fake_agent: FakeAgent, tmp_path
         time.sleep(0.3)
         s.command(m.Stop())
         assert s.request_backfill(3.0) == 0
-        assert s.backfill.held.end is not None and s.backfill.held.end < 10_000
+    assert s.backfill.held.end is not None and s.backfill.held.end < 10_000
     recorder.close()
     assert 2**31 not in events.samples
     assert any(e.kind == EventKind.ERROR and "cannot be true" in e.detail for e in events.events)
@@ -117,7 +117,7 @@ def test_backfill_keeps_asking_while_the_agent_holds_the_samples(fake_agent: Fak
         s.command(m.StartLearning(max_episodes=4))
         assert wait_for(lambda: fake_agent.episode >= 4 and not fake_agent.learning)
         missing = s.request_backfill(timeout_s=6.0, limit_s=20.0)
-        lost, held = s.backfill_status()
+    lost, held = s.backfill_status()
     assert fake_agent.log_requests > 8
     assert (missing, lost, held) == (0, 0, 0)
 
@@ -128,13 +128,13 @@ def test_a_long_gap_is_fetched_512_samples_a_request(fake_agent: FakeAgent) -> N
     fake_agent.period_s = 0.001
     with Session(make_link(fake_agent.url), QUICK) as s:
         s.command(m.StartLearning(max_episodes=3))
-        assert wait_for(lambda: len(s.backfill.held) > 10)
+        assert wait_for(lambda: s.samples_held > 10)
         fake_agent.live = False  # a blackout: the rest of the run only in the on-board log
         assert wait_for(lambda: fake_agent.sample > 1600, 30)
         fake_agent.live = True
         assert wait_for(lambda: fake_agent.episode >= 3 and not fake_agent.learning, 30)
         assert s.request_backfill(timeout_s=5.0) == 0
-        assert len(s.backfill.held) == fake_agent.sample
+    assert len(s.backfill.held) == fake_agent.sample
     assert fake_agent.sample > 1500 and fake_agent.log_requests >= 3
 
 
