@@ -25,6 +25,16 @@ ALL_FAULTS = ["--drop", "0.05", "--corrupt", "0.01", "--delay", "200", "--discon
               "--blackout-below", "0.2"]
 
 
+def _ranges(indices: list[int]) -> list[tuple[int, int]]:
+    out: list[tuple[int, int]] = []
+    for i in indices:
+        if out and out[-1][1] == i:
+            out[-1] = (out[-1][0], i + 1)
+        else:
+            out.append((i, i + 1))
+    return out
+
+
 def one_run(speed: str, episodes: int, seed: int, folder: Path) -> dict[str, object]:
     report = folder / "agent-report.json"
     out = folder / "rec"
@@ -40,6 +50,8 @@ def one_run(speed: str, episodes: int, seed: int, folder: Path) -> dict[str, obj
         return row
     rec = read(files[0])
     missing, duplicated = rec.missing_and_duplicated()
+    row["dive_says"] = [line for line in done.stderr.splitlines() if "samples" in line]
+    row["missing_ranges"] = _ranges(missing)[:8]
     agent_report = json.loads(report.read_text())
     summary = summarize(files[0])
     row.update(samples=len(set(rec.indices)), missing=len(missing), duplicated=len(duplicated),

@@ -122,6 +122,7 @@ class BackfillPlanner:
         self._max_wait_s = max_wait_s
         self._merge_below = merge_below
         self._per_round = per_round
+        self.end_limit: int | None = None  # the run's end (final backfill): nothing at or above it is wanted
 
     def reset(self) -> None:
         """The agent rebooted: sample indices start again from 0."""
@@ -130,11 +131,19 @@ class BackfillPlanner:
     def saw_log_window(self, first_sample: int, next_sample: int) -> None:
         self.log_first = first_sample
         self.known_end = max(self.known_end, next_sample)
+        if self.end_limit is not None:
+            self.known_end = min(self.known_end, self.end_limit)
+
+    def finish_at(self) -> int:
+        """The run is over: want nothing from the index the agent has reached now on; returns that index."""
+        self.end_limit = max(self.known_end, self.held.end or 0)
+        return self.end_limit
 
     def missing(self) -> list[tuple[int, int]]:
         if self.held.first is None:
             return []
-        return self.held.missing(end=max(self.known_end, self.held.end or 0))
+        end = max(self.known_end, self.held.end or 0)
+        return self.held.missing(end=end if self.end_limit is None else min(end, self.end_limit))
 
     def lost(self) -> int:
         """Missing samples the agent's log no longer holds (below its first sample): gone for good."""

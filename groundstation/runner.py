@@ -284,13 +284,13 @@ def run(config: RunConfig, on_progress: Callable[[RunStatus], None] | None = Non
                 session.command(m.Stop())
             except (CommandError, LinkError):
                 pass  # the recording is what matters now; the agent surfaces on link loss anyway
-        missing = session.request_backfill(config.backfill_wait_s)
+        missing = session.request_backfill(config.backfill_wait_s, final=True)
         backfilled = True
     except GroundStationError:
         # A run that ends on an error (CMD_START refused or unanswered, a parameter refused) still fetches what
         # the agent holds of what was lost before it closes: the recording is what matters.
         if session.agent_hello is not None and session.failure is None and not backfilled:
-            missing = session.request_backfill(config.backfill_wait_s)
+            missing = session.request_backfill(config.backfill_wait_s, final=True)
         raise
     finally:
         session.close()

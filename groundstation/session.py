@@ -101,6 +101,8 @@ class Session:
         self._next_backfill_s = 0.0
         self._next_backfill_view_s = 0.0
         self._retry_backfill_now = False
+        self._finish_requested = False
+        self._finished_at: int | None = None  # set on the reader thread: the sample index the run ended at
         self._backfill_view: tuple[bool, int, int] = (False, 0, 0)  # (pending, samples held, missing)
         self._restoring = False
         self._hello_problem: str | None = None
@@ -259,14 +261,19 @@ class Session:
                 self._cond.wait(0.05)
         raise CommandTimeout(f"CMD_DUMP {kind.name}: snapshot incomplete after {timeout_s:g} s")
 
-    def request_backfill(self, timeout_s: float = 5.0, limit_s: float | None = None) -> int:
+    def request_backfill(self, timeout_s: float = 5.0, limit_s: float | None = None, final: bool = False) -> int:
         """Ask for every missing sample now and wait until none the agent holds is missing; returns how many are.
+
+        `final`: the run is over. The recording then ends where the agent is now: live frames are no longer
+        handed to listeners and only the samples below that point are fetched (the agent goes on sampling in
+        IDLE; a tail that grows faster than a lossy link can backfill it would otherwise never be complete).
 
         The wait ends `timeout_s` after the last progress (a sample or episode frame filled in), or after `limit_s`
         in all (default: 6 x timeout_s), or when the link is down with no reconnect to wait for. The planner
         belongs to the reader thread; this thread sees only what it publishes (`_backfill_view`).
         """
         self._retry_backfill_now = True
+        self._finish_requested = self._finish_requested or final
         now = time.monotonic()
         hard_deadline = now + (limit_s if limit_s is not None else 6 * timeout_s)
         deadline, held = now + timeout_s, -1
@@ -356,6 +363,8 @@ class Session:
             self.send(m.Timesync(origin_us=time.time_ns() // 1000, receive_us=0, transmit_us=0))
             self._emit_stats()
         self._retransmit(now_s)
+        if self._finish_requested and self._finished_at is None:
+            self._finished_at = self.backfill.finish_at()
         if self._retry_backfill_now:  # the run's final backfill: every range again, now
             self._retry_backfill_now = False
             self.backfill.retry_now()
@@ -449,6 +458,8 @@ class Session:
         if isinstance(msg, m.Sample | m.LogRange | m.EpisodeStart | m.EpisodeEnd):
             with self._cond:
                 self._cond.notify_all()
+        if self._finished_at is not None and (not backfilled or getattr(msg, "sample", 0) >= self._finished_at):
+            deliver = False  # the run is over: only the backfill of what came before its end is recorded
         if deliver and self.agent_hello is not None:  # nothing reaches listeners from an incompatible peer
             t_us = getattr(msg, "t_us", None)
             agent_ns = self.clock.to_host_ns(t_us) if isinstance(t_us, int) and t_us else None
