@@ -223,6 +223,9 @@ class Recorder:
         w = self._writer
         assert w is not None
         frame, msg = received.frame, received.message
+        if received.after_end:  # from after the run's end: the raw frame only (Session.request_backfill)
+            w.write(w.channel("/raw/rx", RAW_ENCODING), frame.inner, received.host_time_ns, received.agent_time_ns)
+            return
         name = msg.DEFINITION.name
         topic = f"/agent/{name}"
         channel = w.channel(topic, "json", f"diving_agent.{name}", message_schema(type(msg)))

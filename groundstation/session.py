@@ -458,12 +458,13 @@ class Session:
         if isinstance(msg, m.Sample | m.LogRange | m.EpisodeStart | m.EpisodeEnd):
             with self._cond:
                 self._cond.notify_all()
-        if self._finished_at is not None and (not backfilled or getattr(msg, "sample", 0) >= self._finished_at):
-            deliver = False  # the run is over: only the backfill of what came before its end is recorded
+        # The run is over: what the agent sends from after its end is recorded raw only (the decoded recording ends
+        # with the run and the final backfill completes it; the raw frames keep the link's record exact).
+        after_end = self._finished_at is not None and getattr(msg, "sample", self._finished_at) >= self._finished_at
         if deliver and self.agent_hello is not None:  # nothing reaches listeners from an incompatible peer
             t_us = getattr(msg, "t_us", None)
             agent_ns = self.clock.to_host_ns(t_us) if isinstance(t_us, int) and t_us else None
-            received = Received(frame, host_ns, agent_ns, backfilled)
+            received = Received(frame, host_ns, agent_ns, backfilled, after_end)
             self.listeners.received(received)
 
     def _on_ack(self, ack: m.Ack) -> None:
