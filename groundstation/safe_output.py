@@ -13,6 +13,7 @@ import unicodedata
 from typing import Any
 
 from rich.console import Console
+from rich.markup import escape
 from rich.text import Text
 
 # Format characters that reorder or hide text on a terminal (bidi overrides and isolates, zero-width marks).
@@ -41,6 +42,11 @@ def printable(text: object, keep_newlines: bool = True) -> str:
 def one_line(text: object) -> str:
     """One field of agent or file text on one line: control characters and newlines escaped."""
     return printable(text, keep_newlines=False)
+
+
+def in_markup(text: object) -> str:
+    """Text to put inside a string Rich parses as markup (a progress description): escaped, one line."""
+    return escape(one_line(text))
 
 
 def styled(text: object, style: str) -> Text:

@@ -20,7 +20,7 @@ from groundstation.keys import KeyFileOption, resolve_key
 from groundstation.links import make_link
 from groundstation.mcap_io import RecordingContents
 from groundstation.rerun_view import RerunView, ViewConfig, Viewer, attach_view
-from groundstation.safe_output import one_line
+from groundstation.safe_output import in_markup, one_line
 from groundstation.session import Session, SessionConfig
 from groundstation.view_errors import ViewError
 
@@ -133,7 +133,7 @@ def replay(
             if factor is None:
                 with Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.completed} frames"),
                               TimeElapsedColumn(), transient=True, disable=not sys.stderr.isatty()) as progress:
-                    task = progress.add_task(f"reading {file.name}", total=None)
+                    task = progress.add_task(f"reading {in_markup(file.name)}", total=None)
                     batch, count = rp.convert(_progress_items(items, progress, task))
                 view.send(batch)
             else:
