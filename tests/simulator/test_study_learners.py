@@ -111,7 +111,7 @@ def test_a_sweep_gives_the_same_table_here_and_on_a_dask_cluster(tmp_path: Path)
     assert len(tasks) == 4
     local = run_sweep(tasks)
     with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False,
-                                  dashboard_address=None, host="127.0.0.1") as cluster:
+                                  dashboard_address=None) as cluster:  # in-process transport, no ports
         remote = run_sweep(tasks, cluster=cluster.scheduler_address)
     strip = [{k: v for k, v in r.items() if k != "wall_s"} for r in local]
     assert strip == [{k: v for k, v in r.items() if k != "wall_s"} for r in remote]
