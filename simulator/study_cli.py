@@ -69,7 +69,8 @@ def study(
     as_json: Annotated[bool, typer.Option("--json", help="print summary.json (or compare.json) to stdout")] = False,
 ) -> None:
     """Run N trials x E episodes of learners on the simulated plant; CSV, npz, summary.json, figures."""
-    err = Console(stderr=True)
+    # A log file gets the table at full width (a terminal keeps its own width).
+    err = Console(stderr=True, width=None if sys.stderr.isatty() else 200)
     try:
         if sweep is not None:
             from simulator.study_sweep import run_sweep_command

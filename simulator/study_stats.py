@@ -33,10 +33,9 @@ def stable_from(curve: NDArray[np.float64], limit_s: float) -> int | None:
     return int(bad[-1] + 1) if bad.size else 0
 
 
-def _stable_batch(curves: NDArray[np.float64], limit_s: float) -> NDArray[np.float64]:
-    """stable_from for every row; NaN where a row never settles."""
-    ok = np.nan_to_num(curves, nan=-1.0) >= limit_s - _EPS_S
-    n = curves.shape[-1]
+def _stable_rows(ok: NDArray[np.bool_]) -> NDArray[np.float64]:
+    """First index from which every entry of a row is True; NaN where the row ends False."""
+    n = ok.shape[-1]
     last_bad = n - 1 - np.argmax(~ok[..., ::-1], axis=-1)
     result = np.where(ok.all(axis=-1), 0, last_bad + 1).astype(float)
     return np.where(ok[..., -1], result, np.nan)
@@ -90,15 +89,25 @@ def curve_statistic(alc: NDArray[np.float64], q: float, limit_s: float) -> int |
 def bootstrap_samples(alc: NDArray[np.float64], q: float, limit_s: float, seed: int) -> NDArray[np.float64]:
     """curve_statistic of BOOTSTRAP_SAMPLES resamples of the trials; never-settling samples count as the
     last episode + 1. The same seed and trial count draw the same resamples, so two studies on the same
-    seeds give paired samples (their ratio is a paired bootstrap)."""
+    seeds give paired samples (their ratio is a paired bootstrap).
+
+    No percentile is computed: an ALC never exceeds the limit, so the q-th percentile (linear
+    interpolation between sorted values lo and lo + 1) is at the limit exactly when value lo is, i.e. when
+    at least n - lo trials of the resample are. Counting trials at the limit is one matrix product.
+    """
     rng = np.random.default_rng(seed)
     n_trials, n_episodes = alc.shape
     valid = alc[:, WINDOW - 1:] if n_episodes >= WINDOW else alc
+    at_limit = (np.nan_to_num(valid, nan=-1.0) >= limit_s - _EPS_S).astype(np.float64)
+    lo = int(np.floor(q / 100.0 * (n_trials - 1)))
     stats = np.empty(BOOTSTRAP_SAMPLES)
     for start in range(0, BOOTSTRAP_SAMPLES, 100):
         idx = rng.integers(0, n_trials, size=(min(100, BOOTSTRAP_SAMPLES - start), n_trials))
-        curves = np.percentile(valid[idx], q, axis=1)
-        stats[start:start + len(idx)] = _stable_batch(curves, limit_s) + (n_episodes - valid.shape[1])
+        rows = len(idx)
+        flat = (idx + n_trials * np.arange(rows)[:, None]).ravel()
+        picks = np.bincount(flat, minlength=rows * n_trials).reshape(rows, n_trials).astype(np.float64)
+        ok = picks @ at_limit >= n_trials - lo
+        stats[start:start + len(idx)] = _stable_rows(ok) + (n_episodes - valid.shape[1])
     stats[np.isnan(stats)] = n_episodes
     return stats
 
