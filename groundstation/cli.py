@@ -6,6 +6,7 @@ import functools
 import json
 import os
 import sys
+import threading
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -15,11 +16,14 @@ from typing import TYPE_CHECKING, Annotated, Any, TypeVar
 from urllib.parse import urlencode
 
 import typer
-from rich.console import Console
+from rich.text import Text
 
 from groundstation import view_cli
 from groundstation.errors import GroundStationError
-from groundstation.keys import keygen, resolve_key
+from groundstation.keys import KEY_FILE_ENV, KeyFileOption, keygen, resolve_key
+from groundstation.safe_files import replaced_atomically, unused_name
+from groundstation.safe_output import SafeConsole, in_markup, one_line, printable
+from groundstation.signals import stop_on_signals
 from groundstation.simulator_process import run_simulator_command
 from groundstation.validate import UsageError, parse_speed
 from groundstation.view_options import Viewer
@@ -56,8 +60,8 @@ app.add_typer(log_app, name="log")
 
 _FORWARD = {"allow_extra_args": True, "ignore_unknown_options": True, "help_option_names": []}
 F = TypeVar("F", bound=Callable[..., Any])
-err = Console(stderr=True, highlight=False)
-out = Console(highlight=False)
+err = SafeConsole(stderr=True)  # agent text and file names are data: no markup, control characters escaped
+out = SafeConsole()
 
 
 def _one_line_errors(func: F) -> F:
@@ -68,11 +72,11 @@ def _one_line_errors(func: F) -> F:
         try:
             return func(*args, **kwargs)
         except UsageError as e:
-            err.print(f"[bold red]dive:[/] {e}", markup=True, soft_wrap=True)
+            err.print(Text.assemble(("dive:", "bold red"), " ", one_line(str(e))), soft_wrap=True)
             raise typer.Exit(2) from None
         except (GroundStationError, OSError) as e:
             message = str(e).replace("\n", " ") or type(e).__name__
-            err.print(f"[bold red]dive:[/] {message}", markup=True, soft_wrap=True)
+            err.print(Text.assemble(("dive:", "bold red"), " ", one_line(message)), soft_wrap=True)
             raise typer.Exit(1) from None
         except KeyboardInterrupt:
             raise typer.Exit(130) from None
@@ -81,13 +85,14 @@ def _one_line_errors(func: F) -> F:
 
 
 @contextmanager
-def _session(url: str | None) -> Iterator[Session]:
+def _session(url: str | None, key_file: Path | None = None) -> Iterator[Session]:
     """A session with *the* agent: the URL given, else $DIVE_URL, else the running `dive run` (never a new sim)."""
     from groundstation.links import make_link
     from groundstation.runs import attach_url
     from groundstation.session import Session, SessionConfig
 
-    session = Session(make_link(attach_url(url)), SessionConfig(reconnect=False, backfill=False, key=resolve_key()))
+    session = Session(make_link(attach_url(url)),
+                      SessionConfig(reconnect=False, backfill=False, key=resolve_key(key_file)))
     with session:
         yield session
 
@@ -127,7 +132,7 @@ def run_command(
     split_minutes: Annotated[float, typer.Option(
         min=0, help="start a new file after this many minutes (0 = never)")] = 0.0,
     reconnect: Annotated[bool, typer.Option(help="reconnect after a link loss and backfill the gap")] = True,
-    key_file: Annotated[Path | None, typer.Option(help="sign commands with this key (default: $DIVE_KEY_FILE)")] = None,
+    key_file: KeyFileOption = None,
 ) -> None:
     """Connect, set parameters, start learning and record everything to MCAP until N episodes or Ctrl-C."""
     from groundstation.recorder import RecorderConfig
@@ -159,19 +164,23 @@ def run_command(
                        session=SessionConfig(reconnect=reconnect, key=resolve_key(key_file)),
                        dumps_each_episode=view is not None)
     note = simulator_compile_note(url)
-    with view_cli.closing_view(view), RunDisplay(err, episodes, f"connecting to {url}{note}") as display:
-        result = run(config, display.show, listeners=[view] if view is not None else [])
-    for path in result.paths:
-        typer.echo(str(path))
+    stop, signalled = threading.Event(), list[str]()
+    with stop_on_signals(stop, signalled), view_cli.closing_view(view), \
+            RunDisplay(err, episodes, f"connecting to {url}{note}") as display:
+        result = run(config, display.show, stop=stop, listeners=[view] if view is not None else [])
+        for path in result.paths:  # before a served web viewer waits: the path is printed however the run ends
+            typer.echo(printable(path))
     if result.paths:
         err.print(f"next: dive log info {result.paths[-1]}\n      dive replay {result.paths[-1]}"
                   + ("" if view is not None else "\n      (dive run --viewer web shows the run live in a browser)"),
                   style="dim")
-    if result.still_missing:
-        err.print(f"{result.still_missing} samples could not be backfilled (no longer in the agent's log)",
-                  style="yellow")
-    if result.interrupted:
-        err.print("stopped by Ctrl-C; the recording is complete", style="dim")
+    if result.lost:
+        err.print(f"{result.lost} samples lost: the agent's log no longer held them", style="yellow")
+    if result.still_missing - result.lost:
+        err.print(f"{result.still_missing - result.lost} samples not backfilled though the agent's log still "
+                  "holds them (the link did not bring them in time)", style="yellow")
+    if result.interrupted or signalled:
+        err.print(f"stopped by {signalled[0] if signalled else 'Ctrl-C'}; the recording is complete", style="dim")
         raise typer.Exit(130)  # the one convention: interrupted = 130, whatever was saved
 
 
@@ -192,15 +201,15 @@ def _with_sim_options(url: str | None, **sim_options: object) -> str:
 # ---------------------------------------------------------------------- commanding
 @app.command()
 @_one_line_errors
-def status(url: UrlArg = None) -> None:
+def status(url: UrlArg = None, key_file: KeyFileOption = None) -> None:
     """Show the agent's identity, mode, battery, on-board log and link quality."""
-    with _session(url) as s:
+    with _session(url, key_file) as s:
         deadline = time.monotonic() + 2.5
         while s.last_heartbeat is None and time.monotonic() < deadline:
             time.sleep(0.05)
         hello, hb = s.agent_hello, s.last_heartbeat
         assert hello is not None
-        out.print(f"agent {hello.name!r} id {hello.node_id:08x} firmware "
+        out.print(f"agent {one_line(repr(hello.name))} id {hello.node_id:08x} firmware "
                   f"{hello.firmware_major}.{hello.firmware_minor}.{hello.firmware_patch} boot {hello.boot_id:08x}")
         if hb is not None:
             from protocol import Mode
@@ -231,6 +240,7 @@ def _split_url(args: list[str], actions: tuple[str, ...] = ()) -> tuple[str | No
 def params_command(
     args: Annotated[list[str] | None, typer.Argument(
         help="[URL] [get NAME | set NAME VALUE | save FILE | diff FILE | load FILE]", show_default=False)] = None,
+    key_file: KeyFileOption = None,
 ) -> None:
     """List the agent's parameters, get / set one, or save, compare with or load a TOML file of them."""
     from groundstation.paramfile import read_params, write_params
@@ -244,10 +254,11 @@ def params_command(
         shape = {"get": "get NAME", "set": "set NAME VALUE"}.get(action, f"{action} FILE")
         raise UsageError(f"expected `dive params [URL] {shape}`")
     from_file = read_params(Path(rest[0])) if action in ("diff", "load") else {}
-    with _session(url) as s:
+    with _session(url, key_file) as s:
         if action is None:
             for p in s.params:
-                out.print(f"{p.index:3d} {p.name:24s} {p.display_value:>12s}   \\[{p.minimum:g} .. {p.maximum:g}]")
+                name_shown = one_line(p.name)
+                out.print(f"{p.index:3d} {name_shown:24s} {p.display_value:>12s}   [{p.minimum:g} .. {p.maximum:g}]")
         elif action == "get":
             p = s.get_param(rest[0])
             out.print(f"{p.name} = {p.display_value}")
@@ -284,11 +295,11 @@ def _param_number(s: Session, name: str, text: str) -> float:
 
 @app.command()
 @_one_line_errors
-def surface(url: UrlArg = None) -> None:
+def surface(url: UrlArg = None, key_file: KeyFileOption = None) -> None:
     """Emergency surface: maximum volume now, in any mode."""
     from protocol import messages as m
 
-    with _session(url) as s:
+    with _session(url, key_file) as s:
         s.command(m.Surface())
         name = s.link.url
     out.print(f"surfacing ({name})")
@@ -297,7 +308,8 @@ def surface(url: UrlArg = None) -> None:
 @app.command(context_settings=_TAKES_NEGATIVE)
 @_one_line_errors
 def hover(args: Annotated[list[str], typer.Argument(help="[URL] DEPTH: the depth to hold \\[m]",
-                                                    show_default=False)]) -> None:
+                                                    show_default=False)],
+          key_file: KeyFileOption = None) -> None:
     """Hold a depth with the recovery controller (no learning)."""
     url, words = _split_url(args)
     if len(words) != 1:
@@ -310,7 +322,7 @@ def hover(args: Annotated[list[str], typer.Argument(help="[URL] DEPTH: the depth
         raise GroundStationError(f"hover depth {depth:g} m is outside [{HOVER_RANGE_M[0]:g}, {HOVER_RANGE_M[1]:g}] m")
     from protocol import messages as m
 
-    with _session(url) as s:
+    with _session(url, key_file) as s:
         s.command(m.Hover(depth_m=depth))
         name = s.link.url
     out.print(f"hovering at {depth:g} m ({name})")
@@ -329,10 +341,10 @@ _DUMP_KINDS = {DumpChoice.values: "VALUES", DumpChoice.policy: "POLICY", DumpCho
 
 @app.command()
 @_one_line_errors
-def dump(url: UrlArg = None, kind: Annotated[DumpChoice, typer.Option(help="what to dump")] = DumpChoice.values
-         ) -> None:
+def dump(url: UrlArg = None, kind: Annotated[DumpChoice, typer.Option(help="what to dump")] = DumpChoice.values,
+         key_file: KeyFileOption = None) -> None:
     """Fetch the value function, policy, Q values or model counts and print them as JSON."""
-    with _session(url) as s:
+    with _session(url, key_file) as s:
         from protocol import DumpKind
 
         snapshot = s.dump(DumpKind[_DUMP_KINDS[kind]], timeout_s=10.0)
@@ -352,6 +364,76 @@ def mark(text: Annotated[str, typer.Argument(help="what happened (recorded on /m
     send_marker(info, text)
     where = f" ({info.recording})" if info.recording else ""
     out.print(f"marked in run {info.run}{where}")
+
+
+VIRTUAL_LOW_BATTERY_V = 3.0  # the low_batt_v minimum: below the simulated battery's empty voltage (3.4 V)
+
+
+def _name_values(items: list[str]) -> Iterator[tuple[str, float]]:
+    for item in items:
+        name, sep, raw = item.partition("=")
+        try:
+            yield name.strip(), float(raw)
+        except ValueError:
+            sep = ""
+        if not sep:
+            raise typer.BadParameter(f"expected NAME=NUMBER, got {item!r}", param_hint="--param")
+
+
+@app.command("check")
+@_one_line_errors
+def check_command(
+    url: UrlArg = None,
+    key_file: Annotated[Path | None, typer.Option(
+        help="the agent's signing key: runs the signing checks (default: $DIVE_KEY_FILE)")] = None,
+    allow_motion: Annotated[bool, typer.Option(
+        help="run the checks that move the agent or change its learned model (always on for sim://)")] = False,
+    only: Annotated[list[str] | None, typer.Option(help="run only these checks or groups, e.g. junk, ack.echo")] = None,
+    param: Annotated[list[str] | None, typer.Option(
+        help="NAME=VALUE set for the run and put back after it (repeatable)")] = None,
+    timeout: Annotated[float, typer.Option(help="seconds to wait for an ACK or a reply")] = 2.0,
+    mode_timeout: Annotated[float, typer.Option(help="seconds to wait for a mode change (surfacing, recovery)")]
+    = 60.0,
+    as_json: Annotated[bool, typer.Option("--json", help="machine-readable report")] = False,
+    sentences: Annotated[bool, typer.Option(help="quote the tested spec sentence for every check, not only failures")]
+    = False,
+) -> None:
+    """Conformance suite: drive the agent over its link and report, per SPEC.md section, what passes and fails."""
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
+
+    from groundstation.check import CheckOptions, Timeouts, run_checks, selected
+    from groundstation.check.report import print_report
+    from groundstation.links import default_url
+
+    if timeout <= 0 or mode_timeout <= 0:
+        raise typer.BadParameter("timeouts must be positive", param_hint="--timeout/--mode-timeout")
+    checks = selected(tuple(only or ()))
+    if not checks:
+        raise typer.BadParameter(f"no check matches {', '.join(only or ())}", param_hint="--only")
+    url = url or default_url()
+    key = resolve_key(key_file)
+    if key_file is None and os.environ.get(KEY_FILE_ENV):
+        key_file = Path(os.environ[KEY_FILE_ENV])
+    values = dict(_name_values(param or []))
+    if url.startswith("sim://"):  # a virtual agent started for this run: nothing real moves, no time to lose
+        allow_motion = True
+        # At full speed hours of agent time pass in seconds: its simulated 2 h battery would run flat mid-run.
+        values.setdefault("low_batt_v", VIRTUAL_LOW_BATTERY_V)
+        extra = {k: v for k, v in (("speed", "max"), ("key_file", key_file and str(key_file)))
+                 if v and f"{k}=" not in url}
+        url = url + ("&" if "?" in url else "?") + urlencode(extra) if extra else url
+    options = CheckOptions(url=url, key=key, allow_motion=allow_motion, only=tuple(only or ()),
+                           params=tuple(values.items()),
+                           timeouts=Timeouts(reply_s=timeout, heartbeat_s=max(3.0, timeout), mode_s=mode_timeout))
+    with Progress(SpinnerColumn(), TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
+                  TimeElapsedColumn(), console=err, transient=True, disable=as_json) as bar:
+        task = bar.add_task(f"checking {in_markup(url)}", total=len(checks))
+        report = run_checks(options, lambda o: bar.update(task, advance=1, description=o.check.id))
+    if as_json:
+        out.print_json(json.dumps(report.as_dict()))
+    else:
+        print_report(report, out, sentences)
+    raise typer.Exit(0 if report.passed else 1)
 
 
 # ---------------------------------------------------------------------- recordings
@@ -377,19 +459,42 @@ def log_info(file: Path, as_json: Annotated[bool, typer.Option("--json", help="m
 class ExportFormat(StrEnum):
     csv = "csv"
     npz = "npz"
+    minari = "minari"
 
 
 @log_app.command("export")
 @_one_line_errors
-def log_export(file: Path, format: Annotated[ExportFormat, typer.Option(help="csv: samples; npz: offline-RL dataset")]
+def log_export(file: Path, format: Annotated[ExportFormat, typer.Option(
+                   help="csv: samples; npz: offline-RL transitions; minari: a Minari dataset (FILE may be a folder)")]
                = ExportFormat.csv,
-               out_path: Annotated[Path | None, typer.Option("--out", help="output file")] = None) -> None:
-    """Export samples as CSV, or (s, a, r, s', terminated, truncated) transitions per episode as .npz."""
+               out_path: Annotated[Path | None, typer.Option(
+                   "--out", help="output file; for minari the datasets folder (default: Minari's own)")] = None,
+               ) -> None:
+    """Export samples as CSV, (s, a, r, s', terminated, truncated) transitions as .npz, or a Minari dataset."""
     from groundstation.export import export_csv, export_npz
 
+    if format == ExportFormat.minari:
+        _export_minari(file, out_path)
+        return
     target = out_path or _existing(file).with_suffix(f".{format.value}")
-    rows = (export_csv if format == ExportFormat.csv else export_npz)(_existing(file), target)
+    with replaced_atomically(target, source=_existing(file)) as temporary:
+        rows = (export_csv if format == ExportFormat.csv else export_npz)(file, temporary)
     out.print(f"{target} ({rows} rows)")
+
+
+def _export_minari(file: Path, root: Path | None) -> None:
+    from groundstation.minari_export import dataset_id_for, export_minari
+    from groundstation.recording import open_recording
+
+    if not file.exists():
+        raise GroundStationError(f"no such recording: {file}")
+    result = export_minari(open_recording(file), dataset_id_for(file), root)
+    left = f", {result.left_out} left out (holes or no end)" if result.left_out else ""
+    out.print(f"Minari dataset {result.dataset_id} in {result.root}: {result.episodes} episodes, "
+              f"{result.steps} steps{left}", markup=False, soft_wrap=True)
+    root_hint = f"MINARI_DATASETS_PATH={result.root} " if root is not None else ""
+    out.print(f"load it: {root_hint}python -c \"import minari; minari.load_dataset('{result.dataset_id}')\"",
+              markup=False, soft_wrap=True)
 
 
 @log_app.command("recover")
@@ -399,8 +504,9 @@ def log_recover(file: Path, out_path: Annotated[Path | None, typer.Option("--out
     """Rewrite a truncated recording (after a crash or kill) into a finished, indexed one."""
     from groundstation.mcap_io import recover
 
-    target = out_path or _existing(file).with_name(file.stem + "-recovered.mcap")
-    count, truncated = recover(_existing(file), target)
+    target = out_path or unused_name(_existing(file).with_name(file.stem + "-recovered.mcap"))
+    with replaced_atomically(target, source=_existing(file)) as temporary:
+        count, truncated = recover(file, temporary)
     note = "was truncated" if truncated else "was already complete"
     out.print(f"{target} ({count} messages; the original {note})")
 

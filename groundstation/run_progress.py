@@ -7,10 +7,10 @@ from pathlib import Path
 from types import TracebackType
 
 from rich.console import Console
-from rich.markup import escape
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
 
 from groundstation.runner import RunStatus
+from groundstation.safe_output import in_markup, styled
 
 
 def simulator_compile_note(url: str) -> str:
@@ -56,9 +56,9 @@ class RunDisplay:
                        TimeElapsedColumn())
             self._progress = Progress(*columns, console=self.console, transient=False)
             self._progress.__enter__()
-            self._task = self._progress.add_task(escape(self.first), total=self.episodes or None)
+            self._task = self._progress.add_task(in_markup(self.first), total=self.episodes or None)
         else:
-            self.console.print(escape(self.first), soft_wrap=True)
+            self.console.print(in_markup(self.first), soft_wrap=True)
         return self
 
     def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
@@ -72,8 +72,8 @@ class RunDisplay:
             self._hub = status.hub
             printer.print(f"[dim]other tools attach to this run as {status.hub} "
                           f"(dive view, status, mark, surface ...)[/]", soft_wrap=True)
-        for line in status.messages[self._messages:]:
-            printer.print(f"[yellow]{escape(line)}[/]", soft_wrap=True)
+        for line in status.messages[self._messages:]:  # agent text among them: data, never markup
+            printer.print(styled(line, "yellow"), soft_wrap=True)
         self._messages = len(status.messages)
         if self._progress is not None:
             self._progress.update(self._task, completed=status.episodes,  # type: ignore[arg-type]

@@ -11,12 +11,13 @@ from pathlib import Path
 from typing import Any
 from urllib.parse import parse_qsl, urlsplit
 
-from groundstation.errors import CommandError, LinkError
+from groundstation.errors import CommandError, GroundStationError, LinkError, RecordingExistsError
 from groundstation.events import EventKind, LinkEvent, Received, Sent, SessionListener
 from groundstation.hub import Hub
 from groundstation.links import make_link
 from groundstation.recorder import Recorder, RecorderConfig
 from groundstation.runs import RunInfo, announce, new_run, withdraw
+from groundstation.safe_output import one_line
 from groundstation.session import Session, SessionConfig
 from protocol import EndReason, Mode
 from protocol import messages as m
@@ -109,6 +110,7 @@ class _AgentWatch:
     MAX_RESTARTS = 10
     SURFACING_WAIT_S = 60.0
     FIRST_HEARTBEAT_WAIT_S = 2.0  # heartbeats come at 1 Hz of agent time
+    START_WAIT_S = 60.0
 
     def __init__(self, session: Session, episodes: int, status: RunStatus) -> None:
         self.session, self.episodes, self.status = session, episodes, status
@@ -125,7 +127,9 @@ class _AgentWatch:
             self.status.messages.append(f"the agent is already learning (episode {beat.episode}): recording it")
             self.left_idle = True
             return
-        self.session.command(m.StartLearning(max_episodes=self.episodes))
+        # retried with the same seq (across reconnects) for up to START_WAIT_S: on a link that drops every second
+        # four tries are not enough, and the agent's ACK memory makes a repeat harmless
+        self.session.command(m.StartLearning(max_episodes=self.episodes), timeout_s=self.START_WAIT_S)
 
     def finished(self) -> bool:
         beat = self.session.last_heartbeat
@@ -178,6 +182,7 @@ class RunResult:
     status: RunStatus
     interrupted: bool
     still_missing: int
+    lost: int = 0  # of still_missing: samples the agent's log no longer held (proved by its LOG_RANGE / HEARTBEAT)
 
 
 def session_info(url: str) -> dict[str, str]:
@@ -205,6 +210,10 @@ def run(config: RunConfig, on_progress: Callable[[RunStatus], None] | None = Non
     `listeners` get the session's traffic too (the live Rerun view is one).
     """
     stop = stop or threading.Event()
+    target = config.recorder.path
+    if target is not None and target.exists():  # before connecting: the agent is not started for nothing
+        raise RecordingExistsError(f"{one_line(target)} exists; a recording is never overwritten: give another name "
+                                   "or a directory")
     link = make_link(config.url)
     status = RunStatus()
     progress = _Progress(status)
@@ -214,6 +223,7 @@ def run(config: RunConfig, on_progress: Callable[[RunStatus], None] | None = Non
     missing = 0
     hub: Hub | None = None
     announced: RunInfo | None = None
+    backfilled = False
     try:
         session.connect()
         status.link_up = True
@@ -243,16 +253,23 @@ def run(config: RunConfig, on_progress: Callable[[RunStatus], None] | None = Non
                     announced = _announce(announced, recorder)
                 if on_progress is not None:
                     on_progress(status)
-                if watch.finished() or recorder.failure is not None:
+                if watch.finished() or recorder.failure is not None or session.failure is not None:
                     break
         except KeyboardInterrupt:
             interrupted = True
-        if interrupted or stop.is_set():
+        if (interrupted or stop.is_set()) and session.failure is None:
             try:
                 session.command(m.Stop())
             except (CommandError, LinkError):
                 pass  # the recording is what matters now; the agent surfaces on link loss anyway
-        missing = session.request_backfill(config.backfill_wait_s)
+        missing = session.request_backfill(config.backfill_wait_s, final=True)
+        backfilled = True
+    except GroundStationError:
+        # A run that ends on an error (CMD_START refused or unanswered, a parameter refused) still fetches what
+        # the agent holds of what was lost before it closes: the recording is what matters.
+        if session.agent_hello is not None and session.failure is None and not backfilled:
+            missing = session.request_backfill(config.backfill_wait_s, final=True)
+        raise
     finally:
         if announced is not None:
             withdraw(announced)
@@ -262,6 +279,8 @@ def run(config: RunConfig, on_progress: Callable[[RunStatus], None] | None = Non
         recorder.close()
     if recorder.failure is not None:
         raise recorder.failure  # after the link was closed cleanly; what was written stays readable
+    if session.failure is not None:
+        raise session.failure  # another agent answered: nothing of it was recorded
     if on_progress is not None:
         on_progress(status)
-    return RunResult(list(recorder.paths), status, interrupted, missing)
+    return RunResult(list(recorder.paths), status, interrupted, missing, session.backfill_status()[0])

@@ -14,6 +14,9 @@ from protocol.errors import CobsError
 from protocol.frame import HEADER, MAX_CHUNK, MIN_INNER, payload_end
 from protocol.registry import Message, message_classes
 
+COMMAND_IDS_FROM = 0x80  # ids 0x80-0xFF are commands (SPEC.md section 5)
+_HELLO_ID = 0x01
+
 HEADER_SIZE = HEADER.size
 unpack_header = HEADER.unpack_from
 _SIGNED = int(FrameFlag.SIGNED)
@@ -48,6 +51,14 @@ class DecoderStats:
         return {f.name: getattr(self, f.name) for f in fields(self)}
 
 
+@dataclass(frozen=True, slots=True)
+class UndecodedCommand(Message):
+    """What an agent's decoder hands over for a command it must answer but cannot decode (SPEC.md section 5):
+    an unknown command id (answered UNSUPPORTED) or a SIGNED frame too short for its trailer (UNAUTHORIZED)."""
+
+    truncated: bool  # SIGNED set but shorter than a trailer; else the id is unknown
+
+
 class Frame(NamedTuple):
     """A received frame: header fields, the decoded message and the inner bytes (for raw recording).
 
@@ -74,7 +85,10 @@ class Frame(NamedTuple):
 class StreamDecoder:
     """Feed it whatever the link delivers; it returns the frames completed so far.
 
-    One decoder serves one sender: sequence gaps are counted against that sender's counter.
+    One decoder serves one sender: sequence gaps are counted against that sender's counter. An agent's decoder
+    (`agent=True`) hands over every command frame that passed the CRC and version checks, so that each gets its
+    one ACK: unknown command ids and truncated signed commands come as an UndecodedCommand and count in
+    `frames`, not in the rejects (SPEC.md section 4, counters).
     """
 
     stats: DecoderStats = field(default_factory=DecoderStats)
@@ -82,6 +96,7 @@ class StreamDecoder:
     _discarding: bool = False  # inside a chunk already over MAX_CHUNK: drop bytes until the next 0x00
     _expected_seq: int | None = None
     _classes: Mapping[int, type[Message]] = field(default_factory=message_classes, repr=False)
+    agent: bool = False
 
     def feed(self, data: bytes) -> list[Frame]:
         stats = self.stats
@@ -136,18 +151,24 @@ class StreamDecoder:
         if version != PROTOCOL_VERSION or flags & INCOMPATIBLE_FLAGS_MASK:
             stats.incompatible += 1
             return None
+        if msg_id == _HELLO_ID:  # SPEC.md s. 1: any HELLO resets sequence tracking before it is counted
+            self._expected_seq = None
         if seq == self._expected_seq:  # in order: nothing lost
             self._expected_seq = (seq + 1) & 0xFFFF
         else:
             self._track_sequence(seq)
         cls = self._classes.get(msg_id)
         if cls is None:
+            if self.agent and msg_id >= COMMAND_IDS_FROM:
+                return self._undecoded(flags, seq, msg_id, inner)
             stats.unknown_id += 1
             return None
         end = len(inner) - 2
         if flags & _SIGNED:  # the signature trailer is cut off before the payload is decoded (SPEC.md section 12)
             end = payload_end(inner)
             if end < 0:
+                if self.agent and msg_id >= COMMAND_IDS_FROM:
+                    return self._undecoded(flags, seq, msg_id, inner)
                 stats.malformed += 1
                 return None
         try:
@@ -157,6 +178,11 @@ class StreamDecoder:
             return None
         stats.frames += 1
         return _new_frame(Frame, (flags, seq, msg_id, decoded, inner))
+
+    def _undecoded(self, flags: int, seq: int, msg_id: int, inner: bytes) -> Frame:
+        self.stats.frames += 1
+        truncated = bool(flags & _SIGNED) and payload_end(inner) < 0
+        return _new_frame(Frame, (flags, seq, msg_id, UndecodedCommand(truncated), inner))
 
     def _track_sequence(self, seq: int) -> None:
         expected = self._expected_seq

@@ -26,7 +26,7 @@ _new_encoded = tuple.__new__  # EncodedFrame(...) without the named tuple's Pyth
 class FrameEncoder:
     """Keeps the per-sender sequence counter (+1 per frame, wraps at 65536).
 
-    With a `signer`, every frame gets flag bit 2 and a signature trailer (SPEC.md section 12).
+    With a `signer`, every frame gets flag bit 4 (SIGNED) and a signature trailer (SPEC.md section 12).
     """
 
     def __init__(self, first_seq: int = 0, signer: Signer | None = None) -> None:

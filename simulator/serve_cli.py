@@ -14,13 +14,16 @@ import typer
 
 from learning import LearnerConfig, LearningError, learner_names, learner_preset
 from protocol import SigningError
+from protocol.parameters import BY_NAME
 from protocol.signing import parse_key
 from simulator.agent_mission import MissionConfig
 from simulator.errors import ParamsError, SimulatorError
 from simulator.faults import FaultConfig
+from simulator.firmware_qemu import QemuConfig, serve_qemu
 from simulator.parameters import PlantParams, preset, with_overrides
-from simulator.params_table import PARAM_DEFS, Scope, coerce
-from simulator.server import AgentServer, ServeConfig
+from simulator.params_table import Scope, binding, check_value
+from simulator.server import FIRMWARES, AgentServer, ServeConfig
+from simulator.signing_mark import mark_path
 
 EXIT_BAD_ARGUMENT = 2
 
@@ -46,6 +49,13 @@ def parse_speed(text: str) -> float | None:
     return speed
 
 
+def parse_firmware(text: str) -> str:
+    """One of FIRMWARES."""
+    if text not in FIRMWARES:
+        raise ParamsError(f"--firmware wants one of {', '.join(FIRMWARES)}, got {text!r}")
+    return text
+
+
 def read_key_file(path: Path) -> bytes:
     """The signing key in a key file (64 hex digits, as `dive keygen` writes)."""
     try:
@@ -69,26 +79,47 @@ def apply_param_file(
     path: Path, plant: PlantParams, learner: LearnerConfig, mission: MissionConfig
 ) -> tuple[PlantParams, LearnerConfig, MissionConfig]:
     """Agent parameter names (PARAM_LIST names) set those; any other key must be a PlantParams field."""
-    by_name = {d.name: d for d in PARAM_DEFS}
     changes: dict[Scope, dict[str, Any]] = {scope: {} for scope in Scope}
     plant_rest: dict[str, Any] = {}
     for key, value in _read_table(path).items():
-        definition = by_name.get(key)
+        definition = BY_NAME.get(key)
         if definition is None:
             plant_rest[key] = value
             continue
         if not isinstance(value, int | float):
             raise ParamsError(f"parameter {key!r} must be a number or true/false")
-        stored = coerce(definition, float(value))
-        kind = type(getattr({Scope.LEARNER: learner, Scope.PLANT: plant, Scope.MISSION: mission}[definition.scope],
-                            definition.field))
-        changes[definition.scope][definition.field] = kind(stored)
+        stored = check_value(definition, float(value))
+        where = binding(definition)
+        if where.inverted:
+            stored = 1.0 - stored
+        kind = type(getattr({Scope.LEARNER: learner, Scope.PLANT: plant, Scope.MISSION: mission}[where.scope],
+                            where.field))
+        changes[where.scope][where.field] = kind(stored)
     plant = with_overrides(replace(plant, **changes[Scope.PLANT]), plant_rest)
     try:
         learner = replace(learner, **changes[Scope.LEARNER])
     except LearningError as e:
         raise ParamsError(f"{path}: {e}") from e
     return plant, learner, replace(mission, **changes[Scope.MISSION])
+
+
+def serve_on_qemu(tcp: str, pty: bool, speed: str, seed: int | None, key_file: Path | None,
+                  refused: list[str]) -> None:
+    """`serve --firmware qemu`: the whole firmware on QEMU, its own C plant; QEMU serves the link."""
+    try:
+        if refused:
+            raise ParamsError(f"--firmware qemu runs its own C plant: {', '.join(refused)} do not apply")
+        host, port = parse_tcp(tcp)
+        config = QemuConfig(host=host, port=port, pty=pty, speed=parse_speed(speed), seed=seed,
+                            key=read_key_file(key_file) if key_file is not None else None)
+    except SimulatorError as e:
+        typer.echo(f"error: {e}", err=True)
+        raise typer.Exit(EXIT_BAD_ARGUMENT) from None
+    try:
+        serve_qemu(config)
+    except SimulatorError as e:
+        typer.echo(f"error: {e}", err=True)
+        raise typer.Exit(1) from None
 
 
 def serve(
@@ -113,11 +144,25 @@ def serve(
     key_file: Annotated[
         Path | None, typer.Option(help="Signing key file (dive keygen): commands must then be signed.")
     ] = None,
+    state_dir: Annotated[
+        Path | None, typer.Option(help="Where the signing mark survives restarts (default: beside the key file).")
+    ] = None,
+    firmware: Annotated[str, typer.Option(help=(
+        "The on-board program: python (the reference in simulator/) or c (the C firmware of firmware/, its host "
+        "build, made on demand; it starts from the real agent's parameter defaults) or qemu (the whole firmware "
+        "with a C port of the hardware plant on an emulated Cortex-M4; only --tcp, --pty, --speed, --seed and "
+        "--key-file apply)."))] = "python",
     report: Annotated[
         Path | None, typer.Option(help="At exit, write what the faults did and the samples produced (JSON).")
     ] = None,
 ) -> None:
     """Serve a virtual diving agent over TCP or a pseudo-terminal; prints what to connect to first."""
+    if firmware == "qemu":
+        refused = {"--preset": preset_name != "paper", "--learner": learner != "paper", "--params": params is not None,
+                   "--report": report is not None, "fault options": bool(drop or corrupt or delay or disconnect_every)
+                   or blackout_below is not None}
+        serve_on_qemu(tcp, pty, speed, seed, key_file, [name for name, given in refused.items() if given])
+        return
     try:
         host, port = parse_tcp(tcp)
         plant = preset(preset_name)
@@ -130,6 +175,8 @@ def serve(
             faults=FaultConfig(drop, corrupt, delay, disconnect_every, blackout_below),
             host=host, port=port, pty=pty, speed=parse_speed(speed), seed=seed,
             key=read_key_file(key_file) if key_file is not None else None,
+            mark_file=mark_path(key_file, state_dir) if key_file is not None else None,
+            firmware=parse_firmware(firmware),
         )
         server = AgentServer(config)
     except (SimulatorError, LearningError) as e:
