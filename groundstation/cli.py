@@ -445,15 +445,26 @@ def _existing(path: Path) -> Path:
 
 @log_app.command("info")
 @_one_line_errors
-def log_info(file: Path, as_json: Annotated[bool, typer.Option("--json", help="machine-readable")] = False) -> None:
+def log_info(files: Annotated[list[Path], typer.Argument(help="recordings, or folders of them")],
+             as_json: Annotated[bool, typer.Option("--json", help="machine-readable")] = False) -> None:
     """Sessions, duration, episodes with outcome and length, samples, loss, backfill and missing samples."""
     from groundstation.loginfo import format_summary, summarize
+    from groundstation.recording_files import being_recorded, expand, json_summary
 
-    summary = summarize(_existing(file))
+    summaries = []
+    for path in expand(files):
+        summary = summarize(path)
+        writer = None if summary.complete else being_recorded(path)
+        summaries.append((summary, writer))
     if as_json:
-        out.print_json(json.dumps(summary.as_dict()))
-    else:
-        out.print(format_summary(summary))
+        rows = [{**json_summary(s.as_dict()), "being_recorded_by": w} for s, w in summaries]
+        out.print_json(json.dumps(rows[0] if len(rows) == 1 else rows))
+        return
+    for summary, writer in summaries:
+        text = format_summary(summary)
+        if writer is not None:  # no footer yet because it is still being written, not because it was cut short
+            text = text.replace("  (truncated: run `dive log recover`)", f"  (being recorded by {writer})", 1)
+        out.print(text)
 
 
 class ExportFormat(StrEnum):

@@ -3,6 +3,7 @@ plain lines when not on a terminal, TOML parameter files. Real processes and rea
 
 from __future__ import annotations
 
+import json
 import os
 import socket
 import subprocess
@@ -87,6 +88,13 @@ def test_not_on_a_terminal_dive_run_prints_one_line_per_episode(tmp_path: Path) 
     episodes = [line for line in lines if line.startswith("episode ")]
     assert [line.split(":")[0] for line in episodes][:3] == ["episode 1 of 3", "episode 2 of 3", "episode 3 of 3"]
     assert not any("\r" in line or "━" in line for line in lines)  # no progress bar redrawn into a log
+
+    info = _cli("log", "info", str(tmp_path), str(tmp_path), "--json")  # a folder, twice: a list of summaries
+    rows = json.loads(info.stdout)
+    assert info.exit_code == 0 and len(rows) == 2
+    assert rows[0]["agent"]["node_id"] == "000a6e47"  # hex, as `dive status` and the file name show it
+    assert rows[0]["agent"]["boot_id"] == f"{1234:08x}" and rows[0]["agent"]["firmware_major"] == 9
+    assert isinstance(rows[0]["parameters"]["z_tol_m"], float) and rows[0]["being_recorded_by"] is None
 
 
 def _cli(*args: str) -> Result:

@@ -52,7 +52,7 @@ def test_dive_run_on_the_builtin_agent_records_every_message_valid(tmp_path: Pat
     info = CliRunner().invoke(app, ["log", "info", str(path), "--json"])
     summary = json.loads(info.stdout)
     assert summary["complete"] and len(summary["episodes"]) >= 3 and summary["samples_missing"] == 0
-    assert summary["parameters"]["success_time_s"] == "5.0"
+    assert summary["parameters"]["success_time_s"] == 5.0  # numbers as numbers (issue 14)
 
 
 def test_over_a_pty_with_pyserial(tmp_path: Path, pty_agent: str) -> None:

@@ -6,6 +6,7 @@ Real processes and real TCP: a fake agent with one slot, `dive run` as a child p
 
 from __future__ import annotations
 
+import json
 import os
 import signal
 import subprocess
@@ -71,6 +72,10 @@ def test_tools_attach_to_the_running_session_without_taking_the_agents_link(tmp_
         with running(runtime, agent.url, tmp_path / "rec") as run:
             viewer = subprocess.Popen([*DIVE, "view", "--viewer", "none", "--rrd", str(tmp_path / "live.rrd")],
                                       env=_env(runtime), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+            [announced] = (runtime / "runs").glob("*.json")
+            recording = json.loads(announced.read_text())["recording"]
+            info = dive(runtime, "log", "info", recording)  # the file the run is still writing
+            assert info.returncode == 0 and f"(being recorded by dive run {run.pid})" in info.stdout, info.stderr
             status = dive(runtime, "status")
             assert status.returncode == 0, status.stderr
             assert "agent 'fake' id 000a6e47" in status.stdout and "rtt" in status.stdout
