@@ -475,22 +475,34 @@ class ExportFormat(StrEnum):
 
 @log_app.command("export")
 @_one_line_errors
-def log_export(file: Path, format: Annotated[ExportFormat, typer.Option(
+def log_export(files: Annotated[list[Path], typer.Argument(help="recordings, or folders of them")],
+               format: Annotated[ExportFormat, typer.Option(
                    help="csv: samples; npz: offline-RL transitions; minari: a Minari dataset (FILE may be a folder)")]
                = ExportFormat.csv,
                out_path: Annotated[Path | None, typer.Option(
-                   "--out", help="output file; for minari the datasets folder (default: Minari's own)")] = None,
+                   "--out", help="output file (one recording only); for minari the datasets folder "
+                   "(default: Minari's own)")] = None,
                ) -> None:
-    """Export samples as CSV, (s, a, r, s', terminated, truncated) transitions as .npz, or a Minari dataset."""
+    """Export samples as CSV, (s, a, r, s', terminated, truncated) transitions as .npz, or a Minari dataset.
+
+    Several recordings (or a folder) give one output file each, beside each recording.
+    """
     from groundstation.export import export_csv, export_npz
+    from groundstation.recording_files import expand
 
     if format == ExportFormat.minari:
-        _export_minari(file, out_path)
+        if len(files) != 1:
+            raise UsageError("minari exports one recording or one folder at a time")
+        _export_minari(files[0], out_path)
         return
-    target = out_path or _existing(file).with_suffix(f".{format.value}")
-    with replaced_atomically(target, source=_existing(file)) as temporary:
-        rows = (export_csv if format == ExportFormat.csv else export_npz)(file, temporary)
-    out.print(f"{target} ({rows} rows)")
+    recordings = expand(files)
+    if out_path is not None and len(recordings) > 1:
+        raise UsageError(f"--out names one file, but {len(recordings)} recordings were given")
+    for file in recordings:
+        target = out_path or file.with_suffix(f".{format.value}")
+        with replaced_atomically(target, source=file) as temporary:
+            rows = (export_csv if format == ExportFormat.csv else export_npz)(file, temporary)
+        out.print(f"{target} ({rows} rows)")
 
 
 def _export_minari(file: Path, root: Path | None) -> None:

@@ -95,6 +95,8 @@ def test_not_on_a_terminal_dive_run_prints_one_line_per_episode(tmp_path: Path) 
     assert rows[0]["agent"]["node_id"] == "000a6e47"  # hex, as `dive status` and the file name show it
     assert rows[0]["agent"]["boot_id"] == f"{1234:08x}" and rows[0]["agent"]["firmware_major"] == 9
     assert isinstance(rows[0]["parameters"]["z_tol_m"], float) and rows[0]["being_recorded_by"] is None
+    exported = _cli("log", "export", str(tmp_path), "--format", "csv")  # a folder: one CSV beside each recording
+    assert exported.exit_code == 0 and [p.suffix for p in tmp_path.iterdir()].count(".csv") == 1, exported.stderr
 
 
 def _cli(*args: str) -> Result:
