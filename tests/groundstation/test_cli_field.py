@@ -141,3 +141,16 @@ def test_a_run_with_a_viewer_has_the_agent_dump_its_values_and_policy_each_episo
         assert agent.params["dump_each_episode"][1] == 1  # the heatmaps get a dump at every episode end
     finally:
         agent.close()
+
+
+def test_params_and_hover_honour_dive_url() -> None:
+    agent = FakeAgent()
+    try:
+        env = {"DIVE_URL": agent.url, "COLUMNS": "200"}
+        hovered = CliRunner().invoke(app, ["hover", "0.4"], env=env)
+        assert hovered.exit_code == 0 and f"hovering at 0.4 m ({agent.url})" in hovered.stdout, hovered.stderr
+        got = CliRunner().invoke(app, ["params", "get", "z_tol_m"], env=env)
+        assert got.exit_code == 0 and "z_tol_m = 0.1" in got.stdout, got.stderr
+    finally:
+        agent.close()
+    assert agent.connections == 2 and agent.executed.count("CMD_HOVER") == 1
