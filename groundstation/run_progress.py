@@ -14,16 +14,22 @@ from groundstation.safe_output import in_markup, styled
 
 
 def simulator_compile_note(url: str) -> str:
-    """For sim:// when the simulator's numba kernels are not cached yet: say the wait is a one-time compile."""
+    """For sim:// when the simulator's numba kernels are not cached (or the cache is older than their source): say
+    the wait is a one-time compile."""
     if not url.startswith("sim://"):
         return ""
     spec = importlib.util.find_spec("simulator")  # finds the package without importing it (style: never import it)
     if spec is None or spec.origin is None:
         return ""
-    cache = Path(spec.origin).parent / "__pycache__"
-    if any(cache.glob("*.nbi")):
-        return ""
-    return " (the first start compiles the simulator once, about 30 s; later starts take seconds)"
+    package = Path(spec.origin).parent
+    newest: dict[str, float] = {}  # module -> newest cache index (numba names them MODULE.FUNCTION-LINE.pyXY.nbi)
+    for index in (package / "__pycache__").glob("*.nbi"):
+        module = index.name.split(".", 1)[0]
+        newest[module] = max(newest.get(module, 0.0), index.stat().st_mtime)
+    stale = not newest or any((package / f"{module}.py").exists()
+                              and (package / f"{module}.py").stat().st_mtime > cached
+                              for module, cached in newest.items())
+    return " (compiling the simulator once, about 30 s on an idle machine; later starts take seconds)" if stale else ""
 
 
 def describe(s: RunStatus) -> str:
