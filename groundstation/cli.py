@@ -136,7 +136,7 @@ def run_command(
 ) -> None:
     """Connect, set parameters, start learning and record everything to MCAP until N episodes or Ctrl-C."""
     from groundstation.recorder import RecorderConfig
-    from groundstation.run_progress import RunDisplay, simulator_compile_note
+    from groundstation.run_progress import RunDisplay
     from groundstation.runner import RunConfig, load_params_file, run
     from groundstation.session import SessionConfig
 
@@ -163,10 +163,9 @@ def run_command(
     config = RunConfig(url=url, episodes=episodes, params=values, recorder=recorder,
                        session=SessionConfig(reconnect=reconnect, key=resolve_key(key_file)),
                        dumps_each_episode=view is not None)
-    note = simulator_compile_note(url)
     stop, signalled = threading.Event(), list[str]()
     with stop_on_signals(stop, signalled), view_cli.closing_view(view), \
-            RunDisplay(err, episodes, f"connecting to {url}{note}") as display:
+            RunDisplay(err, episodes, f"connecting to {url}", virtual=url.startswith("sim://")) as display:
         result = run(config, display.show, stop=stop, listeners=[view] if view is not None else [])
         for path in result.paths:  # before a served web viewer waits: the path is printed however the run ends
             typer.echo(printable(path))

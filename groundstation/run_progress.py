@@ -2,8 +2,7 @@
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
+import threading
 from types import TracebackType
 
 from rich.console import Console
@@ -12,24 +11,9 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, SpinnerColumn
 from groundstation.runner import RunStatus
 from groundstation.safe_output import in_markup, styled
 
-
-def simulator_compile_note(url: str) -> str:
-    """For sim:// when the simulator's numba kernels are not cached (or the cache is older than their source): say
-    the wait is a one-time compile."""
-    if not url.startswith("sim://"):
-        return ""
-    spec = importlib.util.find_spec("simulator")  # finds the package without importing it (style: never import it)
-    if spec is None or spec.origin is None:
-        return ""
-    package = Path(spec.origin).parent
-    newest: dict[str, float] = {}  # module -> newest cache index (numba names them MODULE.FUNCTION-LINE.pyXY.nbi)
-    for index in (package / "__pycache__").glob("*.nbi"):
-        module = index.name.split(".", 1)[0]
-        newest[module] = max(newest.get(module, 0.0), index.stat().st_mtime)
-    stale = not newest or any((package / f"{module}.py").exists()
-                              and (package / f"{module}.py").stat().st_mtime > cached
-                              for module, cached in newest.items())
-    return " (compiling the simulator once, about 30 s on an idle machine; later starts take seconds)" if stale else ""
+SLOW_START_S = 3.0  # a virtual agent that has not answered by then is compiling its kernels (first start)
+SLOW_START_NOTE = ("the virtual agent is compiling the simulator (once; about 30 s on an idle machine, "
+                   "later starts take seconds)")
 
 
 def describe(s: RunStatus) -> str:
@@ -45,8 +29,11 @@ def describe(s: RunStatus) -> str:
 class RunDisplay:
     """`show` is the run's progress callback. Not a terminal (a log file, CI): plain lines, each said once."""
 
-    def __init__(self, console: Console, episodes: int, first: str) -> None:
+    def __init__(self, console: Console, episodes: int, first: str, virtual: bool = False) -> None:
         self.console = console
+        # Said only if the agent is still silent after a few seconds: a cached start never shows it.
+        self._slow_note = threading.Timer(SLOW_START_S, self._say_slow_start) if virtual else None
+        self._connected = False
         self.episodes = episodes
         self.first = first
         self.live = console.is_terminal
@@ -65,14 +52,25 @@ class RunDisplay:
             self._task = self._progress.add_task(in_markup(self.first), total=self.episodes or None)
         else:
             self.console.print(in_markup(self.first), soft_wrap=True)
+        if self._slow_note is not None:
+            self._slow_note.daemon = True
+            self._slow_note.start()
         return self
+
+    def _say_slow_start(self) -> None:
+        if not self._connected:
+            printer = self._progress.console if self._progress is not None else self.console
+            printer.print(styled(SLOW_START_NOTE, "dim"), soft_wrap=True)
 
     def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
                  tb: TracebackType | None) -> None:
+        if self._slow_note is not None:
+            self._slow_note.cancel()
         if self._progress is not None:
             self._progress.__exit__(exc_type, exc, tb)
 
     def show(self, status: RunStatus) -> None:
+        self._connected = self._connected or status.link_up
         printer = self._progress.console if self._progress is not None else self.console
         if status.hub and status.hub != self._hub:
             self._hub = status.hub

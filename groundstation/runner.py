@@ -227,6 +227,8 @@ def run(config: RunConfig, on_progress: Callable[[RunStatus], None] | None = Non
     try:
         session.connect()
         status.link_up = True
+        if on_progress is not None:
+            on_progress(status)  # connected: the display stops waiting for a (compiling) virtual agent
         if config.hub:
             hub = Hub(session).start()
             session.add_listener(hub)
