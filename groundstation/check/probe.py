@@ -273,9 +273,13 @@ class Probe:
         return found[0]
 
     def counters(self) -> m.Heartbeat:
-        """The agent's counters after everything sent so far: the first HEARTBEAT after a barrier."""
-        after = self.barrier()
-        found = self.wait_message(m.Heartbeat, after, self.timeouts.heartbeat_s)
+        """The agent's counters after everything sent so far: the first HEARTBEAT after a barrier.
+
+        No keep-alive goes out meanwhile: the agent would count it after the HEARTBEAT that is read here.
+        """
+        with self.quiet():
+            after = self.barrier()
+            found = self.wait_message(m.Heartbeat, after, self.timeouts.heartbeat_s)
         if found is None:
             raise CheckFailed(f"no HEARTBEAT within {self.timeouts.heartbeat_s:g} s")
         return found[1]
