@@ -81,12 +81,17 @@ def retry_not_executed(probe: Probe) -> str:
     probe.barrier()
     values = _param_values_after(probe, ex)
     expect(values == 1, f"PARAM_GET answered with {values} PARAM_VALUEs")
-    retry = probe.command_inner(probe.retry_inner(ex.inner))
-    expect(retry.ack is not None, "the retry got no ACK")
-    _one_ack(probe, retry, AckResult.ACCEPTED, "the retry")
-    again = _param_values_after(probe, retry)
-    expect(again == 0, f"the retry was executed again ({again} more PARAM_VALUE)")
+    _retry_not_run(probe, ex, "the retry")
     return "the retry got the same ACK and no second PARAM_VALUE"
+
+
+def _retry_not_run(probe: Probe, first: Exchange, what: str) -> None:
+    """A retry of an accepted PARAM_GET: one ACK ACCEPTED and no PARAM_VALUE (it is not executed again)."""
+    retry = probe.command_inner(probe.retry_inner(first.inner))
+    expect(retry.ack is not None, f"{what} got no ACK")
+    _one_ack(probe, retry, AckResult.ACCEPTED, what)
+    again = _param_values_after(probe, retry)
+    expect(again == 0, f"{what} was executed again ({again} PARAM_VALUE)")
 
 
 @check("ack.retry_nack", SECTION, """The agent remembers the last 16 (msg_id, seq, result) it answered at steps 5-7
@@ -107,9 +112,5 @@ def memory_16(probe: Probe) -> str:
     for _ in range(ACK_MEMORY - 1):
         other = probe.command(m.LogRequest(first_sample=1, end_sample=0))
         expect(other.ack is not None, "LOG_REQUEST: no ACK")
-    retry = probe.command_inner(probe.retry_inner(first.inner))
-    expect(retry.ack is not None, "the retry after 15 other commands got no ACK")
-    _one_ack(probe, retry, AckResult.ACCEPTED, "the retry after 15 other commands")
-    again = _param_values_after(probe, retry)
-    expect(again == 0, f"the command 15 commands back was executed again ({again} PARAM_VALUE)")
+    _retry_not_run(probe, first, "the retry after 15 other commands")
     return "a retry 15 commands later: same ACK, not executed"
