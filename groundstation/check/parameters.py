@@ -142,7 +142,8 @@ def set_target(probe: Probe) -> str:
        check.]""", motion=True)
 def refused_in_mode(probe: Probe) -> str:
     values = param_table(probe)
-    settable = [d for d in spec_params.PARAMS if values[d.name].minimum != values[d.name].maximum]
+    missing = [d.name for d in spec_params.PARAMS if d.name not in values]
+    settable = [d for d in spec_params.PARAMS if d.name in values and values[d.name].minimum != values[d.name].maximum]
     in_learning: set[str] = set()
     problems: list[str] = []
     for _ in range(8):
@@ -165,6 +166,7 @@ def refused_in_mode(probe: Probe) -> str:
     expect(bad.result == AckResult.BAD_VALUE,
            f"gamma = NaN in {probe.mode_before(bad)}: {result_name(bad.result)}, wanted BAD_VALUE (value first)")
     expect(not problems, "; ".join(problems[:4]))
+    expect(not missing, f"the agent lacks {', '.join(missing)}")
     expect(len(in_learning) == len(settable),
            f"only {len(in_learning)} of {len(settable)} parameters met the agent in LEARNING")
     return f"{len(settable)} parameters set in LEARNING (and the modes met on the way) as the table says"

@@ -196,6 +196,12 @@ class Probe:
             self._first += 1
         return len(frames)
 
+    def drain(self, most: int = 200) -> None:
+        """Read what has already arrived (at most `most` reads): the newest frames show the agent's present."""
+        for _ in range(most):
+            if not self.pump(0.0):
+                return
+
     def wait(self, predicate: Callable[[Frame], bool], start: int, timeout_s: float) -> tuple[int, Frame] | None:
         """The first frame at or after index `start` that satisfies predicate, pumping up to timeout_s."""
         deadline = time.monotonic() + timeout_s
