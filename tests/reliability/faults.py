@@ -3,16 +3,20 @@ the ground station counted and recorded."""
 
 from __future__ import annotations
 
+import bisect
 import json
 import subprocess
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from mcap.reader import make_reader
 
+from protocol.messages import Hello
 from tests.reliability.recordings import Recording, dive, read
 from tests.simulator.agent_client import running
+
+HELLO_ID = Hello.DEFINITION.msg_id
 
 
 @dataclass
@@ -22,6 +26,7 @@ class FaultRun:
     recording: Recording
     path: Path
     connections: list[list[int]]  # per ground connection: the agent seqs received, in order
+    hellos: set[int] = field(default_factory=set)  # positions (in `connections[0]`) of the HELLO frames received
 
     @property
     def final_link(self) -> dict[str, Any]:
@@ -39,16 +44,21 @@ def run_against_faults(tmp_path: Path, faults: list[str], speed: str = "max", ep
     files = sorted(out.glob("*.mcap"))
     assert done.returncode == 0 and len(files) == 1, done.stderr
     assert "Traceback" not in done.stderr
-    return FaultRun(done, json.loads(report.read_text()), read(files[0]), files[0], _rx_by_connection(files[0]))
+    seqs, hellos = _rx_by_connection(files[0])
+    return FaultRun(done, json.loads(report.read_text()), read(files[0]), files[0], seqs, hellos)
 
 
-def _rx_by_connection(path: Path) -> list[list[int]]:
-    """The seqs of /raw/rx frames in file order (one list: the agent's connections are told apart by seq)."""
+def _rx_by_connection(path: Path) -> tuple[list[list[int]], set[int]]:
+    """The seqs of /raw/rx frames in file order (one list: the agent's connections are told apart by seq), and
+    the indices in it of the HELLO frames."""
     seqs: list[int] = []
+    hellos: set[int] = set()
     with path.open("rb") as f:
         for _, _, message in make_reader(f).iter_messages(topics=["/raw/rx"], log_time_order=False):
+            if message.data[4] == HELLO_ID:
+                hellos.add(len(seqs))
             seqs.append(message.data[2] | message.data[3] << 8)
-    return [seqs]
+    return [seqs], hellos
 
 
 def _unwrap(seqs: list[int], base: int) -> list[int]:
@@ -72,9 +82,14 @@ def visible_losses(run: FaultRun) -> int:
     ends = [start + ((end - base) & 0xFFFF) for start, base, end in zip(starts, bases, out["connection_end_seqs"],
                                                                          strict=True)]
     received = _unwrap(run.connections[0], origin)
+    # SPEC 1.1: a HELLO resets sequence tracking before it is counted, so a loss just before a received HELLO (the
+    # agent repeats its HELLO until it hears the ground) is not a gap the ground can see
+    hello_at = {received[i] for i in run.hellos}
     total = 0
     for start, end, (_, *lost) in zip(starts, ends, out["lost_by_connection"], strict=True):
-        mine = [p for p in received if start <= p < end]
+        mine = sorted(p for p in received if start <= p < end)
         if mine:
-            total += sum(min(mine) < p < max(mine) for p in _unwrap(lost, origin))
+            for p in _unwrap(lost, origin):
+                if mine[0] < p < mine[-1] and mine[bisect.bisect_right(mine, p)] not in hello_at:
+                    total += 1
     return total
