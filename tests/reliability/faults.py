@@ -3,20 +3,19 @@ the ground station counted and recorded."""
 
 from __future__ import annotations
 
-import bisect
 import json
 import subprocess
-from dataclasses import dataclass, field
+from bisect import bisect_right
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from mcap.reader import make_reader
 
-from protocol.messages import Hello
 from tests.reliability.recordings import Recording, dive, read
 from tests.simulator.agent_client import running
 
-HELLO_ID = Hello.DEFINITION.msg_id
+HELLO_ID = 0x01
 
 
 @dataclass
@@ -26,7 +25,7 @@ class FaultRun:
     recording: Recording
     path: Path
     connections: list[list[int]]  # per ground connection: the agent seqs received, in order
-    hellos: set[int] = field(default_factory=set)  # positions (in `connections[0]`) of the HELLO frames received
+    hellos: list[int]  # where in connections[0] the agent's HELLOs are (each resets sequence tracking, SPEC s. 1)
 
     @property
     def final_link(self) -> dict[str, Any]:
@@ -44,20 +43,20 @@ def run_against_faults(tmp_path: Path, faults: list[str], speed: str = "max", ep
     files = sorted(out.glob("*.mcap"))
     assert done.returncode == 0 and len(files) == 1, done.stderr
     assert "Traceback" not in done.stderr
-    seqs, hellos = _rx_by_connection(files[0])
-    return FaultRun(done, json.loads(report.read_text()), read(files[0]), files[0], seqs, hellos)
+    connections, hellos = _rx_by_connection(files[0])
+    return FaultRun(done, json.loads(report.read_text()), read(files[0]), files[0], connections, hellos)
 
 
-def _rx_by_connection(path: Path) -> tuple[list[list[int]], set[int]]:
+def _rx_by_connection(path: Path) -> tuple[list[list[int]], list[int]]:
     """The seqs of /raw/rx frames in file order (one list: the agent's connections are told apart by seq), and
-    the indices in it of the HELLO frames."""
+    the positions of the HELLOs among them."""
     seqs: list[int] = []
-    hellos: set[int] = set()
+    hellos: list[int] = []
     with path.open("rb") as f:
         for _, _, message in make_reader(f).iter_messages(topics=["/raw/rx"], log_time_order=False):
-            if message.data[4] == HELLO_ID:
-                hellos.add(len(seqs))
             seqs.append(message.data[2] | message.data[3] << 8)
+            if message.data[4] == HELLO_ID:
+                hellos.append(len(seqs) - 1)
     return [seqs], hellos
 
 
@@ -74,7 +73,8 @@ def _unwrap(seqs: list[int], base: int) -> list[int]:
 
 def visible_losses(run: FaultRun) -> int:
     """Frames the agent lost to faults that the ground could see as a seq gap: between two frames it received
-    within the same connection (the ground starts counting afresh on every reconnect)."""
+    within the same connection (the ground starts counting afresh on every reconnect), the later one not a HELLO
+    (any HELLO resets sequence tracking before it is counted, SPEC.md section 1)."""
     out = run.report["out"]
     bases = [c[0] for c in out["lost_by_connection"]]
     origin = bases[0]
@@ -82,14 +82,12 @@ def visible_losses(run: FaultRun) -> int:
     ends = [start + ((end - base) & 0xFFFF) for start, base, end in zip(starts, bases, out["connection_end_seqs"],
                                                                          strict=True)]
     received = _unwrap(run.connections[0], origin)
-    # SPEC 1.1: a HELLO resets sequence tracking before it is counted, so a loss just before a received HELLO (the
-    # agent repeats its HELLO until it hears the ground) is not a gap the ground can see
     hello_at = {received[i] for i in run.hellos}
     total = 0
     for start, end, (_, *lost) in zip(starts, ends, out["lost_by_connection"], strict=True):
         mine = sorted(p for p in received if start <= p < end)
-        if mine:
-            for p in _unwrap(lost, origin):
-                if mine[0] < p < mine[-1] and mine[bisect.bisect_right(mine, p)] not in hello_at:
-                    total += 1
+        for p in _unwrap(lost, origin):
+            index = bisect_right(mine, p)
+            if 0 < index < len(mine) and mine[index] not in hello_at:
+                total += 1
     return total
