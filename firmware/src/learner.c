@@ -20,7 +20,8 @@
 #define STATE_INDEX_U8_LIMIT 256u  /* successor indices fit one byte up to this many states */
 #define MAX_STATES 65535u          /* successor indices are uint16 */
 
-static uint32_t arena_words[LEARNER_ARENA_BYTES / sizeof(uint32_t)];
+/* Whole words, rounded up, so that a build's byte figure is always available. */
+static uint32_t arena_words[(LEARNER_ARENA_BYTES + sizeof(uint32_t) - 1u) / sizeof(uint32_t)];
 
 static struct {
     learner_config_t cfg;
@@ -204,7 +205,7 @@ static uint32_t row_total(uint32_t row)
 
 void learner_observe(uint16_t s, uint8_t a, float reward, uint16_t s_next)
 {
-    if (s >= learner_terminal() || a >= LEARNER_ACTIONS || s_next >= L.n_states) {
+    if (L.n_states == 0u || s >= learner_terminal() || a >= LEARNER_ACTIONS || s_next >= L.n_states) {
         return;
     }
     uint32_t row = (uint32_t)s * LEARNER_ACTIONS + a;
@@ -292,6 +293,9 @@ static float action_value(uint32_t row, const float *values)
 
 static void start_planning(void)
 {
+    if (L.n_states == 0u) {
+        return;  /* never configured */
+    }
     uint16_t terminal = learner_terminal();
     L.values[terminal] = 0.0f;
     if (!L.cfg.in_place_sweeps) {
@@ -381,6 +385,9 @@ static float explore_probability(uint32_t episode)
 
 void learner_reset(void)
 {
+    if (L.n_states == 0u) {
+        return;  /* never configured: nothing to forget */
+    }
     memset(arena_words, 0, sizeof(arena_words));
     L.episode = 0u;
     L.p_explore = explore_probability(0u);
@@ -475,7 +482,7 @@ uint8_t learner_policy(uint16_t s)
 
 float learner_q(uint16_t s, uint8_t a)
 {
-    if (s >= learner_terminal() || a >= LEARNER_ACTIONS) {
+    if (L.n_states == 0u || s >= learner_terminal() || a >= LEARNER_ACTIONS) {
         return 0.0f;
     }
     return action_value((uint32_t)s * LEARNER_ACTIONS + a, L.values);

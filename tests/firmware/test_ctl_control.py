@@ -45,7 +45,7 @@ def test_c_plant_params_are_the_hardware_preset(ctl: ctypes.CDLL) -> None:
     params = preset("hardware")
     c = PlantParamsC()
     ctl.plant_hardware_params(ctypes.byref(c))
-    for name, _ in PlantParamsC._fields_:
+    for name in (f[0] for f in PlantParamsC._fields_):
         assert getattr(c, name) == getattr(params, name), name
     assert ctl.plant_neutral_alpha_deg(ctypes.byref(c)) == pytest.approx(neutral_alpha_deg(params), abs=1e-12)
     s = SensorParamsC()

@@ -56,7 +56,7 @@ def test_default_config_is_the_python_default(ctl: ctypes.CDLL) -> None:
     c = LearnerConfigC()
     ctl.learner_default_config(ctypes.byref(c))
     expected = c_config(ctl, LearnerConfig())
-    for name, _ in LearnerConfigC._fields_:
+    for name in (f[0] for f in LearnerConfigC._fields_):
         assert getattr(c, name) == getattr(expected, name), name
 
 
@@ -210,7 +210,7 @@ def test_state_index_and_reward_match(ctl: ctypes.CDLL) -> None:
 
 def test_field_names_cover_python_config() -> None:
     """Every LearnerConfig field has its C twin (model_form is the sparse form the firmware always uses)."""
-    c_names = {name for name, _ in LearnerConfigC._fields_}
+    c_names = {f[0] for f in LearnerConfigC._fields_}
     renamed = {"sparse_slots": "slots", "actuator_bins": "act_bins", "vi_tolerance": "vi_tol",
                "terminal_reward": "term_reward", "untried_q_value": "untried_q"}
     for f in fields(LearnerConfig):

@@ -6,8 +6,11 @@ UART bridged by QEMU to a loopback TCP port. The tests talk to it over that sock
 
 from __future__ import annotations
 
+import os
 import shutil
 import socket
+import subprocess
+import sys
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -15,7 +18,7 @@ from pathlib import Path
 import pytest
 
 from protocol import Mode, StreamDecoder, messages
-from simulator.firmware_qemu import QemuAgent, QemuConfig, build_elf
+from simulator.firmware_qemu import ELF_ENV, QemuAgent, QemuConfig, build_elf
 from tests.reliability.recordings import assert_complete, dive, read
 
 pytestmark = pytest.mark.slow
@@ -76,3 +79,20 @@ def test_dive_run_records_learning_on_the_emulated_mcu(agent: QemuAgent, tmp_pat
     assert len(rec.samples) > 100
     assert agent.running  # the firmware did not fault
     assert "FAULT" not in (agent.config.diag_path.read_text() if agent.config.diag_path else "")
+
+
+def test_sim_url_serves_the_qemu_firmware(elf: Path, tmp_path: Path) -> None:
+    """sim://?firmware=qemu: `python -m simulator serve --firmware qemu` starts QEMU and prints its address."""
+    out = tmp_path / "sim.mcap"
+    env = {**os.environ, ELF_ENV: str(elf)}
+    done = dive("run", "sim://?firmware=qemu&speed=max&seed=4", "--episodes", "1", "--viewer", "none",
+                "--out", str(out), env=env, timeout_s=120)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert_complete(read(out), 1)
+
+
+def test_qemu_refuses_options_it_cannot_honour() -> None:
+    done = subprocess.run([sys.executable, "-m", "simulator", "serve", "--firmware", "qemu", "--drop", "0.1"],
+                          capture_output=True, text=True, timeout=60, check=False)
+    assert done.returncode == 2
+    assert done.stderr.strip() == "error: --firmware qemu runs its own C plant: fault options do not apply"
