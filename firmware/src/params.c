@@ -107,7 +107,8 @@ static bool check_value(const param_def_t *d, uint64_t bits, float *stored, verd
         text_add(&t, ": not an integer");
         return false;
     }
-    if (n < (int64_t)d->minimum || n > (int64_t)d->maximum) {
+    /* Integer bounds are small (|bound| < 2^24): exact as f32, converted without a 64-bit float conversion. */
+    if (n < (int64_t)(int32_t)d->minimum || n > (int64_t)(int32_t)d->maximum) {
         text_add(&t, ": ");
         text_add_int(&t, (int32_t)(n < -2000000000 ? -2000000000 : n > 2000000000 ? 2000000000 : n));
         text_add(&t, " outside [");
