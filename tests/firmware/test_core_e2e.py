@@ -104,3 +104,13 @@ def test_dive_check_passes_against_the_host_build(firmware_cache: Path, tmp_path
     result = CliRunner().invoke(app, ["check", url, "--key-file", str(key_file), *only], env={"COLUMNS": "200"})
     assert result.exit_code == 0, result.output
     assert "conforms" in result.stdout and " 0 failed" in result.stdout
+
+
+def test_missing_compiler_is_one_clear_line(tmp_path: Path) -> None:
+    env = {**os.environ, "CC": "no-such-cc", "DIVE_FIRMWARE_CACHE": str(tmp_path)}
+    env.pop("DIVE_FIRMWARE_LIB", None)
+    result = subprocess.run([sys.executable, "-m", "simulator", "serve", "--firmware", "c", "--tcp", "127.0.0.1:0"],
+                            capture_output=True, text=True, env=env, timeout=120, check=False)
+    assert result.returncode == 2
+    assert result.stderr.strip().splitlines() == [
+        "error: cannot build the C firmware: 'no-such-cc' not found (install make and a C compiler)"]
