@@ -51,7 +51,8 @@ def arena_flags(config: LearnerConfig) -> str:
     """The learner's and the snapshot store's arenas sized for this learner (what its build would hold)."""
     s = n_states(config)
     learner_bytes = learner_memory_bytes(config) + 4 * s  # + the Jacobi sweep buffer
-    return f"-DLEARNER_ARENA_BYTES={learner_bytes}u -DDUMPS_ARENA_BYTES={SNAPSHOTS_HELD * SNAPSHOT_BYTES_PER_STATE * s}u"
+    dumps_bytes = SNAPSHOTS_HELD * SNAPSHOT_BYTES_PER_STATE * s
+    return f"-DLEARNER_ARENA_BYTES={learner_bytes}u -DDUMPS_ARENA_BYTES={dumps_bytes}u"
 
 
 @dataclass
