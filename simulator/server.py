@@ -68,6 +68,7 @@ class AgentServer:
         self.lost_by_connection: list[list[int]] = []
         self.connection_end_seqs: list[int] = []  # the seq after the last frame of each finished connection
         self._logged = 0
+        self._connected_wall_s = 0.0
         self.agent = _onboard_agent(config, rng, self._write, node_id=0x5100_0000 | (seed & 0xFFFF), seed=seed)
         self.transport.on_connect = self._connected
         self.transport.on_data = self._received
@@ -128,6 +129,7 @@ class AgentServer:
         self.agent.link_down()
 
     def _connected(self) -> None:
+        self._connected_wall_s = time.monotonic()
         self.lost_by_connection.append([self.agent.next_seq])
         self.in_faults.reset()
         self.out_delay.clear()
@@ -190,7 +192,8 @@ class AgentServer:
             while not blocked and agent.t_us < due_us:
                 agent.step()
                 steps += 1
-                if agent.t_us >= self._next_disconnect_us:
+                if agent.t_us >= self._next_disconnect_us and \
+                        time.monotonic() - self._connected_wall_s >= self.config.faults.min_connection_s:
                     self._next_disconnect_us = agent.t_us + self._disconnect_period_us()
                     transport.drop_client()
                 if steps % STEPS_PER_CLOCK_READ == 0:

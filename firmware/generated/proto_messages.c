@@ -389,6 +389,18 @@ const proto_msg_info_t proto_messages[PROTO_MESSAGE_COUNT] = {
     {0x8Bu, 8u, 0u, 1u, 2u},  /* LOG_REQUEST */
 };
 
+const char *proto_mode_name(uint8_t mode) {
+    switch (mode) {
+    case MODE_IDLE: return "IDLE";
+    case MODE_LEARNING: return "LEARNING";
+    case MODE_RECOVERING: return "RECOVERING";
+    case MODE_HOVER: return "HOVER";
+    case MODE_SURFACING: return "SURFACING";
+    case MODE_PAUSED: return "PAUSED";
+    default: return "?";
+    }
+}
+
 const proto_msg_info_t *proto_message(uint8_t msg_id) {
     for (size_t i = 0; i < PROTO_MESSAGE_COUNT; i++) {
         if (proto_messages[i].msg_id == msg_id) { return &proto_messages[i]; }

@@ -484,5 +484,7 @@ typedef struct {
 extern const proto_msg_info_t proto_messages[PROTO_MESSAGE_COUNT];
 /* The entry of msg_id, or NULL for an unknown id. */
 const proto_msg_info_t *proto_message(uint8_t msg_id);
+/* The name of a Mode value ("?" for none), for TEXT lines and ACK reasons. */
+const char *proto_mode_name(uint8_t mode);
 
 #endif

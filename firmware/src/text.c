@@ -58,14 +58,4 @@ void text_copy(char *dst, size_t cap, const char *src) {
     text_add(&t, src);
 }
 
-const char *text_mode_name(uint8_t mode) {
-    switch (mode) {
-    case MODE_IDLE: return "IDLE";
-    case MODE_LEARNING: return "LEARNING";
-    case MODE_RECOVERING: return "RECOVERING";
-    case MODE_HOVER: return "HOVER";
-    case MODE_SURFACING: return "SURFACING";
-    case MODE_PAUSED: return "PAUSED";
-    default: return "?";
-    }
-}
+const char *text_mode_name(uint8_t mode) { return proto_mode_name(mode); }

@@ -26,20 +26,20 @@ def _replay(probe: Probe, first: int, end: int, size_hint: int = 0) -> tuple[lis
 
 def _live_samples(probe: Probe, count: int) -> dict[int, Frame]:
     """The newest `count` consecutive live SAMPLEs by sample index (waiting for them if needed)."""
-    deadline_frames: dict[int, Frame] = {}
+    seen: dict[int, Frame] = {}
 
     def enough(_: object) -> bool:
         for f in probe.frames(max(probe.end - 5000, 0)):
             if isinstance(f.message, m.Sample) and not f.flags & _REPLAYED:
-                deadline_frames[f.message.sample] = f
-        newest = max(deadline_frames, default=-1)
-        return newest >= 0 and all(newest - i in deadline_frames for i in range(count))
+                seen[f.message.sample] = f
+        newest = max(seen, default=-1)
+        return newest >= 0 and all(newest - i in seen for i in range(count))
 
     start = probe.end
     expect(probe.wait(enough, start, probe.timeouts.heartbeat_s * count) is not None,
            f"{count} consecutive live SAMPLEs did not arrive")
-    newest = max(deadline_frames)
-    return {i: deadline_frames[i] for i in range(newest - count + 1, newest + 1)}
+    newest = max(seen)
+    return {i: seen[i] for i in range(newest - count + 1, newest + 1)}
 
 
 @check("log.replay_identical", SECTION, """LOG_REQUEST [first_sample, end_sample) re-sends every logged frame whose
@@ -50,14 +50,14 @@ def replay_identical(probe: Probe) -> str:
     first, end = min(live), max(live) + 1
     lost_before = probe.decoder.stats.lost + probe.decoder.stats.duplicates
     replayed, log_range = _replay(probe, first, end)
-    samples = [f for f in replayed if isinstance(f.message, m.Sample)]
-    expect([f.message.sample for f in samples] == list(range(first, end)),  # type: ignore[union-attr]
-           f"replayed samples {[f.message.sample for f in samples]}, wanted {list(range(first, end))}")  # type: ignore[union-attr]
-    for f in samples:
-        original = live[f.message.sample]  # type: ignore[union-attr]
+    samples = [(f, f.message.sample) for f in replayed if isinstance(f.message, m.Sample)]
+    indices = [index for _, index in samples]
+    expect(indices == list(range(first, end)), f"replayed samples {indices}, wanted {list(range(first, end))}")
+    for f, index in samples:
+        original = live[index]
         expect(f.msg_id == original.msg_id and f.payload == original.payload,
-               f"replayed SAMPLE {f.message.sample} differs from the live one")  # type: ignore[union-attr]
-        expect(f.seq != original.seq, f"replayed SAMPLE {f.message.sample} kept its old seq")  # type: ignore[union-attr]
+               f"replayed SAMPLE {index} differs from the live one")
+        expect(f.seq != original.seq, f"replayed SAMPLE {index} kept its old seq")
     expect(all(isinstance(f.message, _LOGGED) for f in replayed), "a replayed frame that is not SAMPLE/EPISODE_*")
     expect(log_range.replayed == len(replayed), f"LOG_RANGE replayed {log_range.replayed}, {len(replayed)} came")
     gaps = probe.decoder.stats.lost + probe.decoder.stats.duplicates - lost_before

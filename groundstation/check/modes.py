@@ -12,19 +12,19 @@ from dataclasses import dataclass
 
 from groundstation.check.agent import get_param, hover_depth, overridden, reach
 from groundstation.check.probe import Probe, result_name
-from groundstation.check.registry import check, expect
+from groundstation.check.registry import CheckSkipped, check, expect
 from protocol import AckResult, DumpKind, EndReason, Message, Mode
 from protocol import messages as m
 
 SECTION = "6 Modes: command x mode matrix"
 TRIES = 6
-I, L, R, H, P, S = Mode.IDLE, Mode.LEARNING, Mode.RECOVERING, Mode.HOVER, Mode.PAUSED, Mode.SURFACING
+ID, LE, RE, HO, PA, SU = Mode.IDLE, Mode.LEARNING, Mode.RECOVERING, Mode.HOVER, Mode.PAUSED, Mode.SURFACING
 OK, NO = AckResult.ACCEPTED, AckResult.NOT_ALLOWED_IN_MODE
 # What a mode becomes on its own (an episode ends, recovery settles, the surface is reached): a command that leaves
 # the mode alone may be followed by these.
 NATURAL: dict[Mode, frozenset[Mode]] = {
-    I: frozenset(), H: frozenset(), P: frozenset(), S: frozenset({I}),
-    L: frozenset({R, S}), R: frozenset({L, S}),
+    ID: frozenset(), HO: frozenset(), PA: frozenset(), SU: frozenset({ID}),
+    LE: frozenset({RE, SU}), RE: frozenset({LE, SU}),
 }
 
 
@@ -41,18 +41,19 @@ def _c(result: AckResult, *after: Mode, aborts: bool = False) -> Cell:
 
 STAY = _c(OK)
 REFUSED = _c(NO)
-_START = _c(OK, R, L)  # RECOVERING, or LEARNING at once when the simulator's start_at_rest is set
-_SURFACING = _c(OK, S, I)  # at the surface already, SURFACING may end within one step
+_START = _c(OK, RE, LE)  # RECOVERING, or LEARNING at once when the simulator's start_at_rest is set
+_SURFACING = _c(OK, SU, ID)  # at the surface already, SURFACING may end within one step
 MATRIX: dict[str, dict[Mode, Cell]] = {
-    "CMD_START": {I: _START, L: REFUSED, R: REFUSED, H: _START, P: _START, S: REFUSED},
-    "CMD_STOP": {I: STAY, L: _c(OK, S, aborts=True), R: _c(OK, S), H: _c(OK, S), P: _c(OK, S), S: STAY},
-    "CMD_PAUSE": {I: REFUSED, L: _c(OK, P, aborts=True), R: _c(OK, P), H: REFUSED, P: REFUSED, S: REFUSED},
-    "CMD_SET_TARGET": {I: STAY, L: REFUSED, R: STAY, H: STAY, P: STAY, S: STAY},
-    "CMD_SURFACE": {I: _SURFACING, L: _c(OK, S, aborts=True), R: _c(OK, S), H: _c(OK, S), P: _c(OK, S), S: STAY},
-    "CMD_HOVER": {I: _c(OK, H), L: REFUSED, R: REFUSED, H: _c(OK, H), P: _c(OK, H), S: REFUSED},
-    "CMD_RESET_MODEL": {I: STAY, L: REFUSED, R: STAY, H: STAY, P: STAY, S: STAY},
+    "CMD_START": {ID: _START, LE: REFUSED, RE: REFUSED, HO: _START, PA: _START, SU: REFUSED},
+    "CMD_STOP": {ID: STAY, LE: _c(OK, SU, aborts=True), RE: _c(OK, SU), HO: _c(OK, SU), PA: _c(OK, SU), SU: STAY},
+    "CMD_PAUSE": {ID: REFUSED, LE: _c(OK, PA, aborts=True), RE: _c(OK, PA), HO: REFUSED, PA: REFUSED, SU: REFUSED},
+    "CMD_SET_TARGET": {ID: STAY, LE: REFUSED, RE: STAY, HO: STAY, PA: STAY, SU: STAY},
+    "CMD_SURFACE": {ID: _SURFACING, LE: _c(OK, SU, aborts=True), RE: _c(OK, SU), HO: _c(OK, SU), PA: _c(OK, SU),
+                    SU: STAY},
+    "CMD_HOVER": {ID: _c(OK, HO), LE: REFUSED, RE: REFUSED, HO: _c(OK, HO), PA: _c(OK, HO), SU: REFUSED},
+    "CMD_RESET_MODEL": {ID: STAY, LE: REFUSED, RE: STAY, HO: STAY, PA: STAY, SU: STAY},
 }
-ORDER = (I, H, P, L, R, S)
+ORDER = (ID, HO, PA, LE, RE, SU)
 
 
 def _commands(probe: Probe) -> dict[str, Callable[[], Message]]:
@@ -110,7 +111,7 @@ def matrix_row(name: str) -> Callable[[Probe], str]:
                     failures.setdefault(before, []).append(problem)
                 else:
                     passed.add(before)
-        reach(probe, I)
+        reach(probe, ID)
         problems = [found[0] for mode, found in failures.items() if mode not in passed]
         missed = [x.name for x in ORDER if x not in passed and x not in failures]
         expect(not problems, "; ".join(problems))
@@ -142,13 +143,13 @@ ANY_MODE = {
        mode matrix).""", motion=True)
 def any_mode(probe: Probe) -> str:
     problems = []
-    for wanted in (I, H, P, L):
+    for wanted in (ID, HO, PA, LE):
         reach(probe, wanted)
         for name, make in ANY_MODE.items():
             ex = probe.command(make())
             if ex.result != OK:
                 problems.append(f"{name} in {probe.mode_before(ex)}: {result_name(ex.result)}")
-    reach(probe, I)
+    reach(probe, ID)
     expect(not problems, "; ".join(problems))
     return "accepted in IDLE, HOVER, PAUSED, LEARNING"
 
@@ -165,12 +166,10 @@ def hover_range(probe: Probe) -> str:
 @check("modes.idle_refusals", SECTION, """CMD_PAUSE in IDLE: NOT_ALLOWED_IN_MODE; CMD_STOP in IDLE: ACCEPTED, stays
        IDLE (decisions: command x mode matrix).""")
 def idle_refusals(probe: Probe) -> str:
-    if probe.current_mode() != I:
-        from groundstation.check.registry import CheckSkipped
-
+    if probe.current_mode() != ID:
         raise CheckSkipped(f"the agent is in {probe.current_mode().name}, not IDLE")
     for name, make in (("CMD_PAUSE", m.Pause), ("CMD_STOP", m.Stop)):
-        before, problem = _judge(probe, name, make, I)
+        _, problem = _judge(probe, name, make, ID)
         expect(not problem, problem)
     return "CMD_PAUSE refused, CMD_STOP accepted, still IDLE"
 
@@ -178,16 +177,14 @@ def idle_refusals(probe: Probe) -> str:
 @check("modes.start_max_episodes", SECTION, """CMD_START max_episodes 0 means "the max_episodes parameter"
        (whose 0 is "no limit"); episode limit reached → SURFACING, then IDLE.""", motion=True)
 def start_max_episodes(probe: Probe) -> str:
-    reach(probe, I)
+    reach(probe, ID)
     with overridden(probe, {"max_episodes": 1.0}):
         probe.accepted(m.StartLearning(max_episodes=0), "CMD_START 0 with max_episodes = 1")
         start = probe.end
         end = probe.wait_message(m.EpisodeEnd, start, probe.timeouts.mode_s)
         expect(end is not None, f"no EPISODE_END within {probe.timeouts.mode_s:g} s")
         assert end is not None
-        mode = probe.wait(lambda f: isinstance(f.message, m.Sample) and not f.flags & 0x02, end[0] + 1,
-                          probe.timeouts.heartbeat_s)
-        shown = Mode(mode[1].message.mode) if mode is not None else None  # type: ignore[union-attr]
-        expect(shown in (S, I), f"after the one episode the agent is in {shown}, wanted SURFACING")
-    reach(probe, I)
+        shown = probe.wait_mode(set(Mode), end[0] + 1, probe.timeouts.heartbeat_s)
+        expect(shown in (SU, ID), f"after the one episode the agent is in {shown}, wanted SURFACING")
+    reach(probe, ID)
     return "one episode, then SURFACING"

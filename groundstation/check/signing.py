@@ -1,4 +1,4 @@
-"""Signing: an agent holding a key refuses every command not validly signed, exactly once, and counts it (SPEC.md 12)."""
+"""Signing: an agent with a key refuses every command not validly signed, once, and counts it (SPEC.md 12)."""
 
 from __future__ import annotations
 

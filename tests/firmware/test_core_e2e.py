@@ -104,3 +104,20 @@ def test_sim_url_selects_the_c_firmware(firmware_cache: Path, tmp_path: Path) ->
     assert summary.complete and len(summary.episodes) >= 2
     # The C firmware introduces itself as the real agent does (the Python agent says "sim-agent").
     assert summary.agent["name"] == "diving-agent" and summary.agent["firmware_major"] == "1", summary.agent
+
+
+# dive check groups that finish quickly at full speed; the command x mode matrix and link loss need an agent slower
+# than full speed to meet LEARNING (`dive check "sim://?speed=5&firmware=c" --key-file K` runs everything).
+QUICK_CHECKS = ("handshake", "seq", "junk", "timesync", "ack", "counters", "signing", "dump", "log", "params.list",
+                "params.get", "params.set", "params.refused", "params.ram_budget")
+
+
+def test_dive_check_passes_against_the_host_build(firmware_cache: Path, tmp_path: Path) -> None:
+    key_file = tmp_path / "agent.key"
+    key_file.write_text(os.urandom(32).hex() + "\n")
+    key_file.chmod(0o600)
+    url = f"sim://?speed=max&firmware=c&seed=4&key_file={key_file}&state_dir={tmp_path / 'state'}"
+    only = [arg for name in QUICK_CHECKS for arg in ("--only", name)]
+    result = CliRunner().invoke(app, ["check", url, "--key-file", str(key_file), *only], env={"COLUMNS": "200"})
+    assert result.exit_code == 0, result.output
+    assert "conforms" in result.stdout and " 0 failed" in result.stdout
