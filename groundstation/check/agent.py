@@ -120,9 +120,7 @@ def reach(probe: Probe, target: Mode) -> None:
         if deep is None:
             raise CheckFailed(f"the agent did not get deeper than {DEEP_M} m within {probe.timeouts.mode_s:g} s")
         # A virtual agent at full speed surfaces within a millisecond: the caller's command goes right behind.
-        start = probe.end
-        inner = probe.send(m.Surface())
-        probe.entered = (Exchange(inner[4], int.from_bytes(inner[2:4], "little"), inner, start), Mode.SURFACING)
+        probe.defer(m.Surface(), Mode.SURFACING)
     elif target == Mode.PAUSED:
         if mode not in (Mode.LEARNING, Mode.RECOVERING):
             _start(probe)
@@ -131,17 +129,19 @@ def reach(probe: Probe, target: Mode) -> None:
         _start_at_rest(probe, False)
         _start(probe)
     elif target == Mode.LEARNING:
-        if _start_at_rest(probe, True) and mode != Mode.RECOVERING:
+        if _start_at_rest(probe, True):
             # An episode starts at once (EPISODE_START right after the ACK): the caller's command goes right behind,
             # before a virtual agent at full speed has ended the episode.
-            if mode not in (Mode.IDLE, Mode.HOVER, Mode.PAUSED):
+            if probe.current_mode() not in (Mode.IDLE, Mode.HOVER, Mode.PAUSED):
                 go_idle(probe)
             probe.notes["moved"] = 1.0
-            probe.send(m.StartLearning(max_episodes=0))
+            probe.defer(m.StartLearning(max_episodes=0), Mode.LEARNING)
             return
-        shown = mode if mode == Mode.RECOVERING else _start(probe)
-        if shown == Mode.RECOVERING:  # a real agent recovers first
-            _wait(probe, {Mode.LEARNING}, probe.end)
+        # A real agent recovers first (or gives up and surfaces): the caller judges the mode its command meets.
+        since = probe.end
+        if mode != Mode.RECOVERING:
+            _start(probe)
+        _wait(probe, {Mode.LEARNING, Mode.SURFACING, Mode.IDLE}, since)
 
 
 def _enter(probe: Probe, command: m.Message, modes: set[Mode]) -> Mode:

@@ -4,7 +4,6 @@ sends for given bytes (SPEC.md 1.1 sections 1, 4, 5), then the ACK memory and co
 from __future__ import annotations
 
 import json
-import os
 import struct
 from collections.abc import Iterator
 from typing import Any
@@ -16,7 +15,7 @@ from protocol import AckResult, FrameFlag, Mode, StreamDecoder, messages
 from protocol.cobs import cobs_encode
 from protocol.frame import build_inner
 from simulator.parameters import preset
-from tests.firmware.core_build import ROOT, require_cc
+from tests.firmware.core_build import ROOT, use_firmware_cache
 
 VECTORS = ROOT / "tests" / "vectors" / "receive.jsonl"
 
@@ -64,8 +63,7 @@ class Agent:
 
 @pytest.fixture(scope="module")
 def agent(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Agent]:
-    require_cc()
-    os.environ.setdefault("DIVE_FIRMWARE_CACHE", str(tmp_path_factory.mktemp("firmware-cache")))
+    use_firmware_cache(tmp_path_factory)
     yield Agent()
 
 
