@@ -44,14 +44,14 @@ LEARNERS: dict[str, tuple[LearnerConfig, list[str], str]] = {
     "actuator3 (S = 301)": (learner_preset("actuator3"), ["--param", "act_bins=3"], "actuator3"),
 }
 _FIELDS = re.compile(r"(\w+)=(\d+)")
-console = Console()
 
 
 def arena_flags(config: LearnerConfig) -> str:
     """The learner's and the snapshot store's arenas sized for this learner (what its build would hold)."""
     s = n_states(config)
     learner_bytes = learner_memory_bytes(config) + 4 * s  # + the Jacobi sweep buffer
-    return f"-DLEARNER_ARENA_BYTES={learner_bytes}u -DDUMPS_ARENA_BYTES={SNAPSHOTS_HELD * SNAPSHOT_BYTES_PER_STATE * s}u"
+    dumps_bytes = SNAPSHOTS_HELD * SNAPSHOT_BYTES_PER_STATE * s
+    return f"-DLEARNER_ARENA_BYTES={learner_bytes}u -DDUMPS_ARENA_BYTES={dumps_bytes}u"
 
 
 @dataclass
@@ -134,6 +134,7 @@ def main() -> None:
     for tool in ("arm-none-eabi-gcc", "arm-none-eabi-size", "qemu-system-arm", "make"):
         if shutil.which(tool) is None:
             raise SystemExit(f"{tool} not found: the firmware benchmark needs it")
+    console = Console(stderr=True)
     rows: list[str] = []
     step_rows: list[str] = []
     with tempfile.TemporaryDirectory(prefix="firmware-bench-") as scratch:
@@ -145,7 +146,7 @@ def main() -> None:
             teensy = teensy_sizes if isinstance(teensy_sizes, str) else teensy_sizes.get(variant, "no such variant")
             with console.status(f"{name}: {args.episodes} episodes on QEMU (icount)"):
                 run = qemu_run(config, run_args, args.episodes, work)
-            console.print(f"{name}: calibration loop 2,000,000 instructions = {run.calibration_ticks} ticks, "
+            print(f"{name}: calibration loop 2,000,000 instructions = {run.calibration_ticks} ticks, "
                           f"{run.instructions_per_tick:.2f} instructions per tick (anchor: 40.00, ratio "
                           f"{run.instructions_per_tick / 40.0:.4f})")
             if isinstance(teensy, Sizes):
@@ -167,14 +168,12 @@ def main() -> None:
                     f"| {name} | {what} | {st.steps} | {mean:,.0f} | {peak:,.0f} | {period * 1e3:.0f} ms | "
                     f"{share(mean, period):.2%} | {share(peak, period):.2%} |")
             step_rows.append(f"| {name} | most sweeps in one planning run | {run.max_sweeps} | | | | | |")
-    console.print("\n| Teensy build | flash B | RAM B | stack peak B (QEMU) | learner arrays B |\n"
-                  "|---|---|---|---|---|", markup=False)
-    for row in rows:
-        console.print(row, markup=False)
-    console.print("\n| learner | step | steps | instructions mean | instructions max | period | mean share at "
-                  "72 MHz | max share |\n|---|---|---|---|---|---|---|---|", markup=False)
-    for row in step_rows:
-        console.print(row, markup=False)
+    # Plain prints: the tables go into docs/firmware.md as they are (rich would wrap them).
+    print("\n| Teensy build | flash B | RAM B | stack peak B (QEMU) | learner arrays B |\n|---|---|---|---|---|")
+    print("\n".join(rows))
+    print("\n| learner | step | steps | instructions mean | instructions max | period | mean share at 72 MHz | "
+          "max share |\n|---|---|---|---|---|---|---|---|")
+    print("\n".join(step_rows))
 
 
 if __name__ == "__main__":

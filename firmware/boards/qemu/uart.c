@@ -3,6 +3,7 @@
 
 #define UART0_BASE 0x40004000u
 #define UART1_BASE 0x40005000u
+#define UART2_BASE 0x40006000u
 #define UART_DATA 0x00u
 #define UART_STATE 0x04u
 #define UART_CTRL 0x08u
@@ -34,6 +35,8 @@ void uart_init(void)
     *reg(UART0_BASE, UART_CTRL) = CTRL_TX_EN | CTRL_RX_EN | CTRL_RX_IRQ_EN;
     *reg(UART1_BASE, UART_BAUDDIV) = BAUDDIV_MIN;
     *reg(UART1_BASE, UART_CTRL) = CTRL_TX_EN;
+    *reg(UART2_BASE, UART_BAUDDIV) = BAUDDIV_MIN;
+    *reg(UART2_BASE, UART_CTRL) = CTRL_RX_EN;
     *(volatile uint32_t *)(uintptr_t)NVIC_ISER0 = UART0_RX_IRQ_BIT;
 }
 
@@ -93,6 +96,16 @@ void uart1_write_text(const char *text)
         n++;
     }
     write_bytes(UART1_BASE, (const uint8_t *)text, n);
+}
+
+bool uart2_link_up(void)
+{
+    bool up = false;
+    while (*reg(UART2_BASE, UART_STATE) & STATE_RX_FULL) {
+        (void)*reg(UART2_BASE, UART_DATA);
+        up = true;
+    }
+    return up;
 }
 
 void uart_fault_message(const char *text)
