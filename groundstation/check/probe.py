@@ -89,6 +89,8 @@ class Probe:
         self._last_send_s = time.monotonic()
         self._origin = 0
         self._held = b""  # a deferred frame, sent with the next one
+        self._writes = 0  # link writes so far: counters read after the last one are still current
+        self._counters: tuple[tuple[int, int], m.Heartbeat] | None = None
         self.entered: tuple[Exchange, Mode] | None = None  # a command sent without waiting, and the mode it enters
         self.notes: dict[str, float | None] = {}  # what checks learned about the agent (shared between checks)
         self.originals: dict[str, float | None] = {}  # parameter values to put back at the end of the run
@@ -126,6 +128,7 @@ class Probe:
         held, self._held = self._held, b""
         self.link.send(held + data)
         self._last_send_s = time.monotonic()
+        self._writes += 1
 
     def defer(self, message: Message, enters: Mode) -> None:
         """Hold a command that enters `enters` until the next send, so that both reach the agent in one write: the
@@ -192,6 +195,12 @@ class Probe:
             self._frames.popleft()
             self._first += 1
         return len(frames)
+
+    def drain(self, most: int = 200) -> None:
+        """Read what has already arrived (at most `most` reads): the newest frames show the agent's present."""
+        for _ in range(most):
+            if not self.pump(0.0):
+                return
 
     def wait(self, predicate: Callable[[Frame], bool], start: int, timeout_s: float) -> tuple[int, Frame] | None:
         """The first frame at or after index `start` that satisfies predicate, pumping up to timeout_s."""
@@ -275,13 +284,17 @@ class Probe:
     def counters(self) -> m.Heartbeat:
         """The agent's counters after everything sent so far: the first HEARTBEAT after a barrier.
 
-        No keep-alive goes out meanwhile: the agent would count it after the HEARTBEAT that is read here.
+        No keep-alive goes out meanwhile: the agent would count it after the HEARTBEAT that is read here. Nothing
+        sent and no seq skipped since the last reading: that reading (a real agent sends one HEARTBEAT a second).
         """
+        if self._counters is not None and self._counters[0] == (self._writes, self._seq) and not self._held:
+            return self._counters[1]
         with self.quiet():
             after = self.barrier()
             found = self.wait_message(m.Heartbeat, after, self.timeouts.heartbeat_s)
         if found is None:
             raise CheckFailed(f"no HEARTBEAT within {self.timeouts.heartbeat_s:g} s")
+        self._counters = ((self._writes, self._seq), found[1])
         return found[1]
 
     def current_mode(self) -> Mode:
