@@ -340,7 +340,7 @@ def check_command(
         values.setdefault("low_batt_v", VIRTUAL_LOW_BATTERY_V)
         extra = {k: v for k, v in (("speed", "max"), ("key_file", key_file and str(key_file)))
                  if v and f"{k}=" not in url}
-        url = url + ("&" if "?" in url else "?") + urlencode(extra) if extra else url
+        url = url + ("&" if "?" in url else "?") + urlencode(extra, safe="/") if extra else url
     options = CheckOptions(url=url, key=key, allow_motion=allow_motion, only=tuple(only or ()),
                            params=tuple(values.items()),
                            timeouts=Timeouts(reply_s=timeout, heartbeat_s=max(3.0, timeout), mode_s=mode_timeout))

@@ -144,10 +144,14 @@ def reach(probe: Probe, target: Mode) -> None:
         if probe.current_mode() != Mode.RECOVERING:
             _start(probe)
         deadline = time.monotonic() + probe.timeouts.mode_s
-        while _wait(probe, {Mode.LEARNING, Mode.SURFACING, Mode.IDLE}, since) == Mode.LEARNING:
+        while True:
+            left = deadline - time.monotonic()
+            shown = probe.wait_mode({Mode.LEARNING, Mode.SURFACING, Mode.IDLE}, since, max(left, 0.0))
+            if shown != Mode.LEARNING:
+                return  # gave up recovering, or the time is up: the caller sees which mode its command met
             since = probe.end
             probe.drain()  # behind a fast agent's backlog the episode may be over already: wait for a current one
-            if probe.mode == Mode.LEARNING or time.monotonic() > deadline:
+            if probe.mode == Mode.LEARNING:
                 return
 
 
