@@ -68,10 +68,13 @@ def qemu_binary() -> str:
     return found
 
 
-def build_elf(build_dir: Path | None = None, extra_cflags: str = "") -> Path:
-    """firmware/build/qemu/agent.elf (or under build_dir), made with `make -C firmware qemu` when stale."""
+def build_elf(build_dir: Path | None = None, arenas: str = "") -> Path:
+    """firmware/build/qemu/agent.elf (or under build_dir), made with `make -C firmware qemu` when stale.
+
+    arenas: -D flags sizing the learner and snapshot arenas (default: qemu.mk's, those of the host build).
+    """
     prebuilt = os.environ.get(ELF_ENV)
-    if prebuilt and build_dir is None and not extra_cflags:
+    if prebuilt and build_dir is None and not arenas:
         if not Path(prebuilt).is_file():
             raise QemuError(f"{ELF_ENV}={prebuilt} is not a file")
         return Path(prebuilt)
@@ -81,8 +84,8 @@ def build_elf(build_dir: Path | None = None, extra_cflags: str = "") -> Path:
         raise QemuError("make not found: it builds the firmware")
     out = build_dir if build_dir is not None else FIRMWARE_DIR / "build" / "qemu"
     cmd = ["make", "-s", "-C", str(FIRMWARE_DIR), "qemu", f"QEMU_BUILD_DIR={out}"]
-    if extra_cflags:
-        cmd.append(f"QEMU_EXTRA_CFLAGS={extra_cflags}")
+    if arenas:
+        cmd.append(f"QEMU_ARENAS={arenas}")
     done = subprocess.run(cmd, capture_output=True, text=True, check=False)
     if done.returncode != 0:
         lines = [x for x in (done.stderr or done.stdout).splitlines() if x.strip()]

@@ -9,10 +9,16 @@ server does, a second client replaces the first.
 
 from __future__ import annotations
 
+import select
 import socket
 import threading
 
 _CHUNK = 4096
+# QEMU writes the UART's bytes to its socket one by one as the firmware sends them. Bytes that follow
+# within this time are forwarded together, so a burst (an ACK and the reply behind it) reaches the client
+# in one segment, as from the Python agent's server, instead of being cut wherever a recv() happened to wake.
+_BURST_S = 0.002
+_BURST_MAX_BYTES = 16384
 LINK_UP = b"\x01"
 
 
@@ -69,7 +75,12 @@ class LinkRelay:
         while not self._closed.is_set():
             try:
                 data = self._link.recv(_CHUNK)
-            except OSError:
+                while data and len(data) < _BURST_MAX_BYTES and select.select([self._link], [], [], _BURST_S)[0]:
+                    more = self._link.recv(_CHUNK)
+                    if not more:
+                        break
+                    data += more
+            except (OSError, ValueError):
                 return
             if not data:
                 return  # QEMU ended

@@ -101,7 +101,7 @@ def test_qemu_refuses_options_it_cannot_honour() -> None:
 
 # The dive check groups that need no long stay in one mode: at --speed max an episode of the hardware
 # preset lasts a few ms of wall time, too short for the mode-matrix checks to meet LEARNING reliably.
-CHECK_GROUPS = ("handshake", "junk", "timesync", "signing", "dump", "log")
+CHECK_GROUPS = ("handshake", "junk", "timesync", "ack", "signing", "dump", "log")
 
 
 def test_dive_check_passes_against_the_emulated_agent_with_a_key(elf: Path, tmp_path: Path) -> None:
@@ -109,10 +109,12 @@ def test_dive_check_passes_against_the_emulated_agent_with_a_key(elf: Path, tmp_
     key = bytes(range(32))
     key_file = tmp_path / "agent.key"
     key_file.write_text(key.hex())
+    key_file.chmod(0o600)  # dive refuses a key file others can read
     with QemuAgent(QemuConfig(seed=12, key=key), elf) as running:
         only = [arg for group in CHECK_GROUPS for arg in ("--only", group)]
         done = dive("check", running.address, "--allow-motion", "--json", "--key-file", str(key_file), *only,
                     timeout_s=120)
+    assert done.stdout.startswith("{"), done.stderr[-2000:]
     report = json.loads(done.stdout)
     failed = [(c["id"], c["detail"]) for c in report["checks"] if c["result"] == "FAIL"]
     assert not failed, failed

@@ -194,6 +194,7 @@ int main(void)
             /* Paced: the next step waits for its real time, reading the link meanwhile. */
             while (timer_real_us() < due_real_us) {
                 agent_poll_link();
+                timer_idle();
             }
         }
         uint8_t mode = modes_mode();
