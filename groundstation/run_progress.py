@@ -11,9 +11,9 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, SpinnerColumn
 from groundstation.runner import RunStatus
 from groundstation.safe_output import in_markup, styled
 
-SLOW_START_S = 3.0  # a virtual agent that has not answered by then is compiling its kernels (first start)
-SLOW_START_NOTE = ("the virtual agent is compiling the simulator (once; about 30 s on an idle machine, "
-                   "later starts take seconds)")
+SLOW_START_S = 3.0  # a virtual agent silent this long is loading, or on its first start compiling, its kernels
+SLOW_START_NOTE = ("the virtual agent is starting: its first start compiles the simulator (once; about 30 s on an "
+                   "idle machine), later starts take seconds")
 
 
 def describe(s: RunStatus) -> str:
@@ -74,8 +74,8 @@ class RunDisplay:
         printer = self._progress.console if self._progress is not None else self.console
         if status.hub and status.hub != self._hub:
             self._hub = status.hub
-            printer.print(f"[dim]other tools attach to this run as {status.hub} "
-                          f"(dive view, status, mark, surface ...)[/]", soft_wrap=True)
+            printer.print(styled(f"other tools attach to this run as {status.hub} (dive view, status, mark, "
+                                 "surface ...)", "dim"), soft_wrap=True)
         for line in status.messages[self._messages:]:  # agent text among them: data, never markup
             printer.print(styled(line, "yellow"), soft_wrap=True)
         self._messages = len(status.messages)

@@ -88,6 +88,8 @@ def test_not_on_a_terminal_dive_run_prints_one_line_per_episode(tmp_path: Path) 
     episodes = [line for line in lines if line.startswith("episode ")]
     assert [line.split(":")[0] for line in episodes][:3] == ["episode 1 of 3", "episode 2 of 3", "episode 3 of 3"]
     assert not any("\r" in line or "━" in line for line in lines)  # no progress bar redrawn into a log
+    assert any(line.startswith("other tools attach to this run as hub://") for line in lines)
+    assert not any("[dim]" in line or "[/]" in line for line in lines)  # styles applied, not printed as text
 
     info = _cli("log", "info", str(tmp_path), str(tmp_path), "--json")  # a folder, twice: a list of summaries
     rows = json.loads(info.stdout)
