@@ -231,13 +231,13 @@ def run(config: RunConfig, on_progress: Callable[[RunStatus], None] | None = Non
     try:
         session.connect()
         status.link_up = True
-        if on_progress is not None:
-            on_progress(status)  # connected: the display stops waiting for a (compiling) virtual agent
         if config.hub:
             hub = Hub(session).start()
             session.add_listener(hub)
             announced = _announce(new_run(os.getpid(), hub.address, link.url), recorder)
             status.hub = f"hub://{announced.run}"
+        if on_progress is not None:
+            on_progress(status)  # connected: the display stops waiting for a (compiling) virtual agent
         values = dict(config.params)
         if config.dumps_each_episode:
             # The view's value and policy heatmaps fill from these; the user's own setting wins.
