@@ -60,7 +60,7 @@ def test_sigterm_and_sighup_stop_dive_run_as_ctrl_c_does(signum: int, tmp_path: 
     proc, child = start_run(tmp_path)
     proc.send_signal(signum)
     out, err = proc.communicate(timeout=90)
-    assert proc.returncode == 0, err
+    assert proc.returncode == 130, err  # stopped as by Ctrl-C: the one exit-code convention (README, issue 14)
     (path,) = tmp_path.glob("*.mcap")
     assert str(path) in out.splitlines()  # the path printed
     assert f"stopped by {signal.Signals(signum).name}" in err
