@@ -1,0 +1,19 @@
+"""The virtual agent sends the same wire bytes and logs the same records as before its fast paths, seed for seed.
+
+The fixture was captured from main at aa759ad (one step and one link tick per call) before any speed-up.
+"""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from tests.simulator import agent_trace
+
+EXPECTED = {(t["preset"], t["seed"]): t for t in json.loads(agent_trace.FIXTURE.read_text())}
+
+
+@pytest.mark.parametrize(("preset_name", "seed"), sorted(EXPECTED))
+def test_the_served_agent_sends_and_logs_the_bytes_of_the_fixture(preset_name: str, seed: int) -> None:
+    assert agent_trace.run(preset_name, seed) == EXPECTED[preset_name, seed]
