@@ -6,7 +6,7 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING, NamedTuple
 
 from protocol.cobs import CobsFrameEncoder, cobs_decode
-from protocol.enums import FrameFlag
+from protocol.enums import PROTOCOL_VERSION, FrameFlag
 from protocol.frame import HEADER, build_inner, payload_end
 from protocol.registry import Message
 
@@ -23,16 +23,30 @@ _ACK_REQUESTED = int(FrameFlag.ACK_REQUESTED)  # a plain int: IntFlag arithmetic
 _new_encoded = tuple.__new__  # EncodedFrame(...) without the named tuple's Python-level __new__
 
 
+_COMPILED_MAX_PAYLOAD = 246  # protocol.fast_frames.COMPILED_MAX_PAYLOAD (a test checks they agree)
+
+
+def _compiled_writer() -> Callable[[bytes, int, int, int], bytes] | None:
+    """A compiled frame writer (protocol.fast_frames.frame_writer), or None without numba: the stdlib path then."""
+    try:
+        from protocol.fast_frames import frame_writer
+    except ImportError:
+        return None
+    return frame_writer(PROTOCOL_VERSION)
+
+
 class FrameEncoder:
     """Keeps the per-sender sequence counter (+1 per frame, wraps at 65536).
 
     With a `signer`, every frame gets flag bit 2 and a signature trailer (SPEC.md section 12).
     """
 
-    def __init__(self, first_seq: int = 0, signer: Signer | None = None) -> None:
+    def __init__(self, first_seq: int = 0, signer: Signer | None = None, compiled: bool = True) -> None:
         self._seq = first_seq & 0xFFFF
         self.signer = signer
         self._cobs = CobsFrameEncoder()  # senders repeat a few zero patterns (SAMPLEs): cached COBS codes
+        # Header, CRC and COBS of an unsigned frame in one compiled call, where numba is installed.
+        self._compiled = _compiled_writer() if compiled else None
 
     @property
     def next_seq(self) -> int:
@@ -47,6 +61,10 @@ class FrameEncoder:
     def encode_payload(self, msg_id: int, payload: bytes, flags: int = 0) -> EncodedFrame:
         """Frame an already packed payload (raises FrameError if it exceeds 247 bytes, 234 when signed)."""
         seq = self._seq
+        compiled = self._compiled
+        if compiled is not None and self.signer is None and len(payload) <= _COMPILED_MAX_PAYLOAD:
+            self._seq = (seq + 1) & 0xFFFF
+            return _new_encoded(EncodedFrame, (seq, compiled(payload, flags, seq, msg_id)))
         return _new_encoded(EncodedFrame, (seq, self.wire(self.next_inner(msg_id, payload, flags))))
 
     def next_inner(self, msg_id: int, payload: bytes, flags: int = 0) -> bytes:
