@@ -4,15 +4,19 @@ from __future__ import annotations
 
 import json
 import os
+import struct
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
+from io import BytesIO
+from itertools import chain
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import TracebackType
 from typing import IO, Any, Self
 
 from mcap.exceptions import McapError
-from mcap.records import Attachment, Channel, Message, Metadata, Schema
+from mcap.opcode import Opcode
+from mcap.records import Attachment, Channel, Message, MessageIndex, Metadata, Schema
 from mcap.stream_reader import StreamReader
 from mcap.writer import CompressionType, Writer
 
@@ -46,6 +50,7 @@ class McapFileWriter:
             raise RecordingError(f"cannot write {path}: {e.strerror or e}") from e
         self._writer = Writer(self._file, chunk_size=256 * 1024, compression=CompressionType.ZSTD)
         self._writer.start(profile=PROFILE, library=f"dive (mcap {mcap_library_version()})")
+        self._add = _message_adder(self._writer)
         self._schemas: dict[str, int] = {}
         self._channels: dict[str, int] = {}
         self._flush_period_s = flush_period_s
@@ -72,11 +77,19 @@ class McapFileWriter:
         return topic in self._channels
 
     def write(self, channel_id: int, data: bytes, log_time_ns: int, publish_time_ns: int | None = None) -> None:
-        self._writer.add_message(channel_id, log_time=log_time_ns, data=data,
-                                 publish_time=log_time_ns if publish_time_ns is None else publish_time_ns)
-        self.bytes_written += len(data) + 40
-        self.messages += 1
-        self.maybe_flush()
+        self.write_many(((channel_id, data),), log_time_ns, publish_time_ns)
+
+    def write_many(self, messages: tuple[tuple[int, bytes], ...], log_time_ns: int,
+                   publish_time_ns: int | None = None) -> None:
+        """Several messages of the same times (a frame's JSON body and its raw bytes): one call, one flush check."""
+        self._add(messages, log_time_ns, log_time_ns if publish_time_ns is None else publish_time_ns)
+        written = 0
+        for _, data in messages:
+            written += len(data) + 40
+        self.bytes_written += written
+        self.messages += len(messages)
+        if time.monotonic() - self._last_flush_s >= self._flush_period_s:  # maybe_flush, inlined: once per frame
+            self.flush()
 
     def metadata(self, name: str, values: dict[str, Any]) -> None:
         self._writer.add_metadata(name, {k: v if isinstance(v, str) else json.dumps(v) for k, v in values.items()})
@@ -112,6 +125,79 @@ class McapFileWriter:
     def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
                  tb: TracebackType | None) -> None:
         self.close()
+
+
+_MESSAGE_HEAD = struct.Struct("<BQHIQQ")  # opcode, record length, channel id, sequence, log time, publish time
+_MESSAGE_FIELDS = _MESSAGE_HEAD.size - 9  # the record length counts what follows the opcode and the length
+
+
+class _MessageIndex(MessageIndex):
+    """A chunk's message index written in one piece (MessageIndex.write makes two small writes per message)."""
+
+    def write(self, stream: Any) -> None:
+        records = self.records
+        stream.write(struct.pack(f"<BQHI{2 * len(records)}Q", Opcode.MESSAGE_INDEX, 6 + 16 * len(records),
+                                 self.channel_id, 16 * len(records), *chain.from_iterable(records)))
+
+
+_Adder = Callable[[tuple[tuple[int, bytes], ...], int, int], None]
+
+
+def _message_adder(writer: Writer) -> _Adder:
+    """`add(((channel_id, data), ...), log_time, publish_time)`: what Writer.add_message does for each message.
+
+    Writer.add_message builds a Message record object and writes it field by field (eight small writes
+    and two seeks), more than a frame costs us to decode and encode as JSON; a recorder writes two per
+    frame. This does the same bookkeeping (statistics, the chunk's message index and times) on the
+    Writer's own chunk builder and writes each record (and the chunk's message index) in one piece;
+    a test checks the file is byte for
+    byte the one add_message writes. Falls back to add_message if this mcap version's Writer is laid out
+    differently (chunking off, or renamed internals).
+    """
+    statistics = getattr(writer, "_Writer__statistics", None)
+    builder = getattr(writer, "_Writer__chunk_builder", None)
+    finalize = getattr(writer, "_Writer__finalize_chunk", None)
+    chunk_size = getattr(writer, "_Writer__chunk_size", None)
+    records = getattr(builder, "record_writer", None)
+    if (statistics is None or finalize is None or not isinstance(chunk_size, int)
+            or not isinstance(getattr(records, "_buffer", None), BytesIO)):
+        def add_messages(messages: tuple[tuple[int, bytes], ...], log_time: int, publish_time: int) -> None:
+            for channel_id, data in messages:
+                writer.add_message(channel_id, log_time=log_time, data=data, publish_time=publish_time)
+        return add_messages
+    assert builder is not None and records is not None
+    channel_counts = statistics.channel_message_counts
+    indices = builder.message_indices
+    pack = _MESSAGE_HEAD.pack
+
+    def add(messages: tuple[tuple[int, bytes], ...], log_time: int, publish_time: int) -> None:
+        stats = statistics
+        chunk = builder
+        buffer = records._buffer  # a new BytesIO after every chunk
+        for channel_id, data in messages:
+            if log_time < stats.message_start_time or stats.message_count == 0:
+                stats.message_start_time = log_time
+            if log_time > stats.message_end_time:
+                stats.message_end_time = log_time
+            channel_counts[channel_id] += 1
+            stats.message_count += 1
+            if log_time < chunk.message_start_time or chunk.num_messages == 0:
+                chunk.message_start_time = log_time
+            if log_time > chunk.message_end_time:
+                chunk.message_end_time = log_time
+            index = indices.get(channel_id)
+            if index is None:
+                index = indices[channel_id] = _MessageIndex(channel_id=channel_id, records=[])
+            position = buffer.tell()
+            index.records.append((log_time, position))
+            chunk.num_messages += 1
+            buffer.write(pack(Opcode.MESSAGE, _MESSAGE_FIELDS + len(data), channel_id, 0, log_time, publish_time))
+            buffer.write(data)
+            if position + _MESSAGE_HEAD.size + len(data) > chunk_size:  # Writer.__maybe_finalize_chunk
+                finalize()
+                buffer = records._buffer
+
+    return add
 
 
 @dataclass(frozen=True, slots=True)
