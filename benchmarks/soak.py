@@ -107,10 +107,11 @@ def main() -> None:
         target_s = args.agent_hours * 3600
         halfway = False
         while clock.agent_s - start_agent_s < target_s:
-            time.sleep(0.5)
+            time.sleep(0.05)  # at --speed max the agent runs thousands of seconds per wall second: look often
             if not halfway and clock.agent_s - start_agent_s >= target_s / 2:
                 rss.append(("middle", rss_mb()))
                 halfway = True
+        soaked_agent_s, soaked_wall_s = clock.agent_s - start_agent_s, time.monotonic() - wall0
         try:
             session.command(m.Stop())
         except Exception as e:  # noqa: BLE001 the soak reports, it does not stop on a lost command
@@ -126,7 +127,9 @@ def main() -> None:
     stats = session.decoder.stats
     agent_report = json.loads(report.read_text())
     held, missing, duplicates = missing_samples(recorder.paths[-1])
-    print(f"agent time       {clock.agent_s - start_agent_s:,.0f} s at --speed {args.speed}, {wall_s:,.1f} s wall")
+    print(f"agent time       {soaked_agent_s:,.0f} s at --speed {args.speed} in {soaked_wall_s:,.1f} s wall (soak); "
+          f"{clock.agent_s - start_agent_s:,.0f} s and {wall_s:,.1f} s wall when the session closed "
+          "(after CMD_STOP and the backfill wait)")
     print(f"faults           {args.faults}")
     print(f"frames handled   {stats.frames:,} received ({stats.lost:,} lost by seq, {stats.rejects:,} rejected), "
           f"{session.stats.tx_frames:,} sent, {session.stats.retries:,} retries")

@@ -22,9 +22,9 @@ from groundstation.events import EventKind, LinkEvent, Received, Sent
 from groundstation.hello import tool_version
 from groundstation.mcap_io import RAW_ENCODING, McapFileWriter, mcap_library_version
 from protocol import Message, messages
-from protocol.registry import message_classes
 from protocol.cobs import cobs_decode
 from protocol.jsonschema import message_json_schema
+from protocol.registry import message_classes
 
 ENVELOPE = {
     "_seq": {"type": "integer", "description": "frame sequence number", "minimum": 0, "maximum": 65535},

@@ -18,11 +18,12 @@ HEADER_SIZE = HEADER.size
 unpack_header = HEADER.unpack_from
 _SIGNED = int(FrameFlag.SIGNED)
 _SEQ_HALF = 0x8000  # a seq this far or more behind the expected one is late/duplicate, not a gap
-_new_frame = tuple.__new__
+_new_frame = tuple.__new__  # Frame(...) without the named tuple's Python-level __new__
 # The compiled decoder's verdict on a chunk (protocol.fast_frames) and the DecoderStats counter of each reject.
 CHUNK_OK, CHUNK_OVERSIZE, CHUNK_COBS_ERROR, CHUNK_RUNT, CHUNK_CRC_ERROR, CHUNK_INCOMPATIBLE = range(6)
 REJECTED_AS = ("", "oversize", "cobs_errors", "runts", "crc_errors", "incompatible")
-_CompiledDecoder = Callable[[bytes, int, int, int, int], tuple[int, list[list[int]], bytes]]  # Frame(...) without the named tuple's Python-level __new__
+COMPILED_FROM_BYTES = 256  # shorter reads take the stdlib path
+_CompiledDecoder = Callable[[bytes, int, int, int, int], tuple[int, list[list[int]], bytes]]
 
 
 @dataclass(slots=True)
@@ -119,7 +120,8 @@ class StreamDecoder:
             data = data[end + 1 :]
             self._discarding = False
         buffer = self._buffer + data if self._buffer else bytes(data)
-        decode = _compiled_decoder() if self.compiled else None
+        # A read of a frame or two (commands and their ACKs) is decoded faster without the compiled call's set-up.
+        decode = _compiled_decoder() if self.compiled and len(buffer) >= COMPILED_FROM_BYTES else None
         frames: list[Frame] = []
         if decode is None:
             chunks = buffer.split(b"\x00")

@@ -17,8 +17,7 @@ from numba import njit
 from numpy.typing import NDArray
 
 from protocol.crc import CRC_INIT
-from protocol.decoder import CHUNK_COBS_ERROR, CHUNK_CRC_ERROR, CHUNK_OK, CHUNK_INCOMPATIBLE, CHUNK_OVERSIZE, CHUNK_RUNT
-
+from protocol.decoder import CHUNK_COBS_ERROR, CHUNK_CRC_ERROR, CHUNK_INCOMPATIBLE, CHUNK_OK, CHUNK_OVERSIZE, CHUNK_RUNT
 
 
 def _crc_table() -> NDArray[np.uint16]:
@@ -37,7 +36,7 @@ _CRC_TABLE = _crc_table()
 
 @njit(cache=True, nogil=True)
 def decode_chunks(buffer: NDArray[np.uint8], max_chunk: int, min_inner: int, version: int,
-                  incompatible_flags: int) -> tuple[int, int, NDArray[np.int64], NDArray[np.int64]]:
+                  incompatible_flags: int) -> tuple[int, int, NDArray[np.int64], NDArray[np.uint8]]:
     """COBS-decode every 0x00-terminated chunk of `buffer`, check its CRC residue, version and flags.
 
     Returns (chunks, end of the last delimiter, table, inner bytes). Row i of the table describes chunk i:
@@ -77,7 +76,7 @@ def decode_chunks(buffer: NDArray[np.uint8], max_chunk: int, min_inner: int, ver
                 if code != 0xFF and block_end < chunk_end:
                     inner[written] = 0
                     written += 1
-                position = block_end
+                position = int(block_end)
             if verdict == CHUNK_OK and written - start < min_inner:
                 verdict = CHUNK_RUNT
             if verdict == CHUNK_OK:
@@ -161,7 +160,7 @@ def frame_writer(version: int) -> Callable[[bytes, int, int, int], bytes]:
     """
     entry = _encode_entry()
     out = np.zeros(512, np.uint8)
-    view = memoryview(out)
+    view = memoryview(out)  # type: ignore[arg-type]  # numpy arrays are buffers
 
     def wire(payload: bytes, flags: int, seq: int, msg_id: int) -> bytes:
         return view[: entry(payload, version, flags, seq, msg_id, out)].tobytes()

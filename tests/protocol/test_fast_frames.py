@@ -5,12 +5,11 @@ from __future__ import annotations
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from protocol import FrameEncoder, StreamDecoder
+from protocol import FrameEncoder, StreamDecoder, encoder
 from protocol.cobs import cobs_decode, cobs_encode
 from protocol.decoder import CHUNK_COBS_ERROR, CHUNK_OK
 from protocol.enums import INCOMPATIBLE_FLAGS_MASK, PROTOCOL_VERSION
 from protocol.errors import CobsError
-from protocol import encoder
 from protocol.fast_frames import COMPILED_MAX_PAYLOAD, decode_buffer, frame_writer
 from protocol.frame import build_inner
 from tests.protocol.strategies import any_message
@@ -73,7 +72,8 @@ def test_compiled_decoding_of_encoded_data_gives_the_data_back(data: bytes) -> N
        seq=st.integers(0, 0xFFFF), msg_id=st.integers(0, 255))
 def test_the_compiled_writer_gives_the_wire_bytes_of_the_stdlib_encoder(
         payload: bytes, flags: int, seq: int, msg_id: int) -> None:
-    assert frame_writer(PROTOCOL_VERSION)(payload, flags, seq, msg_id) == cobs_encode(build_inner(flags, seq, msg_id, payload)) + b"\x00"
+    expected = cobs_encode(build_inner(flags, seq, msg_id, payload)) + b"\x00"
+    assert frame_writer(PROTOCOL_VERSION)(payload, flags, seq, msg_id) == expected
 
 
 @settings(max_examples=200, deadline=None)
