@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import functools
 import json
+import os
 import sys
 import time
 from collections.abc import Callable, Iterator
@@ -19,7 +20,7 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, SpinnerColumn
 
 from groundstation import view_cli
 from groundstation.errors import GroundStationError
-from groundstation.keys import keygen, resolve_key
+from groundstation.keys import KEY_FILE_ENV, keygen, resolve_key
 from groundstation.links import default_url, make_link
 from groundstation.recorder import RecorderConfig
 from groundstation.rerun_view import Viewer
@@ -271,6 +272,73 @@ def mark(text: Annotated[str, typer.Argument(help="what happened (recorded on /m
     add_marker(text)
 
 
+VIRTUAL_LOW_BATTERY_V = 3.0  # the low_batt_v minimum: below the simulated battery's empty voltage (3.4 V)
+
+
+def _name_values(items: list[str]) -> Iterator[tuple[str, float]]:
+    for item in items:
+        name, sep, raw = item.partition("=")
+        try:
+            yield name.strip(), float(raw)
+        except ValueError:
+            sep = ""
+        if not sep:
+            raise typer.BadParameter(f"expected NAME=NUMBER, got {item!r}", param_hint="--param")
+
+
+@app.command("check")
+@_one_line_errors
+def check_command(
+    url: UrlArg = None,
+    key_file: Annotated[Path | None, typer.Option(
+        help="the agent's signing key: runs the signing checks (default: $DIVE_KEY_FILE)")] = None,
+    allow_motion: Annotated[bool, typer.Option(
+        help="run the checks that move the agent or change its learned model (always on for sim://)")] = False,
+    only: Annotated[list[str] | None, typer.Option(help="run only these checks or groups, e.g. junk, ack.echo")] = None,
+    param: Annotated[list[str] | None, typer.Option(
+        help="NAME=VALUE set for the run and put back after it (repeatable)")] = None,
+    timeout: Annotated[float, typer.Option(help="seconds to wait for an ACK or a reply")] = 2.0,
+    mode_timeout: Annotated[float, typer.Option(help="seconds to wait for a mode change (surfacing, recovery)")]
+    = 60.0,
+    as_json: Annotated[bool, typer.Option("--json", help="machine-readable report")] = False,
+    sentences: Annotated[bool, typer.Option(help="quote the tested spec sentence for every check, not only failures")]
+    = False,
+) -> None:
+    """Conformance suite: drive the agent over its link and report, per SPEC.md section, what passes and fails."""
+    from groundstation.check import CheckOptions, Timeouts, run_checks, selected
+    from groundstation.check.report import print_report
+
+    if timeout <= 0 or mode_timeout <= 0:
+        raise typer.BadParameter("timeouts must be positive", param_hint="--timeout/--mode-timeout")
+    checks = selected(tuple(only or ()))
+    if not checks:
+        raise typer.BadParameter(f"no check matches {', '.join(only or ())}", param_hint="--only")
+    url = url or default_url()
+    key = resolve_key(key_file)
+    if key_file is None and os.environ.get(KEY_FILE_ENV):
+        key_file = Path(os.environ[KEY_FILE_ENV])
+    values = dict(_name_values(param or []))
+    if url.startswith("sim://"):  # a virtual agent started for this run: nothing real moves, no time to lose
+        allow_motion = True
+        # At full speed hours of agent time pass in seconds: its simulated 2 h battery would run flat mid-run.
+        values.setdefault("low_batt_v", VIRTUAL_LOW_BATTERY_V)
+        extra = {k: v for k, v in (("speed", "max"), ("key_file", key_file and str(key_file)))
+                 if v and f"{k}=" not in url}
+        url = url + ("&" if "?" in url else "?") + urlencode(extra) if extra else url
+    options = CheckOptions(url=url, key=key, allow_motion=allow_motion, only=tuple(only or ()),
+                           params=tuple(values.items()),
+                           timeouts=Timeouts(reply_s=timeout, heartbeat_s=max(3.0, timeout), mode_s=mode_timeout))
+    with Progress(SpinnerColumn(), TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
+                  TimeElapsedColumn(), console=err, transient=True, disable=as_json) as bar:
+        task = bar.add_task(f"checking {url}", total=len(checks))
+        report = run_checks(options, lambda o: bar.update(task, advance=1, description=o.check.id))
+    if as_json:
+        out.print_json(json.dumps(report.as_dict()))
+    else:
+        print_report(report, out, sentences)
+    raise typer.Exit(0 if report.passed else 1)
+
+
 # ---------------------------------------------------------------------- recordings
 def _existing(path: Path) -> Path:
     if not path.is_file():
@@ -294,19 +362,41 @@ def log_info(file: Path, as_json: Annotated[bool, typer.Option("--json", help="m
 class ExportFormat(StrEnum):
     csv = "csv"
     npz = "npz"
+    minari = "minari"
 
 
 @log_app.command("export")
 @_one_line_errors
-def log_export(file: Path, format: Annotated[ExportFormat, typer.Option(help="csv: samples; npz: offline-RL dataset")]
+def log_export(file: Path, format: Annotated[ExportFormat, typer.Option(
+                   help="csv: samples; npz: offline-RL transitions; minari: a Minari dataset (FILE may be a folder)")]
                = ExportFormat.csv,
-               out_path: Annotated[Path | None, typer.Option("--out", help="output file")] = None) -> None:
-    """Export samples as CSV, or (s, a, r, s', terminated, truncated) transitions per episode as .npz."""
+               out_path: Annotated[Path | None, typer.Option(
+                   "--out", help="output file; for minari the datasets folder (default: Minari's own)")] = None,
+               ) -> None:
+    """Export samples as CSV, (s, a, r, s', terminated, truncated) transitions as .npz, or a Minari dataset."""
     from groundstation.export import export_csv, export_npz
 
+    if format == ExportFormat.minari:
+        _export_minari(file, out_path)
+        return
     target = out_path or _existing(file).with_suffix(f".{format.value}")
     rows = (export_csv if format == ExportFormat.csv else export_npz)(_existing(file), target)
     out.print(f"{target} ({rows} rows)")
+
+
+def _export_minari(file: Path, root: Path | None) -> None:
+    from groundstation.minari_export import dataset_id_for, export_minari
+    from groundstation.recording import open_recording
+
+    if not file.exists():
+        raise GroundStationError(f"no such recording: {file}")
+    result = export_minari(open_recording(file), dataset_id_for(file), root)
+    left = f", {result.left_out} left out (holes or no end)" if result.left_out else ""
+    out.print(f"Minari dataset {result.dataset_id} in {result.root}: {result.episodes} episodes, "
+              f"{result.steps} steps{left}", markup=False, soft_wrap=True)
+    root_hint = f"MINARI_DATASETS_PATH={result.root} " if root is not None else ""
+    out.print(f"load it: {root_hint}python -c \"import minari; minari.load_dataset('{result.dataset_id}')\"",
+              markup=False, soft_wrap=True)
 
 
 @log_app.command("recover")

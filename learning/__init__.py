@@ -2,7 +2,7 @@
 
 from learning.config import LearnerConfig, ModelForm, n_states, terminal_state
 from learning.errors import LearnerConfigError, LearningError
-from learning.learner import Learner, model_memory_bytes, state_index
+from learning.learner import Learner, learner_memory_bytes, model_memory_bytes, state_index
 from learning.presets import learner_names, learner_preset
 
 __all__ = [
@@ -13,6 +13,7 @@ __all__ = [
     "ModelForm",
     "learner_names",
     "learner_preset",
+    "learner_memory_bytes",
     "model_memory_bytes",
     "n_states",
     "state_index",

@@ -15,6 +15,8 @@ from learning.spec import direct_entry
 
 _REWARD_SUM_BYTES = 4  # float32 per (s, a) on the Teensy
 _COUNT_BYTES = 2  # uint16
+_VALUE_BYTES = 4  # float32 v(s)
+_POLICY_BYTES = 1  # uint8 pi(s)
 
 
 def state_index(
@@ -41,6 +43,14 @@ def model_memory_bytes(config: LearnerConfig) -> int:
         return pairs * s * _COUNT_BYTES + pairs * _REWARD_SUM_BYTES
     index_bytes = 1 if s <= 256 else 2
     return pairs * config.sparse_slots * (index_bytes + _COUNT_BYTES) + pairs * _REWARD_SUM_BYTES
+
+
+def learner_memory_bytes(config: LearnerConfig) -> int:
+    """Bytes of the whole learner on the Teensy: the model (model_memory_bytes), values (f32) and policy (u8).
+
+    SPEC.md section 13 adds the snapshot copies and compares the sum with the agent's RAM budget.
+    """
+    return model_memory_bytes(config) + n_states(config) * (_VALUE_BYTES + _POLICY_BYTES)
 
 
 class Learner:

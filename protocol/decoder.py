@@ -14,6 +14,9 @@ from protocol.errors import CobsError
 from protocol.frame import HEADER, MAX_CHUNK, MIN_INNER, payload_end
 from protocol.registry import Message, message_classes
 
+COMMAND_IDS_FROM = 0x80  # ids 0x80-0xFF are commands (SPEC.md section 5)
+_HELLO_ID = 0x01
+
 HEADER_SIZE = HEADER.size
 unpack_header = HEADER.unpack_from
 _SIGNED = int(FrameFlag.SIGNED)
@@ -51,6 +54,14 @@ class DecoderStats:
 
     def as_dict(self) -> dict[str, int]:
         return {f.name: getattr(self, f.name) for f in fields(self)}
+
+
+@dataclass(frozen=True, slots=True)
+class UndecodedCommand(Message):
+    """What an agent's decoder hands over for a command it must answer but cannot decode (SPEC.md section 5):
+    an unknown command id (answered UNSUPPORTED) or a SIGNED frame too short for its trailer (UNAUTHORIZED)."""
+
+    truncated: bool  # SIGNED set but shorter than a trailer; else the id is unknown
 
 
 class Frame(NamedTuple):
@@ -98,7 +109,10 @@ _PLAIN = {msg_id: (cls._struct.unpack_from, cls._build, MIN_INNER + cls.DEFINITI
 class StreamDecoder:
     """Feed it whatever the link delivers; it returns the frames completed so far.
 
-    One decoder serves one sender: sequence gaps are counted against that sender's counter.
+    One decoder serves one sender: sequence gaps are counted against that sender's counter. An agent's decoder
+    (`agent=True`) hands over every command frame that passed the CRC and version checks, so that each gets its
+    one ACK: unknown command ids and truncated signed commands come as an UndecodedCommand and count in
+    `frames`, not in the rejects (SPEC.md section 4, counters).
     """
 
     stats: DecoderStats = field(default_factory=DecoderStats)
@@ -109,6 +123,7 @@ class StreamDecoder:
     # msg_id -> (struct unpack_from, builder, shortest inner frame) of messages of fixed fields only
     _plain: dict[int, tuple[Any, Any, int]] = field(default_factory=lambda: _PLAIN, repr=False)
     _classes: Mapping[int, type[Message]] = field(default_factory=message_classes, repr=False)
+    agent: bool = False
 
     def feed(self, data: bytes) -> list[Frame]:
         stats = self.stats
@@ -170,46 +185,34 @@ class StreamDecoder:
         return self._decode_inner(inner)
 
     def _frames(self, table: list[list[int]], inner: bytes) -> list[Frame]:
-        """The frames of chunks the compiled decoder checked: _decode_inner's work, inlined (one call per read)."""
-        stats = self.stats
-        classes = self._classes
+        """The frames of chunks the compiled decoder checked.
+
+        The common frame (in sequence, unsigned, a message of fixed fields only, e.g. SAMPLE) is built
+        here, inline: one call per read instead of one per frame. Every other one takes _decode_inner.
+        """
         plain = self._plain
         frames: list[Frame] = []
         append = frames.append
         expected = self._expected_seq
+        inline = 0
         for start, length, verdict, flags, seq, msg_id in table:
             if verdict:
                 self._reject(verdict)
                 continue
-            if seq == expected:  # in order: nothing lost
-                expected = (seq + 1) & 0xFFFF
-            else:
-                self._expected_seq = expected
-                self._track_sequence(seq)
-                expected = self._expected_seq
             frame = inner[start : start + length]
             decoder = plain.get(msg_id)
-            if decoder is not None and not flags & _SIGNED and length >= decoder[2]:
+            if seq == expected and decoder is not None and not flags & _SIGNED and length >= decoder[2]:
+                expected = (seq + 1) & 0xFFFF
                 append(_new_frame(Frame, (flags, seq, msg_id, decoder[1](decoder[0](frame, HEADER_SIZE)), frame)))
+                inline += 1
                 continue
-            cls = classes.get(msg_id)
-            if cls is None:
-                stats.unknown_id += 1
-                continue
-            end = length - 2
-            if flags & _SIGNED:
-                end = payload_end(frame)
-                if end < 0:
-                    stats.malformed += 1
-                    continue
-            try:
-                decoded = cls.unpack_from(frame, HEADER_SIZE, end)
-            except Exception:  # a decoder must not raise on wire input, whatever a payload holds
-                stats.malformed += 1
-                continue
-            append(_new_frame(Frame, (flags, seq, msg_id, decoded, frame)))
+            self._expected_seq = expected
+            decoded = self._decode_inner(frame)
+            expected = self._expected_seq
+            if decoded is not None:
+                append(decoded)
         self._expected_seq = expected
-        stats.frames += len(frames)
+        self.stats.frames += inline
         return frames
 
     def _reject(self, verdict: int) -> None:
@@ -224,18 +227,24 @@ class StreamDecoder:
         if version != PROTOCOL_VERSION or flags & INCOMPATIBLE_FLAGS_MASK:
             stats.incompatible += 1
             return None
+        if msg_id == _HELLO_ID:  # SPEC.md s. 1: any HELLO resets sequence tracking before it is counted
+            self._expected_seq = None
         if seq == self._expected_seq:  # in order: nothing lost
             self._expected_seq = (seq + 1) & 0xFFFF
         else:
             self._track_sequence(seq)
         cls = self._classes.get(msg_id)
         if cls is None:
+            if self.agent and msg_id >= COMMAND_IDS_FROM:
+                return self._undecoded(flags, seq, msg_id, inner)
             stats.unknown_id += 1
             return None
         end = len(inner) - 2
         if flags & _SIGNED:  # the signature trailer is cut off before the payload is decoded (SPEC.md section 12)
             end = payload_end(inner)
             if end < 0:
+                if self.agent and msg_id >= COMMAND_IDS_FROM:
+                    return self._undecoded(flags, seq, msg_id, inner)
                 stats.malformed += 1
                 return None
         try:
@@ -245,6 +254,11 @@ class StreamDecoder:
             return None
         stats.frames += 1
         return _new_frame(Frame, (flags, seq, msg_id, decoded, inner))
+
+    def _undecoded(self, flags: int, seq: int, msg_id: int, inner: bytes) -> Frame:
+        self.stats.frames += 1
+        truncated = bool(flags & _SIGNED) and payload_end(inner) < 0
+        return _new_frame(Frame, (flags, seq, msg_id, UndecodedCommand(truncated), inner))
 
     def _track_sequence(self, seq: int) -> None:
         expected = self._expected_seq

@@ -38,7 +38,7 @@ def _compiled_writer() -> Callable[[bytes, int, int, int], bytes] | None:
 class FrameEncoder:
     """Keeps the per-sender sequence counter (+1 per frame, wraps at 65536).
 
-    With a `signer`, every frame gets flag bit 2 and a signature trailer (SPEC.md section 12).
+    With a `signer`, every frame gets flag bit 4 (SIGNED) and a signature trailer (SPEC.md section 12).
     """
 
     def __init__(self, first_seq: int = 0, signer: Signer | None = None, compiled: bool = True) -> None:

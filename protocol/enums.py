@@ -12,11 +12,14 @@ class FrameFlag(IntFlag):
 
     ACK_REQUESTED = 0x01  # the sender wants an ACK (set on every command)
     REPLAYED = 0x02  # re-sent from the agent's on-board log, not live
-    SIGNED = 0x04  # a signature trailer ends the payload (see SPEC.md, signing)
+    # Bit 4, an "incompatible" bit (SPEC 1.1): a receiver that does not know it drops signed frames instead of
+    # reading the trailer as payload, as MAVLink 2 does with its incompat flag. Bit 2 (1.0's SIGNED) is reserved.
+    SIGNED = 0x10  # a signature trailer ends the payload (see SPEC.md, signing)
 
 
-KNOWN_INCOMPATIBLE_FLAGS = 0x00  # none of bits 4-7 is defined by version 1
-INCOMPATIBLE_FLAGS_MASK = 0xF0
+KNOWN_INCOMPATIBLE_FLAGS = 0x10  # of bits 4-7, version 1.1 defines bit 4 (SIGNED)
+# The incompatible bits (4-7) this version does not know: a frame with one of them set is dropped.
+INCOMPATIBLE_FLAGS_MASK = 0xF0 & ~KNOWN_INCOMPATIBLE_FLAGS
 
 
 class NodeKind(IntEnum):

@@ -16,9 +16,9 @@ HEADER = struct.Struct("<BBHB")
 CRC = struct.Struct(">H")
 MIN_INNER = HEADER.size + CRC.size  # 7: an empty payload
 MAX_INNER = HEADER.size + MAX_PAYLOAD + CRC.size  # 254
-MAX_CHUNK = 256  # longest COBS chunk a receiver keeps (254 inner bytes + 2 bytes of COBS overhead)
+MAX_CHUNK = 255  # longest COBS chunk (delimiter excluded) a receiver keeps: a 254-byte inner frame encodes to 255
 DELIMITER = b"\x00"
-TRAILER_SIZE = 13  # signature trailer when flag bit 2 is set: link_id u8 | timestamp u48 LE | signature 6 bytes
+TRAILER_SIZE = 13  # signature trailer when SIGNED is set: link_id u8 | timestamp u48 LE | signature 6 bytes
 _SIGNED = int(FrameFlag.SIGNED)
 _pack_header = HEADER.pack
 
@@ -38,7 +38,7 @@ def build_inner(flags: int, seq: int, msg_id: int, payload: bytes,
                 trailer: Callable[[bytes], bytes] | None = None) -> bytes:
     """The inner frame with its CRC; raises FrameError on an oversize payload.
 
-    With `trailer` (a Signer's), flag bit 2 is set and trailer(header + payload) is appended before the CRC.
+    With `trailer` (a Signer's), SIGNED is set and trailer(header + payload) is appended before the CRC.
     """
     room = MAX_PAYLOAD if trailer is None else MAX_PAYLOAD - TRAILER_SIZE
     if len(payload) > room:

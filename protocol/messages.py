@@ -29,23 +29,23 @@ class Hello(Message):
 
 @message(0x02, "HEARTBEAT", Direction.BOTH)
 class Heartbeat(Message):
-    """About 1 Hz each way; the agent surfaces when no valid frame arrives for `link_timeout_s`."""
+    """Once per second of the sender's clock, each way; counters as SPEC.md section 4 defines them."""
 
     uptime_ms: U32 = wire("sender's time since boot", "ms")
     mode: U8 = wire("agent's Mode; 0 from the ground")
     battery_mv: U16 = wire("battery voltage; 0 from the ground", "mV")
-    rx_frames: U32 = wire("valid frames received since boot")
-    rx_rejects: U32 = wire("chunks rejected since boot (COBS, runt, CRC, incompatible, unknown id)")
-    rx_lost: U32 = wire("frames lost by sequence number since boot")
+    rx_frames: U32 = wire("frames that passed CRC and version checks and were acted on (refused commands too)")
+    rx_rejects: U32 = wire("chunks dropped since boot: oversize, COBS, runt, CRC, incompatible, unknown id, malformed")
+    rx_lost: U32 = wire("frames lost by sequence number since boot (the sum of the gaps)")
     log_first_sample: U32 = wire("oldest SAMPLE index still in the on-board log; 0 from the ground")
     log_next_sample: U32 = wire("index the next SAMPLE will get; 0 from the ground")
     episode: U32 = wire("current or last episode number; 0 from the ground")
-    signing_rejects: U32 = wire("commands refused for a missing, wrong or replayed signature")
+    signing_rejects: U32 = wire("commands answered UNAUTHORIZED since boot")
 
 
 @message(0x03, "TIMESYNC", Direction.BOTH)
 class Timesync(Message):
-    """Clock sync round trip: request has receive_us = transmit_us = 0; the reply echoes origin_us."""
+    """Clock sync round trip: a request has receive_us = transmit_us = 0; a reply echoes origin_us, transmit_us != 0."""
 
     origin_us: U64 = wire("requester's clock when it sent the request", "us")
     receive_us: U64 = wire("responder's clock when the request arrived; 0 in a request", "us")
@@ -76,7 +76,7 @@ class Text(Message):
 
 @message(0x20, "SAMPLE", Direction.AGENT_TO_GROUND)
 class Sample(Message):
-    """One control step (10 Hz learning, 40 Hz recovery); also kept in the on-board log."""
+    """One control step (rates by mode: SPEC.md section 7); also kept in the on-board log."""
 
     t_us: U64 = wire("agent clock at the step", "us")
     sample: U32 = wire("global sample index, +1 per SAMPLE since boot; the on-board log's key")
@@ -133,7 +133,7 @@ class DumpChunk(Message):
     episode: U32 = wire("episodes completed when the snapshot was taken")
     total_bytes: U32 = wire("size of the whole snapshot", "B")
     offset: U32 = wire("position of `data` in the snapshot", "B")
-    data: TailBytes = wire("at most 224 bytes of the snapshot", default=b"")
+    data: TailBytes = wire("0 to 230 bytes of the snapshot (a sender puts at most 224)", default=b"")
 
 
 @message(0x24, "PARAM_VALUE", Direction.AGENT_TO_GROUND)
@@ -143,7 +143,7 @@ class ParamValue(Message):
     index: U16 = wire("parameter index, 0..count-1")
     count: U16 = wire("number of parameters the agent has")
     param_type: U8 = wire("ParamType: 1 bool, 2 u8, 3 i32, 4 u32, 5 f32")
-    value: F64 = wire("current value (exact for every ParamType)")
+    value: F64 = wire("value as stored; for F32 the stored f32 widened exactly to f64")
     minimum: F64 = wire("smallest accepted value")
     maximum: F64 = wire("largest accepted value")
     name: Name = wire("parameter name, with its unit as a suffix (e.g. target_depth_m)", default="")
@@ -157,7 +157,7 @@ class LogRange(Message):
     next_sample: U32 = wire("index the next SAMPLE will get")
     replayed: U32 = wire("frames re-sent for the request just finished")
     bytes_used: U32 = wire("log bytes in use", "B")
-    capacity_bytes: U32 = wire("log size (512 KiB on the agent's EEPROM)", "B")
+    capacity_bytes: U32 = wire("log size (524 288 on a real agent's two M24M02 EEPROMs)", "B")
 
 
 # ---------------------------------------------------------------- ground to agent: commands (all ACKed)
@@ -167,12 +167,12 @@ class LogRange(Message):
 class StartLearning(Message):
     """Start (or resume) learning: RECOVERING to a random start, then LEARNING."""
 
-    max_episodes: U32 = wire("stop after this many more episodes; 0 = no limit")
+    max_episodes: U32 = wire("stop after this many more episodes; 0 = the max_episodes parameter")
 
 
 @message(0x81, "CMD_STOP", Direction.GROUND_TO_AGENT, ack=True)
 class Stop(Message):
-    """Stop learning or hovering (the episode is aborted) and return to the surface."""
+    """Stop learning or hovering (the episode is aborted) and return to the surface; no effect in IDLE, SURFACING."""
 
 
 @message(0x82, "CMD_PAUSE", Direction.GROUND_TO_AGENT, ack=True)
@@ -194,7 +194,7 @@ class Surface(Message):
 
 @message(0x85, "CMD_HOVER", Direction.GROUND_TO_AGENT, ack=True)
 class Hover(Message):
-    """Hold a depth with the recovery controller (no learning)."""
+    """Hold a depth in [0, 2.5] m with the recovery controller (no learning)."""
 
     depth_m: F32 = wire("depth to hold", "m")
 
@@ -211,7 +211,7 @@ class DumpRequest(Message):
 
 @message(0x87, "CMD_RESET_MODEL", Direction.GROUND_TO_AGENT, ack=True)
 class ResetModel(Message):
-    """Forget the learned model, values and episode count (not allowed while LEARNING)."""
+    """Forget model, values, policy, episode count and successes (not allowed while LEARNING)."""
 
 
 @message(0x88, "PARAM_LIST", Direction.GROUND_TO_AGENT, ack=True)
@@ -229,10 +229,10 @@ class ParamGet(Message):
 
 @message(0x8A, "PARAM_SET", Direction.GROUND_TO_AGENT, ack=True)
 class ParamSet(Message):
-    """Set one parameter; answered by ACK (or NACK BAD_VALUE / NOT_ALLOWED_IN_MODE), then PARAM_VALUE."""
+    """Set one parameter: ACK then PARAM_VALUE, or a NACK (BAD_VALUE, NOT_ALLOWED_IN_MODE) and nothing else."""
 
     index: I16 = wire("parameter index, or -1 to look it up by name")
-    value: F64 = wire("new value; rounded toward zero for integer types")
+    value: F64 = wire("new value; refused unless finite, in range, integral for integer types")
     name: Name = wire("parameter name when index = -1", default="")
 
 

@@ -70,12 +70,9 @@ class Message:
                 values = list(values)
                 for index in self._text_indices:
                     encoded = values[index].encode("utf-8")
-                    # struct would cut an over-long name silently, maybe inside a UTF-8 sequence
-                    if len(encoded) > definition.fields[index].wire.size:
-                        raise PayloadError(
-                            f"{definition.name}.{definition.fields[index].name}: {len(encoded)} bytes of UTF-8 "
-                            f"exceed {definition.fields[index].wire.spec_name}"
-                        )
+                    size = definition.fields[index].wire.size
+                    if len(encoded) > size:  # SPEC.md s. 3: cut at a character boundary (struct would cut inside one)
+                        encoded = encoded[:size].decode("utf-8", errors="ignore").encode("utf-8")
                     values[index] = encoded
             if not definition.has_tail:
                 return self._struct.pack(*values)

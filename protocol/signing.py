@@ -5,6 +5,7 @@ from __future__ import annotations
 import hashlib
 import hmac
 import time
+from collections import OrderedDict
 from collections.abc import Callable
 from dataclasses import dataclass, field, fields
 from enum import IntEnum
@@ -23,6 +24,13 @@ TIMESTAMP_MAX = (1 << 48) - 1
 # A link id the receiver has not seen since boot is refused if its first timestamp lies further than this behind
 # the receiver's estimate of "now" (MAVLink 2 uses the same minute).
 NEW_LINK_WINDOW_S = 60.0
+# Once the receiver has an estimate, a timestamp further than this ahead of it is refused (too new), so that one
+# frame from a clock far ahead cannot lock every later frame out as a replay.
+FUTURE_WINDOW_S = 60.0
+LINK_IDS_HELD = 16  # replay state kept for this many link ids; the least recently accepted one is forgotten
+# The highest accepted timestamp survives a reboot: the receiver stores mark = accepted + this whenever an accepted
+# timestamp passes the stored mark (at most one non-volatile write per 10 s) and refuses timestamps <= the mark.
+MARK_AHEAD_S = 10.0
 _TICKS_PER_S = 1_000_000 // TIMESTAMP_UNIT_US
 _SIGNED = int(FrameFlag.SIGNED)
 
@@ -35,11 +43,12 @@ class SignatureCheck(IntEnum):
     """What a receiver concluded about one frame's signature; only VALID may run a command."""
 
     VALID = 0
-    UNSIGNED = 1  # flag bit 2 clear
-    TRUNCATED = 2  # flag bit 2 set, but the frame is too short to hold a trailer
+    UNSIGNED = 1  # flag bit 4 (SIGNED) clear
+    TRUNCATED = 2  # flag bit 4 (SIGNED) set, but the frame is too short to hold a trailer
     BAD_SIGNATURE = 3  # wrong key, or any bit of header, payload, link id or timestamp changed
-    REPLAYED = 4  # timestamp not above the last accepted one of its link id
+    REPLAYED = 4  # timestamp not above the last accepted one of its link id, or not above the persisted mark
     TOO_OLD = 5  # a link id new since boot whose timestamp is over NEW_LINK_WINDOW_S behind the estimate
+    TOO_NEW = 6  # a timestamp over FUTURE_WINDOW_S ahead of the estimate
 
 
 def check_key(key: bytes) -> bytes:
@@ -94,7 +103,7 @@ class Signer:
         return self._last_timestamp
 
     def trailer(self, body: bytes) -> bytes:
-        """The 13-byte trailer for `body` = header (flag bit 2 already set) + payload."""
+        """The 13-byte trailer for `body` = header (SIGNED already set) + payload."""
         head = bytes([self.link_id]) + self.next_timestamp().to_bytes(TIMESTAMP_SIZE, "little")
         return head + signature(self._key, body + head)
 
@@ -109,10 +118,11 @@ class VerifierStats:
     bad_signature: int = 0
     replayed: int = 0
     too_old: int = 0
+    too_new: int = 0
 
     @property
     def rejects(self) -> int:
-        return self.truncated + self.bad_signature + self.replayed + self.too_old
+        return self.truncated + self.bad_signature + self.replayed + self.too_old + self.too_new
 
     def as_dict(self) -> dict[str, int]:
         return {f.name: getattr(self, f.name) for f in fields(self)}
@@ -122,24 +132,42 @@ class VerifierStats:
 class SignatureVerifier:
     """The receiver's side: checks a frame's trailer and keeps the replay state (the last timestamp per link id).
 
-    `now_s` passed to `check` is any monotonic clock of the receiver (seconds); it only advances the estimate of
-    the current timestamp between accepted frames.
+    `now_s` is the receiver's link clock in seconds (any monotonic clock in real time); it only advances the
+    estimate of the current timestamp between accepted frames. `floor` is the mark persisted before this boot
+    (-1: none): timestamps at or below it are refused. `persist` is called with each new mark to store
+    (SPEC.md section 12).
+    An agent runs authenticate() and admit() apart, its ACK memory between them; check() runs both.
     """
 
     key: bytes
     stats: VerifierStats = field(default_factory=VerifierStats)
-    _last_by_link: dict[int, int] = field(default_factory=dict)
+    floor: int = -1
+    persist: Callable[[int], None] | None = None
+    mark: int = field(init=False)  # the mark last persisted (floor until the first one)
+    _last_by_link: OrderedDict[int, int] = field(default_factory=OrderedDict)
     _best_timestamp: int | None = None
     _best_at_s: float = 0.0
 
     def __post_init__(self) -> None:
         self.key = check_key(self.key)
+        self.mark = self.floor
 
     def check(self, inner: bytes, now_s: float) -> SignatureCheck:
         """Check the inner frame (CRC included, already CRC-checked); a VALID frame moves the replay state on."""
-        result = self._check(inner, now_s)
-        name = result.name.lower()
-        setattr(self.stats, name, getattr(self.stats, name) + 1)
+        result = self.authenticate(inner)
+        return self.admit(inner, now_s) if result is SignatureCheck.VALID else result
+
+    def authenticate(self, inner: bytes) -> SignatureCheck:
+        """Steps 1-2: SIGNED set, long enough, and the HMAC right (VALID); changes no replay state."""
+        result = self._authenticate(inner)
+        if result is not SignatureCheck.VALID:
+            self._count(result)
+        return result
+
+    def admit(self, inner: bytes, now_s: float) -> SignatureCheck:
+        """Step 4 on an authenticated frame: its timestamp is fresh (VALID, and the replay state moves on)."""
+        result = self._admit(inner, now_s)
+        self._count(result)
         return result
 
     def estimate(self, now_s: float) -> int | None:
@@ -148,23 +176,41 @@ class SignatureVerifier:
             return None
         return self._best_timestamp + int(max(now_s - self._best_at_s, 0.0) * _TICKS_PER_S)
 
-    def _check(self, inner: bytes, now_s: float) -> SignatureCheck:
+    def _count(self, result: SignatureCheck) -> None:
+        name = result.name.lower()
+        setattr(self.stats, name, getattr(self.stats, name) + 1)
+
+    def _authenticate(self, inner: bytes) -> SignatureCheck:
         if len(inner) < HEADER.size or not inner[1] & _SIGNED:
             return SignatureCheck.UNSIGNED
         if len(inner) < MIN_INNER + TRAILER_SIZE:
             return SignatureCheck.TRUNCATED
         sig_start = len(inner) - 2 - SIGNATURE_SIZE
-        link_id = inner[sig_start - TIMESTAMP_SIZE - LINK_ID_SIZE]
-        stamp = int.from_bytes(inner[sig_start - TIMESTAMP_SIZE : sig_start], "little")
         if not hmac.compare_digest(signature(self.key, inner[:sig_start]), inner[sig_start:-2]):
             return SignatureCheck.BAD_SIGNATURE
+        return SignatureCheck.VALID
+
+    def _admit(self, inner: bytes, now_s: float) -> SignatureCheck:
+        sig_start = len(inner) - 2 - SIGNATURE_SIZE
+        link_id = inner[sig_start - TIMESTAMP_SIZE - LINK_ID_SIZE]
+        stamp = int.from_bytes(inner[sig_start - TIMESTAMP_SIZE : sig_start], "little")
         last = self._last_by_link.get(link_id)
-        if last is not None and stamp <= last:
+        if (last is not None and stamp <= last) or stamp <= self.floor:
             return SignatureCheck.REPLAYED
         estimate = self.estimate(now_s)
-        if last is None and estimate is not None and stamp < estimate - int(NEW_LINK_WINDOW_S * _TICKS_PER_S):
-            return SignatureCheck.TOO_OLD
+        if estimate is not None:
+            if last is None and stamp < estimate - int(NEW_LINK_WINDOW_S * _TICKS_PER_S):
+                return SignatureCheck.TOO_OLD
+            if stamp > estimate + int(FUTURE_WINDOW_S * _TICKS_PER_S):
+                return SignatureCheck.TOO_NEW
         self._last_by_link[link_id] = stamp
+        self._last_by_link.move_to_end(link_id)
+        if len(self._last_by_link) > LINK_IDS_HELD:
+            self._last_by_link.popitem(last=False)  # evicted: "not seen since boot" again
         if estimate is None or stamp > estimate:
             self._best_timestamp, self._best_at_s = stamp, now_s
+        if stamp > self.mark:
+            self.mark = min(stamp + int(MARK_AHEAD_S * _TICKS_PER_S), TIMESTAMP_MAX)
+            if self.persist is not None:
+                self.persist(self.mark)
         return SignatureCheck.VALID

@@ -1,6 +1,6 @@
-"""Generates SPEC.md section 3 (message tables, enumerations, hash) from the definition table.
+"""Generates SPEC.md section 3 (message tables, enumerations, hash) and the parameter table of section 13.
 
-`python -m protocol.spec` rewrites the part of protocol/SPEC.md between the GENERATED markers;
+`python -m protocol.spec` rewrites the parts of protocol/SPEC.md between the GENERATED markers;
 `python -m protocol.spec --check` exits 1 if SPEC.md is out of date. Rendering is pure; only main() touches files.
 """
 
@@ -12,12 +12,17 @@ from pathlib import Path
 
 from protocol import messages as _messages  # noqa: F401  (registers every message in the table)
 from protocol.enums import AckResult, Action, DumpKind, EndReason, Mode, NodeKind, ParamType, Severity
+from protocol.parameters import PARAMS, ParamDef, f32
 from protocol.registry import MAX_PAYLOAD, MessageDef, definitions, definitions_hash
 
 BEGIN = (
     "<!-- BEGIN GENERATED MESSAGE TABLES: `python -m protocol.spec` rewrites this part from protocol/messages.py -->"
 )
 END = "<!-- END GENERATED MESSAGE TABLES -->"
+PARAM_BEGIN = (
+    "<!-- BEGIN GENERATED PARAMETER TABLE: `python -m protocol.spec` rewrites this part from protocol/parameters.py -->"
+)
+PARAM_END = "<!-- END GENERATED PARAMETER TABLE -->"
 SPEC_PATH = Path(__file__).with_name("SPEC.md")
 
 # The enumerations a firmware author needs, in the order SPEC.md lists them.
@@ -106,14 +111,56 @@ def render_section() -> str:
     return "\n".join(parts)
 
 
-def regenerate(spec_text: str) -> str:
-    """`spec_text` with the generated part replaced by the current table."""
+def _number(value: float, kind: ParamType) -> str:
+    if kind != ParamType.F32:
+        return str(int(value))
+    for digits in range(1, 10):  # the shortest decimal whose nearest f32 is the stored value
+        text = f"{value:.{digits}g}"
+        if f32(float(text)) == value:
+            return text
+    return repr(value)
+
+
+def render_param(p: ParamDef) -> str:
+    refused = ", ".join(m.name for m in p.refused_in) or "never"
+    high = _number(p.maximum, p.param_type)
+    if p.simulator_only:
+        high += f" (real agent: {_number(p.firmware_range()[1], p.param_type)})"
+    return (
+        f"| {p.index} | `{p.name}` | {p.param_type.name} | {_cell(p.unit)} | {_number(p.default, p.param_type)} "
+        f"| {_number(p.minimum, p.param_type)} | {high} | {refused} | {'yes' if p.learner else 'no'} | {_cell(p.doc)} |"
+    )
+
+
+def render_params() -> str:
+    """The parameter table (between the PARAM markers)."""
+    lines = [
+        f"{len(PARAMS)} parameters. An `F32` figure below is the shortest decimal whose nearest f32 is the stored "
+        "value; PARAM_VALUE carries that f32 widened exactly to f64 (0.4 goes out as 0.4000000059604645). "
+        "\"refused in\": modes in which PARAM_SET is answered NOT_ALLOWED_IN_MODE; "
+        "\"learner\": a change restarts the learner as CMD_RESET_MODEL does and is "
+        "checked against the RAM budget.",
+        "",
+        "| index | name | type | unit | default | min | max | refused in | learner | meaning |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    lines += [render_param(p) for p in PARAMS]
+    return "\n".join(lines) + "\n"
+
+
+def _replace_between(text: str, begin: str, end: str, body: str) -> str:
     try:
-        head, rest = spec_text.split(BEGIN, 1)
-        _, tail = rest.split(END, 1)
+        head, rest = text.split(begin, 1)
+        _, tail = rest.split(end, 1)
     except ValueError:
-        raise ValueError("SPEC.md lacks the GENERATED MESSAGE TABLES markers") from None
-    return f"{head}{BEGIN}\n\n{render_section()}\n{END}{tail}"
+        raise ValueError(f"SPEC.md lacks the markers {begin[:40]}... and {end}") from None
+    return f"{head}{begin}\n\n{body}\n{end}{tail}"
+
+
+def regenerate(spec_text: str) -> str:
+    """`spec_text` with the generated parts replaced by the current tables."""
+    text = _replace_between(spec_text, BEGIN, END, render_section())
+    return _replace_between(text, PARAM_BEGIN, PARAM_END, render_params())
 
 
 def main(argv: list[str]) -> int:

@@ -34,7 +34,7 @@ def main() -> None:
     config = ViewConfig(viewer=Viewer.WEB, web_port=args.web_port, grpc_port=args.grpc_port)
     with RerunView.open(config, name="live") as view:
         with Session(make_link(args.url), listeners=[view]) as session:
-            session.set_param("dump_each_ep", 1)
+            session.set_param("dump_each_episode", 1)
             session.command(m.StartLearning(max_episodes=0))
             args.out.parent.mkdir(parents=True, exist_ok=True)
             subprocess.run(["node", str(ROOT / "scripts" / "screenshot_live_view.mjs"), str(view.address),

@@ -10,9 +10,9 @@ import numpy as np
 
 from learning import Learner
 from protocol import Action, DumpKind, messages
+from protocol.parameters import SNAPSHOTS_HELD
 
-CHUNK_BYTES = 224  # SPEC s. 10: at most 224 bytes of data per DUMP_CHUNK
-SNAPSHOTS_HELD = 8  # older snapshots are forgotten: a re-request for one gets NACK STALE
+CHUNK_BYTES = 224  # SPEC s. 10: a sender puts at most 224 bytes of data in a DUMP_CHUNK (a receiver takes 230)
 
 
 def snapshot_bytes(learner: Learner, kind: DumpKind) -> bytes:
@@ -40,22 +40,35 @@ class Snapshot:
 
 
 class DumpStore:
-    """Takes snapshots with fresh ids (never 0) and keeps the last SNAPSHOTS_HELD of them."""
+    """Takes snapshots with fresh ids (never 0) and keeps the last SNAPSHOTS_HELD (4) of them (SPEC s. 10).
+
+    A real agent renders a COUNTS snapshot from its live model instead of copying 4 S^2 bytes, so one goes STALE
+    when the model changes; this store copies it (the same bytes) and forgets it at the same moment.
+    """
 
     def __init__(self) -> None:
         self._held: OrderedDict[int, Snapshot] = OrderedDict()
         self._next_id = 1
+        self._counts_held = False  # checked on every learner step, so model_changed() costs nothing usually
 
     def take(self, learner: Learner, kind: DumpKind) -> Snapshot:
         snap = Snapshot(self._next_id, kind, learner.episode, snapshot_bytes(learner, kind))
         self._next_id = self._next_id % 0xFFFFFFFF + 1
         self._held[snap.dump_id] = snap
+        self._counts_held = self._counts_held or kind == DumpKind.COUNTS
         while len(self._held) > SNAPSHOTS_HELD:
             self._held.popitem(last=False)
         return snap
 
     def get(self, dump_id: int) -> Snapshot | None:
         return self._held.get(dump_id)
+
+    def model_changed(self) -> None:
+        """Forget COUNTS snapshots: the live model they stand for has changed."""
+        if self._counts_held:
+            for dump_id in [i for i, snap in self._held.items() if snap.kind == DumpKind.COUNTS]:
+                del self._held[dump_id]
+            self._counts_held = False
 
 
 def chunks(snap: Snapshot, offset: int, length: int) -> Iterator[messages.DumpChunk]:

@@ -3,9 +3,9 @@
 from __future__ import annotations
 
 import os
-import time
 from collections import deque
 from collections.abc import Callable
+from pathlib import Path
 
 from protocol import (
     PROTOCOL_VERSION,
@@ -21,6 +21,7 @@ from protocol import (
     definitions_hash,
     messages,
 )
+from protocol.decoder import COMMAND_IDS_FROM, UndecodedCommand
 from protocol.frame import HEADER
 from protocol.registry import Message
 from simulator import agent_dumps
@@ -28,11 +29,14 @@ from simulator.agent_dumps import DumpStore
 from simulator.errors import ParamsError
 from simulator.log_ring import LogRing
 from simulator.onboard import OnboardProgram, Verdict
+from simulator.signing_mark import MarkFile
 
-FIRMWARE_VERSION = (0, 1, 0)
-ACK_MEMORY = 16  # SPEC s. 5: the last 16 (msg_id, seq, result) answered
-COMMAND_IDS_FROM = 0x80
+FIRMWARE_VERSION = (0, 1, 1)
+ACK_MEMORY = 16  # SPEC s. 5: the last 16 (msg_id, seq, result) answered on their merits
+HELLO_REPEAT_S = 1.0  # SPEC s. 4: HELLO once per second of link time until the ground is heard
+LOG_REPLAY_SAMPLES = 512  # SPEC s. 7: one LOG_REQUEST replays at most this many SAMPLE records
 _DUMP_KINDS = {int(k) for k in DumpKind}
+_SURFACE_ID = messages.Surface.MSG_ID
 
 # A command's verdict and what follows its ACK: messages, or inner frames of the on-board log to replay.
 Outcome = tuple[Verdict, list[Message | bytes]]
@@ -42,24 +46,35 @@ Handler = Callable[[Message], Outcome]
 class AgentLink:
     """Turns received bytes into actions of the program and the program's messages into frames.
 
-    `write` takes wire bytes (the server passes them through fault injection to the transport).
+    `write` takes wire bytes (the server passes them through fault injection to the transport). `link_clock_s`
+    is the link's real clock (SPEC s. 4, time base): link silence, the HELLO repeat and the signing checks use it.
+    With a key, `mark_file` keeps the signing mark across restarts (SPEC s. 12).
     """
 
     def __init__(self, write: Callable[[bytes], None], node_id: int, ring: LogRing | None = None,
-                 key: bytes | None = None) -> None:
+                 key: bytes | None = None, link_clock_s: Callable[[], float] | None = None,
+                 mark_file: Path | None = None) -> None:
         self.write = write
+        self.link_clock_s = link_clock_s or self._agent_clock_s
         # With a key, commands must be signed (SPEC s. 12); refusals are counted in HEARTBEAT.signing_rejects.
-        self.verifier = SignatureVerifier(key) if key is not None else None
+        self.verifier: SignatureVerifier | None = None
+        if key is not None:
+            marks = MarkFile(mark_file) if mark_file is not None else None
+            self.verifier = SignatureVerifier(key, floor=marks.read() if marks else -1,
+                                              persist=marks.write if marks else None)
         self.signing_rejects = 0
         self.node_id = node_id
         self.boot_id = int.from_bytes(os.urandom(4), "little") or 1
         self.ring = ring or LogRing()
-        self.decoder = StreamDecoder()
+        self.decoder = StreamDecoder(agent=True)
         self.dumps = DumpStore()
         self.program: OnboardProgram | None = None
         self._encoder = FrameEncoder()  # the agent's seq counter; frames keep their inner bytes for the log
         self._answered: deque[tuple[int, int, int, str]] = deque(maxlen=ACK_MEMORY)
-        self._hello_sent = False
+        self._connected = False
+        self._heard = False  # a frame from the ground passed CRC and version checks on this link
+        self._next_hello_s = 0.0
+        self._last_ground_rx_s = 0.0
         self._next_heartbeat_us = 0
         # While a command runs, what the program sends waits here: SPEC s. 5 puts the ACK first, so a
         # client sees e.g. CMD_START's ACK before the EPISODE_START it causes.
@@ -79,6 +94,18 @@ class AgentLink:
 
     def attach(self, program: OnboardProgram) -> None:
         self.program = program
+        self._last_ground_rx_s = self.link_clock_s()
+
+    def _agent_clock_s(self) -> float:
+        return self._prog.t_us / 1e6 if self.program is not None else 0.0
+
+    def link_silence_s(self) -> float:
+        """Link-clock seconds since the last sign of life from the ground (SPEC s. 4, link loss)."""
+        return self.link_clock_s() - self._last_ground_rx_s
+
+    def model_changed(self) -> None:
+        """The learner's model changed: a COUNTS snapshot, rendered from the live model, is now STALE."""
+        self.dumps.model_changed()
 
     @property
     def _prog(self) -> OnboardProgram:
@@ -112,7 +139,7 @@ class AgentLink:
 
     def hello(self) -> None:
         major, minor, patch = FIRMWARE_VERSION
-        self._hello_sent = True
+        self._next_hello_s = self.link_clock_s() + HELLO_REPEAT_S
         self.send(messages.Hello(
             protocol_version=PROTOCOL_VERSION, node_kind=int(NodeKind.AGENT), definitions_hash=definitions_hash(),
             firmware_major=major, firmware_minor=minor, firmware_patch=patch, node_id=self.node_id,
@@ -135,53 +162,88 @@ class AgentLink:
             self._next_heartbeat_us = prog.t_us + int(prog.mission.heartbeat_period_s * 1e6)
             self.heartbeat()
 
+    def service(self) -> None:
+        """Called every loop of the server: the HELLO repeat until the ground is heard (SPEC s. 4)."""
+        if self._connected and not self._heard and self.link_clock_s() >= self._next_hello_s:
+            self.hello()
+
     # ------------------------------------------------------------------ receiving
     def on_connect(self) -> None:
-        """A new link: sequence tracking starts over, and the agent introduces itself."""
+        """A new link: sequence tracking starts over, and the agent introduces itself until it hears the ground."""
         self.decoder.reset_sequence()
+        self._connected, self._heard = True, False
         self.hello()
 
     def on_disconnect(self) -> None:
-        self._hello_sent = False
+        self._connected = False
 
     def receive(self, data: bytes) -> None:
         """Whatever the link delivered; garbage is counted by the decoder and otherwise ignored."""
         for frame in self.decoder.feed(data):
-            check = self._check_signature(frame)
-            if check is SignatureCheck.VALID:  # an unsigned frame must not keep a signed link alive
-                self._prog.last_ground_rx_us = self._prog.t_us
-            self._handle(frame, check)
+            self._heard = True
+            if frame.msg_id >= COMMAND_IDS_FROM:
+                self._command(frame)
+            elif self._admitted(frame):  # an unsigned frame must not keep a signed link alive
+                self._alive()
+                self._handle(frame)
+            else:
+                self._handle(frame)
 
-    def _check_signature(self, frame: Frame) -> SignatureCheck:
-        if self.verifier is None:
-            return SignatureCheck.VALID
-        # Wall time, not agent time: the ground stamps frames with its wall clock (SPEC s. 12, step 4).
-        return self.verifier.check(frame.inner, time.monotonic())
+    def _alive(self) -> None:
+        self._last_ground_rx_s = self.link_clock_s()
 
-    def _handle(self, frame: Frame, check: SignatureCheck = SignatureCheck.VALID) -> None:
+    def _admitted(self, frame: Frame) -> bool:
+        """A non-command frame counts as a sign of life: any, or with a key only a validly signed one."""
+        verifier = self.verifier
+        if verifier is None:
+            return True
+        return verifier.check(frame.inner, self.link_clock_s()) is SignatureCheck.VALID
+
+    def _handle(self, frame: Frame) -> None:
         message = frame.message
-        if isinstance(message, messages.Hello):
-            if not self._hello_sent:
-                self.hello()
+        if isinstance(message, messages.Hello):  # SPEC s. 4: every ground HELLO is answered
+            self.hello()
         elif isinstance(message, messages.Timesync):
             if message.receive_us == 0 and message.transmit_us == 0:
                 t = self._prog.t_us
-                self.send(messages.Timesync(origin_us=message.origin_us, receive_us=t, transmit_us=t))
-        elif frame.msg_id >= COMMAND_IDS_FROM:
-            if check is SignatureCheck.VALID:
-                self._command(frame)
-            else:  # not run, not remembered as answered: only the refusal is sent
-                self.signing_rejects += 1
-                self._ack(frame, AckResult.UNAUTHORIZED, f"signature {check.name.lower().replace('_', ' ')}")
+                # SPEC s. 9: a reply never carries transmit_us = 0 (it would read as a request)
+                self.send(messages.Timesync(origin_us=message.origin_us, receive_us=t, transmit_us=max(t, 1)))
+
+    def _refuse(self, frame: Frame, why: str) -> None:
+        """UNAUTHORIZED: not run, not remembered in the ACK memory, counted (SPEC s. 5, 12)."""
+        self.signing_rejects += 1
+        self._ack(frame, AckResult.UNAUTHORIZED, why)
 
     def _command(self, frame: Frame) -> None:
+        """SPEC s. 5, order of checks: truncated, HMAC, ACK memory, timestamp, unknown id, the command itself."""
+        message, verifier = frame.message, self.verifier
+        if isinstance(message, UndecodedCommand) and message.truncated:
+            self._refuse(frame, "truncated signature")
+            return
+        if verifier is not None:
+            check = verifier.authenticate(frame.inner)
+            if check is not SignatureCheck.VALID:
+                self._refuse(frame, f"signature {check.name.lower().replace('_', ' ')}")
+                return
         for msg_id, seq, result, reason in self._answered:
             if msg_id == frame.msg_id and seq == frame.seq:
                 self._ack(frame, AckResult(result), reason)  # a retry: answer again, do not act again
                 return
+        if verifier is not None:
+            check = verifier.admit(frame.inner, self.link_clock_s())
+            if check is SignatureCheck.VALID:
+                self._alive()
+            elif frame.msg_id != _SURFACE_ID:  # surfacing is always safe: CMD_SURFACE runs whatever its timestamp
+                self._refuse(frame, f"signature {check.name.lower().replace('_', ' ')}")
+                return
+        else:
+            self._alive()
+        self._execute(frame)
+
+    def _execute(self, frame: Frame) -> None:
         handler = self._handlers.get(type(frame.message))
         replies: list[Message | bytes] = []
-        result, reason = AckResult.UNSUPPORTED, "command not implemented"
+        result, reason = AckResult.UNSUPPORTED, f"command 0x{frame.msg_id:02X} not implemented"
         self._deferred = []
         try:
             if handler is not None:
@@ -266,7 +328,7 @@ class AgentLink:
 
     def _log_request(self, m: Message) -> Outcome:
         assert isinstance(m, messages.LogRequest)
-        records = self.ring.records(m.first_sample, m.end_sample)
+        records = self.ring.records(m.first_sample, m.end_sample, LOG_REPLAY_SAMPLES)
         replies: list[Message | bytes] = [r.inner for r in records]
         ring = self.ring
         replies.append(messages.LogRange(

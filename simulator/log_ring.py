@@ -1,4 +1,4 @@
-"""The on-board log: a 512 KiB ring of SAMPLE and EPISODE frames (inner bytes), keyed by sample index."""
+"""The on-board log (SPEC.md s. 7): a ring of SAMPLE and EPISODE frames (inner bytes), keyed by sample index."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ from collections import deque
 from itertools import islice
 from typing import NamedTuple
 
-LOG_CAPACITY_BYTES = 512 * 1024  # paper: 2 x M24M02 EEPROM = 512 KiB
+LOG_CAPACITY_BYTES = 512 * 1024  # SPEC s. 7: two external M24M02 EEPROMs, 2 x 256 KiB = 524 288 B
 RECORD_OVERHEAD_BYTES = 1  # the EEPROM record keeps a length byte before each inner frame
 
 
@@ -15,6 +15,7 @@ class LogRecord(NamedTuple):
 
     sample: int  # the frame's sample index (SAMPLE.sample, EPISODE_START/END.sample)
     inner: bytes  # the inner frame as produced (ver | flags | seq | msg_id | payload | crc)
+    is_sample: bool = True  # a SAMPLE (else EPISODE_START / EPISODE_END)
 
 
 class LogRing:
@@ -46,25 +47,32 @@ class LogRing:
         if size > self.capacity_bytes:
             return
         records = self._records
-        records.append(LogRecord(sample, inner))
+        records.append(LogRecord(sample, inner, is_sample))
         self.bytes_used += size
         while self.bytes_used > self.capacity_bytes:
             self.bytes_used -= len(records.popleft().inner) + RECORD_OVERHEAD_BYTES
         if is_sample and sample >= self.next_sample:
             self.next_sample = sample + 1
 
-    def records(self, first_sample: int, end_sample: int) -> list[LogRecord]:
+    def records(self, first_sample: int, end_sample: int, max_samples: int = 0) -> list[LogRecord]:
         """Records whose sample index lies in [first_sample, end_sample), oldest first.
 
-        A list, not a view: the caller re-sends it while the program keeps logging into the ring.
+        With max_samples, the range is cut after the sample index of the max_samples-th SAMPLE record, so the
+        EPISODE frames of that index come along (SPEC s. 7, LOG_REQUEST bound). A list, not a view: the caller
+        re-sends it while the program keeps logging into the ring.
         """
         if not self._records or end_sample <= first_sample:
             return []
         out: list[LogRecord] = []
+        samples, cut = 0, end_sample
         for record in islice(self._records, self._bisect(first_sample), None):
-            if record.sample >= end_sample:
+            if record.sample >= cut:
                 break
             out.append(record)
+            if max_samples and record.is_sample:
+                samples += 1
+                if samples == max_samples:
+                    cut = min(cut, record.sample + 1)
         return out
 
     def _bisect(self, sample: int) -> int:

@@ -18,8 +18,8 @@ drives only the actuator (hardware in onboard_hw.py). Modes (SPEC.md section 6):
 Periods: control = control_dt_s (0.1 s), recovery = the recovery controller's 0.025 s.
 
 In every mode but IDLE and SURFACING: battery below low_batt_v, max_dive_s away from IDLE, or link
-loss with surface_on_link -> SURFACING (an episode in progress ends ABORTED). CMD_SURFACE works in
-every mode. With the `paper` preset (start_with_recovery false) RECOVERING places the agent at rest
+loss with surface_on_link_loss -> SURFACING (an episode in progress ends ABORTED). CMD_SURFACE works in
+every mode. With start_at_rest (the `paper` preset; simulator only) RECOVERING places the agent at rest
 at its start depth at once, as the paper's simulation restarts episodes.
 """
 
@@ -29,11 +29,12 @@ from typing import Protocol
 
 import numpy as np
 
-from learning import Learner, LearnerConfig, n_states
+from learning import Learner, LearnerConfig, learner_memory_bytes, n_states
 from learning.acting import reward_kernel, state_index_kernel
 from learning.config import kernel_spec
 from learning.spec import direct_entry
 from protocol import AckResult, Action, EndReason, Mode, Severity, messages
+from protocol.parameters import RAM_BUDGET_BYTES, snapshot_ram_bytes
 from protocol.registry import Message
 from simulator.agent_mission import MissionConfig
 from simulator.errors import ParamsError
@@ -62,6 +63,10 @@ class Downlink(Protocol):
     def send(self, message: Message) -> None: ...
 
     def episode_dumps(self) -> None: ...
+
+    def link_silence_s(self) -> float: ...
+
+    def model_changed(self) -> None: ...
 
 
 def _not_allowed(mode: Mode) -> Verdict:
@@ -100,7 +105,6 @@ class OnboardProgram:
         self.depth_m = 0.0
         self.velocity_mps = 0.0
         self.pressure_pa = hw.read_pressure_pa()
-        self.last_ground_rx_us = 0  # the link layer stamps every valid frame from the ground
         self.successes = 0
         self.episodes_left = 0  # 0 = no limit
         self._dive_start_us = 0
@@ -204,7 +208,7 @@ class OnboardProgram:
         elif mission.max_dive_s and hw.t_us - self._dive_start_us >= mission.max_dive_s * 1e6:
             why = "maximum dive time"
         elif (mission.surface_on_link_loss and mission.link_timeout_s
-              and hw.t_us - self.last_ground_rx_us >= mission.link_timeout_s * 1e6):
+              and self.down.link_silence_s() >= mission.link_timeout_s):
             why = "link lost"
         if why:
             self.surface(why)
@@ -245,6 +249,7 @@ class OnboardProgram:
             reward = float(self._reward(self.depth_m, self.params.target_depth_m, state, self._lspec))
             self._return += reward
             self.learner.observe(self._prev_state, self._prev_action, reward, state)
+            self.down.model_changed()
         limit = round(self.params.episode_limit_s / self.params.control_period_s)
         if state == self._terminal or self._steps >= limit:
             self._sample(Action.NONE, reward, state)
@@ -293,9 +298,7 @@ class OnboardProgram:
         return OK
 
     def stop(self) -> Verdict:
-        if self.mode == Mode.IDLE:
-            return _not_allowed(self.mode)
-        if self.mode != Mode.SURFACING:
+        if self.mode not in (Mode.IDLE, Mode.SURFACING):  # SPEC s. 6: accepted in IDLE and SURFACING, no change
             self.surface("CMD_STOP")
         return OK
 
@@ -320,17 +323,15 @@ class OnboardProgram:
         if self.mode == Mode.LEARNING:
             return _not_allowed(self.mode)
         self.learner.reset()
+        self.down.model_changed()
         self.successes = 0
         self._reset_episode()
         self.text("model reset")
         return OK
 
     def set_param(self, index: int, value: float) -> Verdict:
-        """Apply a parameter; learner parameters rebuild the learner (its model starts again)."""
+        """Apply a parameter (SPEC.md section 13): value checks, then the mode; a learner change restarts it."""
         definition = self.table.defs[index]
-        busy = (Mode.LEARNING, Mode.RECOVERING) if definition.scope is Scope.LEARNER else (Mode.LEARNING,)
-        if definition.scope is not Scope.MISSION and self.mode in busy:
-            return _not_allowed(self.mode)
         old = self.table.values[index]
         try:
             self.table.set(index, value)
@@ -338,16 +339,32 @@ class OnboardProgram:
             new_config = self.table.apply(Scope.LEARNER, config)
             new_params = self.table.apply(Scope.PLANT, params)
             new_mission = self.table.apply(Scope.MISSION, mission)
+            if definition.learner:
+                check_ram(new_config)
         except (ParamsError, ValueError) as e:  # LearnerConfigError is a ValueError too
             self.table.values[index] = old
             return AckResult.BAD_VALUE, str(e)
+        if self.mode in definition.refused_in:
+            self.table.values[index] = old
+            return _not_allowed(self.mode)
         self.params, self.mission = new_params, new_mission
-        if new_config != self.config:
+        if definition.learner and new_config != self.config:
             self.config = new_config
             self.learner = Learner(new_config, self.rng)
             self._lspec = kernel_spec(new_config)
             self._terminal = n_states(new_config) - 1
+            self.down.model_changed()
             self.successes = 0
             self._reset_episode()
             self.text(f"{definition.name} changed: learner restarted")
         return OK
+
+
+def check_ram(config: LearnerConfig) -> None:
+    """ParamsError naming the bytes if the learner and its snapshots would not fit the RAM budget (SPEC s. 13)."""
+    states = n_states(config)
+    need = learner_memory_bytes(config) + snapshot_ram_bytes(states)
+    if need > RAM_BUDGET_BYTES:
+        raise ParamsError(
+            f"{states} states need {need} bytes of RAM (learner and snapshots), the budget is {RAM_BUDGET_BYTES}"
+        )

@@ -1,104 +1,90 @@
-"""The agent's parameter table: every learner and mission parameter by index and name, typed and range-checked."""
+"""The virtual agent's parameter table: protocol.parameters' definitions bound to its configuration objects."""
 
 from __future__ import annotations
 
-import math
-import struct
 from dataclasses import dataclass, fields, replace
 from enum import Enum
 from typing import Any, TypeVar
 
-from protocol import ParamType, messages
+from protocol import messages
+from protocol.parameters import PARAMS, ParamDef
 from simulator.errors import ParamsError
-
-MAX_NAME_BYTES = 16  # PARAM_VALUE.name is char[16]
-_F32 = struct.Struct("<f")
 
 T = TypeVar("T")
 
 
 class Scope(Enum):
-    """Which configuration object a parameter belongs to, and so when it may change."""
+    """Which configuration object a parameter belongs to."""
 
-    LEARNER = "learner"  # LearnerConfig: changes the learner, so not while learning or recovering
+    LEARNER = "learner"  # LearnerConfig
     PLANT = "plant"  # PlantParams figures the on-board program applies itself (target, action step, ...)
-    MISSION = "mission"  # MissionConfig: any time
+    MISSION = "mission"  # MissionConfig
 
 
 @dataclass(frozen=True)
-class ParamDef:
-    name: str  # wire name, unit as suffix, at most 16 bytes
+class Binding:
+    """Where the virtual agent keeps one parameter: a field of one configuration object."""
+
     scope: Scope
-    field: str  # field of the scope's dataclass
-    param_type: ParamType
-    minimum: float
-    maximum: float
-    doc: str
-
-
-def _d(name: str, scope: Scope, field: str, kind: ParamType, low: float, high: float, doc: str) -> ParamDef:
-    return ParamDef(name, scope, field, kind, low, high, doc)
+    field: str
+    inverted: bool = False  # a bool field holding the parameter's negation
 
 
 L, P, M = Scope.LEARNER, Scope.PLANT, Scope.MISSION
-B, U8, I32, U32, F = ParamType.BOOL, ParamType.U8, ParamType.I32, ParamType.U32, ParamType.F32
-
-# Index order is the wire order: append only, so a ground station's cached table stays valid.
-PARAM_DEFS: tuple[ParamDef, ...] = (
-    _d("target_depth_m", P, "target_depth_m", F, 0.05, 2.5, "target depth z_d (sensor reads to ~2.9 m)"),
-    _d("z_tol_m", L, "z_tol_m", F, 0.01, 1.0, "half-height of the learning region"),
-    _d("zdot_tol_mps", L, "zdot_tol_mps", F, 0.001, 0.5, "velocity bound of the learning region"),
-    _d("z_cells", L, "z_cells", U8, 1, 50, "depth cells of the grid"),
-    _d("zdot_cells", L, "zdot_cells", U8, 1, 50, "velocity cells of the grid"),
-    _d("act_bins", L, "actuator_bins", U8, 1, 9, "actuator position bins in the state (1 = paper)"),
-    _d("gamma", L, "gamma", F, 0.0, 0.999, "discount factor"),
-    _d("vi_tol", L, "vi_tolerance", F, 1e-7, 0.1, "value iteration stops below this change"),
-    _d("term_reward", L, "terminal_reward", F, -1000.0, 0.0, "reward on entering the terminal state"),
-    _d("p_explore_start", L, "p_explore_start", F, 0.0, 1.0, "exploration probability at episode 0"),
-    _d("p_explore_end", L, "p_explore_end", F, 0.0, 1.0, "exploration probability after the decay"),
-    _d("explore_eps", L, "explore_decay_episodes", U32, 1, 1_000_000, "episodes of the exploration decay"),
-    _d("known_count", L, "known_count", U8, 1, 255, "tries before a pair is known (1 = paper, >1 R-MAX)"),
-    _d("depth_only_term", L, "depth_only_terminal", B, 0, 1, "episode ends on depth only (authors' code)"),
-    _d("random_ties", L, "random_ties", B, 0, 1, "break ties between equal Q values at random"),
-    _d("success_time_s", P, "episode_limit_s", F, 1.0, 3600.0, "time in the region that counts as success"),
-    _d("control_dt_s", P, "control_period_s", F, 0.02, 0.2, "learner period"),
-    _d("action_step_deg", P, "action_step_deg", F, 0.1, 20.0, "gear angle change per learner action"),
-    _d("action_win_deg", P, "action_window_deg", F, 0.5, 65.0, "learner's gear window around neutral, +/-"),
-    _d("link_timeout_s", M, "link_timeout_s", F, 0.0, 3600.0, "link lost after this silence (0 = never)"),
-    _d("surface_on_link", M, "surface_on_link_loss", B, 0, 1, "surface when the link is lost"),
-    _d("dump_each_ep", M, "dump_each_episode", B, 0, 1, "send VALUES and POLICY after every episode"),
-    _d("max_dive_s", M, "max_dive_s", F, 0.0, 86400.0, "surface after this long diving (0 = no limit)"),
-    _d("max_episodes", M, "max_episodes", U32, 0, 1_000_000, "episodes per CMD_START giving 0 (0 = no limit)"),
-    _d("low_batt_v", M, "low_battery_v", F, 3.0, 4.2, "surface below this battery voltage"),
-)
+BINDINGS: dict[str, Binding] = {
+    "target_depth_m": Binding(P, "target_depth_m"),
+    "z_tol_m": Binding(L, "z_tol_m"),
+    "zdot_tol_mps": Binding(L, "zdot_tol_mps"),
+    "z_cells": Binding(L, "z_cells"),
+    "zdot_cells": Binding(L, "zdot_cells"),
+    "act_bins": Binding(L, "actuator_bins"),
+    "gamma": Binding(L, "gamma"),
+    "vi_tol": Binding(L, "vi_tolerance"),
+    "term_reward": Binding(L, "terminal_reward"),
+    "p_explore_start": Binding(L, "p_explore_start"),
+    "p_explore_end": Binding(L, "p_explore_end"),
+    "explore_eps": Binding(L, "explore_decay_episodes"),
+    "known_count": Binding(L, "known_count"),
+    "depth_only_term": Binding(L, "depth_only_terminal"),
+    "random_ties": Binding(L, "random_ties"),
+    "success_time_s": Binding(P, "episode_limit_s"),
+    "control_dt_s": Binding(P, "control_period_s"),
+    "action_step_deg": Binding(P, "action_step_deg"),
+    "action_win_deg": Binding(P, "action_window_deg"),
+    "link_timeout_s": Binding(M, "link_timeout_s"),
+    "surface_on_link_loss": Binding(M, "surface_on_link_loss"),
+    "dump_each_episode": Binding(M, "dump_each_episode"),
+    "max_dive_s": Binding(M, "max_dive_s"),
+    "max_episodes": Binding(M, "max_episodes"),
+    "low_batt_v": Binding(M, "low_battery_v"),
+    "start_at_rest": Binding(P, "start_with_recovery", inverted=True),
+}
 
 
-def coerce(definition: ParamDef, value: float) -> float:
-    """The value as the agent stores it (integers rounded toward zero, f32 rounded), or ParamsError."""
-    if not math.isfinite(value):
-        raise ParamsError(f"{definition.name}: {value} is not a finite number")
-    if definition.param_type == ParamType.F32:
-        stored = _F32.unpack(_F32.pack(value))[0] if abs(value) < 3.4e38 else value
-    elif definition.param_type == ParamType.BOOL:
-        stored = 1.0 if value != 0 else 0.0
-    else:
-        stored = float(math.trunc(value))
-    # Range check on the stored value, with f32 rounding tolerated at the bounds.
-    slack = 1e-6 * max(1.0, abs(definition.maximum), abs(definition.minimum))
-    if definition.param_type != ParamType.F32:
-        slack = 0.0
-    if not definition.minimum - slack <= stored <= definition.maximum + slack:
-        raise ParamsError(f"{definition.name}: {value} outside [{definition.minimum}, {definition.maximum}]")
-    return stored
+def binding(definition: ParamDef) -> Binding:
+    return BINDINGS[definition.name]
+
+
+def check_value(definition: ParamDef, value: float) -> float:
+    """The value as the agent stores it, or ParamsError with the BAD_VALUE reason (SPEC.md section 13)."""
+    why = definition.refusal(value)
+    if why:
+        raise ParamsError(why)
+    return definition.stored(value)
 
 
 class ParamTable:
-    """Current values of PARAM_DEFS, read from and written back to the configuration objects."""
+    """Current values of the parameters, read from and written back to the configuration objects."""
 
-    def __init__(self, sources: dict[Scope, Any], defs: tuple[ParamDef, ...] = PARAM_DEFS) -> None:
+    def __init__(self, sources: dict[Scope, Any], defs: tuple[ParamDef, ...] = PARAMS) -> None:
         self.defs = defs
         self._by_name = {d.name: i for i, d in enumerate(defs)}
-        self.values: list[float] = [float(getattr(sources[d.scope], d.field)) for d in defs]
+        self.values: list[float] = []
+        for d in defs:
+            b = binding(d)
+            raw = float(getattr(sources[b.scope], b.field))
+            # Stored as the agent stores it: a preset's 0.4 is held (and sent) as the f32 0.4000000059604645.
+            self.values.append(d.stored(1.0 - raw if b.inverted else raw))
 
     def __len__(self) -> int:
         return len(self.defs)
@@ -118,8 +104,8 @@ class ParamTable:
         return self.values[self._by_name[name]]
 
     def set(self, index: int, value: float) -> float:
-        """Store a value (after coerce); returns the value applied."""
-        stored = coerce(self.defs[index], value)
+        """Store a value (after check_value); returns the value applied."""
+        stored = check_value(self.defs[index], value)
         self.values[index] = stored
         return stored
 
@@ -128,9 +114,12 @@ class ParamTable:
         kinds = {f.name: f.type for f in fields(base)}  # type: ignore[arg-type]
         changes: dict[str, Any] = {}
         for definition, value in zip(self.defs, self.values, strict=True):
-            if definition.scope is scope:
-                kind = str(kinds[definition.field])
-                changes[definition.field] = bool(value) if kind == "bool" else int(value) if kind == "int" else value
+            b = binding(definition)
+            if b.scope is scope:
+                kind = str(kinds[b.field])
+                if b.inverted:
+                    value = 1.0 - value
+                changes[b.field] = bool(value) if kind == "bool" else int(value) if kind == "int" else value
         return replace(base, **changes)  # type: ignore[type-var]
 
     def message(self, index: int) -> messages.ParamValue:

@@ -14,13 +14,15 @@ import typer
 
 from learning import LearnerConfig, LearningError, learner_names, learner_preset
 from protocol import SigningError
+from protocol.parameters import BY_NAME
 from protocol.signing import parse_key
 from simulator.agent_mission import MissionConfig
 from simulator.errors import ParamsError, SimulatorError
 from simulator.faults import FaultConfig
 from simulator.parameters import PlantParams, preset, with_overrides
-from simulator.params_table import PARAM_DEFS, Scope, coerce
+from simulator.params_table import Scope, binding, check_value
 from simulator.server import AgentServer, ServeConfig
+from simulator.signing_mark import mark_path
 
 EXIT_BAD_ARGUMENT = 2
 
@@ -69,20 +71,22 @@ def apply_param_file(
     path: Path, plant: PlantParams, learner: LearnerConfig, mission: MissionConfig
 ) -> tuple[PlantParams, LearnerConfig, MissionConfig]:
     """Agent parameter names (PARAM_LIST names) set those; any other key must be a PlantParams field."""
-    by_name = {d.name: d for d in PARAM_DEFS}
     changes: dict[Scope, dict[str, Any]] = {scope: {} for scope in Scope}
     plant_rest: dict[str, Any] = {}
     for key, value in _read_table(path).items():
-        definition = by_name.get(key)
+        definition = BY_NAME.get(key)
         if definition is None:
             plant_rest[key] = value
             continue
         if not isinstance(value, int | float):
             raise ParamsError(f"parameter {key!r} must be a number or true/false")
-        stored = coerce(definition, float(value))
-        kind = type(getattr({Scope.LEARNER: learner, Scope.PLANT: plant, Scope.MISSION: mission}[definition.scope],
-                            definition.field))
-        changes[definition.scope][definition.field] = kind(stored)
+        stored = check_value(definition, float(value))
+        where = binding(definition)
+        if where.inverted:
+            stored = 1.0 - stored
+        kind = type(getattr({Scope.LEARNER: learner, Scope.PLANT: plant, Scope.MISSION: mission}[where.scope],
+                            where.field))
+        changes[where.scope][where.field] = kind(stored)
     plant = with_overrides(replace(plant, **changes[Scope.PLANT]), plant_rest)
     try:
         learner = replace(learner, **changes[Scope.LEARNER])
@@ -113,6 +117,9 @@ def serve(
     key_file: Annotated[
         Path | None, typer.Option(help="Signing key file (dive keygen): commands must then be signed.")
     ] = None,
+    state_dir: Annotated[
+        Path | None, typer.Option(help="Where the signing mark survives restarts (default: beside the key file).")
+    ] = None,
     report: Annotated[
         Path | None, typer.Option(help="At exit, write what the faults did and the samples produced (JSON).")
     ] = None,
@@ -130,6 +137,7 @@ def serve(
             faults=FaultConfig(drop, corrupt, delay, disconnect_every, blackout_below),
             host=host, port=port, pty=pty, speed=parse_speed(speed), seed=seed,
             key=read_key_file(key_file) if key_file is not None else None,
+            mark_file=mark_path(key_file, state_dir) if key_file is not None else None,
         )
         server = AgentServer(config)
     except (SimulatorError, LearningError) as e:

@@ -6,6 +6,7 @@ import random
 import selectors
 import time
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
@@ -38,6 +39,7 @@ class ServeConfig:
     speed: float | None = 1.0  # None = as fast as possible
     seed: int | None = None
     key: bytes | None = None  # signing key: commands must be signed (SPEC s. 12)
+    mark_file: Path | None = None  # where the signing mark survives a restart (SPEC s. 12)
 
 
 class AgentServer:
@@ -64,7 +66,11 @@ class AgentServer:
         self.lost_by_connection: list[list[int]] = []
         self.connection_end_seqs: list[int] = []  # the seq after the last frame of each finished connection
         self._logged = 0
-        self.link = AgentLink(self._write, node_id=0x5100_0000 | (seed & 0xFFFF), key=config.key)
+        # SPEC s. 4, time base: faster than real time, link silence, the HELLO repeat and signing ages are in wall
+        # seconds, because the ground lives in wall time; otherwise in agent time, as on the real agent.
+        fast = config.speed is None or config.speed > 1.0
+        self.link = AgentLink(self._write, node_id=0x5100_0000 | (seed & 0xFFFF), key=config.key,
+                              link_clock_s=time.monotonic if fast else None, mark_file=config.mark_file)
         self.hw = SimulatedHardware(config.plant, rng)
         self.program = OnboardProgram(config.plant, config.learner, config.mission, self.hw, rng, self.link)
         self.link.attach(self.program)
@@ -220,6 +226,7 @@ class AgentServer:
     def _io(self, timeout_s: float) -> None:
         transport = self.transport
         transport.poll()
+        self.link.service()
         transport.flush()
         for key, mask in self.selector.select(timeout_s):
             key.data(mask)

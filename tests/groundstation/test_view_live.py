@@ -37,7 +37,7 @@ def _learn(directory: Path) -> tuple[Path, Path]:
         with RerunView.open(ViewConfig(rrd=directory / "live.rrd")) as view:
             with Session(make_link("sim://?speed=max&seed=3"), listeners=[recorder, view]) as session:
                 session.add_listener(session.rx_listener(watch))
-                session.set_param("dump_each_ep", 1)
+                session.set_param("dump_each_episode", 1)
                 session.command(m.StartLearning(max_episodes=EPISODES))
                 assert ended.wait(120), f"only {len(episodes)} episodes"
     finally:

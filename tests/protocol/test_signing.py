@@ -16,6 +16,9 @@ from protocol.errors import FrameError
 from protocol.frame import parse_inner
 from protocol.messages import DumpChunk, Sample, SetTarget, Stop, Text
 from protocol.signing import (
+    FUTURE_WINDOW_S,
+    LINK_IDS_HELD,
+    MARK_AHEAD_S,
     NEW_LINK_WINDOW_S,
     SignatureCheck,
     SignatureVerifier,
@@ -116,14 +119,54 @@ def test_a_truncated_signature_is_refused() -> None:
     body = _inner(_signed_wire())[:-2]
     for cut in range(1, 14):  # part of the signature, then the timestamp and link id too
         assert SignatureVerifier(KEY).check(_with_crc(body[:-cut]), 0.0) is not SignatureCheck.VALID
-    assert SignatureVerifier(KEY).check(_with_crc(bytes([1, 5, 0, 0, 0x84]) + bytes(5)), 0.0) is (
+    assert SignatureVerifier(KEY).check(_with_crc(bytes([1, 0x11, 0, 0, 0x84]) + bytes(5)), 0.0) is (
         SignatureCheck.TRUNCATED)
 
 
 def test_a_truncated_signed_frame_is_counted_malformed_by_the_decoder() -> None:
     decoder = StreamDecoder()
-    assert decoder.feed(cobs_encode(_with_crc(bytes([1, 5, 0, 0, 0x84, 1, 2, 3]))) + b"\x00") == []
+    assert decoder.feed(cobs_encode(_with_crc(bytes([1, 0x11, 0, 0, 0x84, 1, 2, 3]))) + b"\x00") == []
     assert decoder.stats.malformed == 1
+
+
+def test_too_new_refused_and_a_link_id_table_of_16_forgets_the_least_recent() -> None:
+    verifier = SignatureVerifier(KEY)
+    assert verifier.check(_inner(_signed_wire(link_id=0)), 100.0) is SignatureCheck.VALID
+    ahead = Clock(T0_NS + int((FUTURE_WINDOW_S + 5) * 1e9))
+    assert verifier.check(_inner(_signed_wire(link_id=0, clock=ahead)), 100.0) is SignatureCheck.TOO_NEW
+    near = Clock(T0_NS + int((FUTURE_WINDOW_S - 5) * 1e9))
+    assert verifier.check(_inner(_signed_wire(link_id=0, clock=near)), 100.0) is SignatureCheck.VALID
+    # 16 more link ids push link 0 out: its old frame is "not seen since boot" again, so the too-old check applies
+    for link_id in range(1, LINK_IDS_HELD + 1):
+        assert verifier.check(_inner(_signed_wire(link_id=link_id, clock=near, seq=link_id)), 100.0) is (
+            SignatureCheck.VALID)
+    old = Clock(T0_NS - int((NEW_LINK_WINDOW_S + 5) * 1e9))
+    assert verifier.check(_inner(_signed_wire(link_id=0, clock=old)), 100.0) is SignatureCheck.TOO_OLD
+
+
+def test_the_persisted_mark_refuses_what_was_accepted_before_a_reboot() -> None:
+    marks: list[int] = []
+    before = SignatureVerifier(KEY, persist=marks.append)
+    first = _inner(_signed_wire(link_id=1))
+    assert before.check(first, 0.0) is SignatureCheck.VALID
+    stamp = timestamp_from_unix_ns(T0_NS)
+    assert marks == [stamp + int(MARK_AHEAD_S * 100_000)]
+    # within the mark: no second write (at most one write per 10 s)
+    assert before.check(_inner(_signed_wire(link_id=1, clock=Clock(T0_NS + 10**9))), 1.0) is SignatureCheck.VALID
+    assert len(marks) == 1
+    after = SignatureVerifier(KEY, floor=marks[-1])  # rebooted: RAM state gone, the mark read back
+    assert after.check(first, 0.0) is SignatureCheck.REPLAYED
+    later = Clock(T0_NS + int((MARK_AHEAD_S + 1) * 1e9))
+    assert after.check(_inner(_signed_wire(link_id=7, clock=later)), 0.0) is SignatureCheck.VALID
+
+
+def test_authenticate_changes_no_state_and_admit_does() -> None:
+    verifier = SignatureVerifier(KEY)
+    inner = _inner(_signed_wire())
+    assert verifier.authenticate(inner) is SignatureCheck.VALID
+    assert verifier.authenticate(inner) is SignatureCheck.VALID
+    assert verifier.admit(inner, 0.0) is SignatureCheck.VALID
+    assert verifier.admit(inner, 0.0) is SignatureCheck.REPLAYED
 
 
 def test_stripping_the_signed_flag_leaves_an_unsigned_frame_not_a_valid_one() -> None:

@@ -1,6 +1,7 @@
 """The virtual agent sends the same wire bytes and logs the same records as before its fast paths, seed for seed.
 
-The fixture was captured from main at aa759ad (one step and one link tick per call) before any speed-up.
+The fixture was captured from main (one step and one link tick per call) before any speed-up: first at aa759ad,
+again at 1e82738 because SPEC 1.1 (merged there) changed the wire itself (one more frame in this script).
 """
 
 from __future__ import annotations

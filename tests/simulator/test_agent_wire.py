@@ -9,7 +9,7 @@ import time
 import pytest
 
 from protocol import AckResult, DumpKind, FrameFlag, Mode, definitions_hash, messages
-from simulator.params_table import PARAM_DEFS
+from protocol.parameters import PARAMS as PARAM_DEFS
 from tests.simulator.agent_client import ROOT, AgentClient, connected
 
 FAST = ("--speed", "max", "--seed", "5")
@@ -42,10 +42,11 @@ def test_every_command_is_answered_with_ack_or_the_right_nack() -> None:
         assert c.command(messages.ParamListRequest()).result == AckResult.ACCEPTED
         listed = [c.wait_message(messages.ParamValue, index=i) for i in range(len(PARAM_DEFS))]
         assert [p.name for p in listed] == [d.name for d in PARAM_DEFS]
-        assert all(len(p.name.encode()) <= 16 and p.minimum <= p.value <= p.maximum for p in listed)
+        assert all(len(p.name.encode()) <= 24 and p.minimum <= p.value <= p.maximum for p in listed)
         assert _param(c, "gamma").value == pytest.approx(0.99)
-        assert c.command(messages.ParamSet(index=-1, name="max_episodes", value=7.9)).result == AckResult.ACCEPTED
-        assert c.wait_message(messages.ParamValue, name="max_episodes").value == 7  # rounded toward zero
+        assert c.command(messages.ParamSet(index=-1, name="max_episodes", value=7.9)).result == AckResult.BAD_VALUE
+        assert c.command(messages.ParamSet(index=-1, name="max_episodes", value=7)).result == AckResult.ACCEPTED
+        assert c.wait_message(messages.ParamValue, name="max_episodes").value == 7
         assert c.command(messages.ParamSet(index=-1, name="gamma", value=1.5)).result == AckResult.BAD_VALUE
         assert c.command(messages.ParamSet(index=-1, name="nonsense", value=1)).result == AckResult.BAD_VALUE
         assert c.command(messages.ParamGet(index=999)).result == AckResult.BAD_VALUE
@@ -54,7 +55,7 @@ def test_every_command_is_answered_with_ack_or_the_right_nack() -> None:
         assert _param(c, "target_depth_m").value == pytest.approx(0.5)
         # Modes: what IDLE refuses, hover, start, and what learning refuses.
         assert c.command(messages.Pause()).result == AckResult.NOT_ALLOWED_IN_MODE
-        assert c.command(messages.Stop()).result == AckResult.NOT_ALLOWED_IN_MODE
+        assert c.command(messages.Stop()).result == AckResult.ACCEPTED  # SPEC 1.1: stays IDLE
         assert c.command(messages.ResetModel()).result == AckResult.ACCEPTED
         assert c.command(messages.Hover(depth_m=7.0)).result == AckResult.BAD_VALUE
         assert c.command(messages.Hover(depth_m=0.3)).result == AckResult.ACCEPTED
@@ -118,12 +119,19 @@ def test_the_on_board_log_refills_a_gap_after_a_disconnect() -> None:
             c2.wait_message(messages.Hello)
             beat = c2.wait_message(messages.Heartbeat)
             assert beat.log_first_sample <= last + 1 and beat.log_next_sample > last + 1000
-            assert c2.command(messages.LogRequest(first_sample=last + 1, end_sample=beat.log_next_sample)).result == 0
-            done = c2.wait_message(messages.LogRange, timeout_s=20)
+            # SPEC s. 7: one request replays at most 512 samples; the ground asks again from the next one.
+            wanted, start, ranges = beat.log_next_sample, last + 1, []
+            while start < wanted:
+                assert c2.command(messages.LogRequest(first_sample=start, end_sample=wanted)).result == 0
+                ranges.append(c2.wait_message(messages.LogRange, timeout_s=20))
+                got = [f.message.sample for f in c2.frames
+                       if f.flags & FrameFlag.REPLAYED and isinstance(f.message, messages.Sample)]
+                start = max(got) + 1
             replayed = [f for f in c2.frames if f.flags & FrameFlag.REPLAYED]
             samples = [f.message.sample for f in replayed if isinstance(f.message, messages.Sample)]
-            assert samples == list(range(last + 1, beat.log_next_sample))
-            assert done.replayed == len(replayed) and done.capacity_bytes == 512 * 1024
+            assert samples == list(range(last + 1, wanted))
+            assert len(ranges) == -(-(wanted - last - 1) // 512)
+            assert sum(r.replayed for r in ranges) == len(replayed) and ranges[0].capacity_bytes == 512 * 1024
             assert not [f for f in c2.frames if isinstance(f.message, messages.Heartbeat) and f.flags]
         finally:
             c2.close()

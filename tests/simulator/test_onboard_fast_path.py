@@ -51,6 +51,12 @@ class CheckingDownlink:
     def episode_dumps(self) -> None:
         pass
 
+    def link_silence_s(self) -> float:
+        return 0.0
+
+    def model_changed(self) -> None:
+        pass
+
 
 def _run(preset_name: str, seed: int, steps: int) -> CheckingDownlink:
     params = preset(preset_name)

@@ -1,0 +1,214 @@
+"""What several checks need from the agent: its parameter table, a parameter set and restored, a mode reached."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator
+from contextlib import contextmanager
+
+from groundstation.check.probe import Exchange, Probe, result_name
+from groundstation.check.registry import CheckFailed, CheckSkipped
+from protocol import AckResult, Mode
+from protocol import messages as m
+
+HOVER_DEPTH_M = 0.5  # where checks hold the agent (inside any tank the paper's agent dives in)
+DEEP_M = 0.4  # deep enough that surfacing takes the agent seconds, not one step
+
+
+def param_table(probe: Probe) -> dict[str, m.ParamValue]:
+    """Every parameter by name, from PARAM_LIST (the ACK, then one PARAM_VALUE per parameter)."""
+    ex = probe.accepted(m.ParamListRequest())
+    first = probe.wait_message(m.ParamValue, ex.ack_at, probe.timeouts.reply_s)
+    if first is None:
+        raise CheckFailed("PARAM_LIST: no PARAM_VALUE after the ACK")
+    count = first[1].count
+    found = probe.wait(lambda _: len(probe.messages(m.ParamValue, ex.ack_at)) >= count, ex.ack_at,
+                       probe.timeouts.reply_s)
+    values = probe.messages(m.ParamValue, ex.ack_at)
+    if found is None or len(values) < count:
+        raise CheckFailed(f"PARAM_LIST: {len(values)} of {count} PARAM_VALUEs arrived")
+    return {v.name: v for v in values[:count]}
+
+
+def get_param(probe: Probe, name: str) -> m.ParamValue:
+    ex = probe.accepted(m.ParamGet(index=-1, name=name), f"PARAM_GET {name}")
+    found = probe.wait_message(m.ParamValue, ex.ack_at, probe.timeouts.reply_s, lambda v: v.name == name)
+    if found is None:
+        raise CheckFailed(f"PARAM_GET {name}: no PARAM_VALUE after the ACK")
+    return found[1]
+
+
+def has_param(probe: Probe, name: str) -> bool:
+    ex = probe.command(m.ParamGet(index=-1, name=name))
+    return ex.result == AckResult.ACCEPTED
+
+
+def set_param(probe: Probe, name: str, value: float) -> tuple[Exchange, m.ParamValue | None]:
+    """PARAM_SET by name; the PARAM_VALUE that follows an ACCEPTED (None after a NACK or if none came)."""
+    ex = probe.command(m.ParamSet(index=-1, value=value, name=name))
+    if ex.ack is None:
+        raise CheckFailed(f"PARAM_SET {name}={value}: no ACK within {probe.timeouts.reply_s:g} s")
+    if ex.ack.result != AckResult.ACCEPTED:
+        return ex, None
+    found = probe.wait_message(m.ParamValue, ex.ack_at, probe.timeouts.reply_s, lambda v: v.name == name)
+    return ex, found[1] if found is not None else None
+
+
+def require_set(probe: Probe, name: str, value: float) -> m.ParamValue:
+    ex, reply = set_param(probe, name, value)
+    if reply is None:
+        raise CheckFailed(f"PARAM_SET {name}={value}: {result_name(ex.result)}"
+                          + (f" ({ex.ack.reason})" if ex.ack and ex.ack.reason else "") + ", wanted ACCEPTED")
+    return reply
+
+
+@contextmanager
+def overridden(probe: Probe, values: dict[str, float]) -> Iterator[dict[str, m.ParamValue]]:
+    """Parameters set for the block and put back afterwards (in reverse order)."""
+    old: list[tuple[str, float]] = []
+    try:
+        applied = {}
+        for name, value in values.items():
+            old.append((name, get_param(probe, name).value))
+            applied[name] = require_set(probe, name, value)
+        yield applied
+    finally:
+        for name, value in reversed(old):
+            set_param(probe, name, value)
+
+
+def states(probe: Probe) -> int:
+    """S = z_cells * zdot_cells * act_bins + 1 (the terminal state last)."""
+    product = 1
+    for name in ("z_cells", "zdot_cells", "act_bins"):
+        product *= int(get_param(probe, name).value)
+    return product + 1
+
+
+# ---------------------------------------------------------------------- modes
+def go_idle(probe: Probe) -> None:
+    """CMD_SURFACE unless IDLE already, then wait until the agent is at the surface (IDLE)."""
+    if probe.current_mode() == Mode.IDLE:
+        return
+    ex = probe.accepted(m.Surface(), "CMD_SURFACE (to reach IDLE)")
+    _wait(probe, {Mode.IDLE}, ex.ack_at)
+
+
+def hover_depth(probe: Probe) -> float:
+    return HOVER_DEPTH_M
+
+
+def reach(probe: Probe, target: Mode) -> None:
+    """Bring the agent into `target`: send what leads there and wait until a frame after the ACK shows it.
+
+    RECOVERING, LEARNING and SURFACING end on their own (within milliseconds on a virtual agent at full speed), so
+    the caller judges its next command by the mode it really met (Probe.mode_before) and tries again if needed.
+    """
+    mode = probe.current_mode()
+    if mode == target and target in (Mode.IDLE, Mode.HOVER, Mode.PAUSED):
+        return
+    if target == Mode.IDLE:
+        go_idle(probe)
+    elif target == Mode.HOVER:
+        if mode not in (Mode.IDLE, Mode.PAUSED):
+            go_idle(probe)
+        _enter(probe, m.Hover(depth_m=hover_depth(probe)), {Mode.HOVER})
+    elif target == Mode.SURFACING:
+        if mode != Mode.HOVER:
+            reach(probe, Mode.HOVER)
+        deep = probe.wait_message(m.Sample, probe.end, probe.timeouts.mode_s, lambda s: s.depth_m > DEEP_M)
+        if deep is None:
+            raise CheckFailed(f"the agent did not get deeper than {DEEP_M} m within {probe.timeouts.mode_s:g} s")
+        # A virtual agent at full speed surfaces within a millisecond: the caller's command goes right behind.
+        start = probe.end
+        inner = probe.send(m.Surface())
+        probe.entered = (Exchange(inner[4], int.from_bytes(inner[2:4], "little"), inner, start), Mode.SURFACING)
+    elif target == Mode.PAUSED:
+        if mode not in (Mode.LEARNING, Mode.RECOVERING):
+            _start(probe)
+        _enter(probe, m.Pause(), {Mode.PAUSED})
+    elif target == Mode.RECOVERING:
+        _start_at_rest(probe, False)
+        _start(probe)
+    elif target == Mode.LEARNING:
+        if _start_at_rest(probe, True) and mode != Mode.RECOVERING:
+            # An episode starts at once (EPISODE_START right after the ACK): the caller's command goes right behind,
+            # before a virtual agent at full speed has ended the episode.
+            if mode not in (Mode.IDLE, Mode.HOVER, Mode.PAUSED):
+                go_idle(probe)
+            probe.notes["moved"] = 1.0
+            probe.send(m.StartLearning(max_episodes=0))
+            return
+        shown = mode if mode == Mode.RECOVERING else _start(probe)
+        if shown == Mode.RECOVERING:  # a real agent recovers first
+            _wait(probe, {Mode.LEARNING}, probe.end)
+
+
+def _enter(probe: Probe, command: m.Message, modes: set[Mode]) -> Mode:
+    """Send a command that must be ACCEPTED; the first of `modes` shown after its ACK."""
+    probe.notes["moved"] = 1.0
+    ex = probe.accepted(command, f"{command.DEFINITION.name} (to reach {'/'.join(x.name for x in modes)})")
+    return _wait(probe, modes, ex.ack_at)
+
+
+def _start(probe: Probe) -> Mode:
+    """CMD_START; returns once the agent shows RECOVERING (or LEARNING, when episodes start at once)."""
+    if probe.current_mode() not in (Mode.IDLE, Mode.HOVER, Mode.PAUSED):
+        go_idle(probe)
+    return _enter(probe, m.StartLearning(max_episodes=0), {Mode.RECOVERING, Mode.LEARNING})
+
+
+START_AT_REST = "start_at_rest"
+
+
+def _start_at_rest(probe: Probe, wanted: bool) -> bool:
+    """Set the simulator-only start_at_rest (1: an episode starts at once, no RECOVERING) if the agent lets us;
+    whether episodes now start at once. The first value seen is put back by restore()."""
+    notes = probe.notes
+    if START_AT_REST not in notes:
+        ex = probe.command(m.ParamGet(index=-1, name=START_AT_REST))
+        found = (probe.wait_message(m.ParamValue, ex.ack_at, probe.timeouts.reply_s, lambda v: v.name == START_AT_REST)
+                 if ex.result == AckResult.ACCEPTED else None)
+        value = found[1] if found is not None else None
+        notes[START_AT_REST] = value.value if value is not None and value.maximum > value.minimum else None
+        probe.originals.setdefault(START_AT_REST, notes[START_AT_REST])
+    current = notes[START_AT_REST]
+    if current is None:
+        return False
+    if bool(current) != wanted:
+        if probe.current_mode() in (Mode.LEARNING, Mode.RECOVERING):
+            go_idle(probe)  # a mission parameter, but changed only between episodes
+        require_set(probe, START_AT_REST, float(wanted))
+        notes[START_AT_REST] = float(wanted)
+    return wanted
+
+
+def restore(probe: Probe) -> None:
+    """Leave the agent at the surface if it moved, then put back the parameters the run changed."""
+    if probe.notes.get("moved"):
+        go_idle(probe)
+    for name, value in probe.originals.items():
+        if value is not None:
+            set_param(probe, name, value)
+
+
+def _wait(probe: Probe, modes: set[Mode], since: int) -> Mode:
+    shown = probe.wait_mode(modes, since)
+    if shown is None:
+        names = "/".join(sorted(x.name for x in modes))
+        raise CheckFailed(f"the agent did not reach {names} within {probe.timeouts.mode_s:g} s")
+    return shown
+
+
+def skip_unless(condition: bool, why: str) -> None:
+    if not condition:
+        raise CheckSkipped(why)
+
+
+def is_f32(value: float) -> bool:
+    """value is exactly an f32 widened to f64."""
+    import struct
+
+    if not math.isfinite(value):
+        return True
+    return bool(struct.unpack("<f", struct.pack("<f", value))[0] == value)

@@ -1,0 +1,166 @@
+"""`dive log export --format minari`: a recording's learning episodes as a Minari offline-RL dataset.
+
+Each episode becomes one Minari episode in the terms of `DivingAgent-v0` (simulator/gym_env.py), so
+`minari.load_dataset(id).recover_environment()` gives the simulated task the data fits:
+
+- observation t: [measured depth m, the velocity the learner saw m/s, actuator command minus the
+  episode's window centre deg], as the environment observes before acting;
+- action t: the learner's action of SAMPLE t (0 decrease, 1 increase volume);
+- reward t: the reward SAMPLE t+1 reports (the one the agent received for action t);
+- terminated: the episode ended in failure (left the learning region); truncated: success (the time
+  limit) or aborted by a command.
+
+Episodes are told apart by boot and episode number (several files or boots make one dataset). An
+episode with a hole in its samples that backfill never filled is left out, not invented, and so is
+an episode that has no EPISODE_END (still open when the recording stopped).
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from groundstation.errors import RecordingError
+from groundstation.recording import Recording
+from protocol import Action, EndReason, Mode
+
+ENV_ID = "DivingAgent-v0"
+ENV_ENTRY_POINT = "simulator.gym_env:_make"  # resolved by gymnasium at load time, not imported here
+NAMESPACE = "diving_agent"
+# DivingAgent-v0's observation bounds (simulator/gym_env.py): the same numbers, checked by a test.
+OBS_LOW = (-1.0, -5.0, -130.0)
+OBS_HIGH = (12.0, 5.0, 130.0)
+
+
+@dataclass(frozen=True)
+class MinariExport:
+    dataset_id: str
+    root: Path
+    episodes: int
+    steps: int
+    left_out: int  # episodes with holes or without an end
+
+
+def dataset_id_for(path: Path) -> str:
+    """A Minari dataset id from a recording's file name: diving_agent/<name>-v0."""
+    name = re.sub(r"[^A-Za-z0-9_]+", "_", path.stem).strip("_") or "recording"
+    return f"{NAMESPACE}/{name}-v0"
+
+
+def export_minari(recording: Recording, dataset_id: str, root: Path | None) -> MinariExport:
+    """Write the dataset under `root` (Minari's own datasets folder when None); refuses to overwrite."""
+    if root is not None:
+        os.environ["MINARI_DATASETS_PATH"] = str(root.resolve())
+    try:
+        import gymnasium
+        import minari
+        from minari.data_collector.episode_buffer import EpisodeBuffer
+        from minari.storage.datasets_root_dir import get_dataset_path
+    except ImportError as e:
+        raise RecordingError("--format minari needs minari: pip install 'diving-agent[minari]'") from e
+    if get_dataset_path(dataset_id).exists():
+        raise RecordingError(f"a Minari dataset {dataset_id} already exists under "
+                             f"{get_dataset_path().resolve()}; choose another --out or remove it")
+    buffers, left_out = _episode_buffers(recording, EpisodeBuffer)
+    if not buffers:
+        raise RecordingError("the recording holds no complete learning episode to export")
+    env_spec = gymnasium.envs.registration.EnvSpec(
+        id=ENV_ID, entry_point=ENV_ENTRY_POINT, kwargs=_env_kwargs(recording)
+    )
+    agent = recording.agent
+    with warnings.catch_warnings():
+        # Minari advises a code permalink, an author e-mail and an evaluation env: none apply here.
+        warnings.simplefilter("ignore", UserWarning)
+        _create(minari, dataset_id, buffers, env_spec, gymnasium, agent, recording)
+    return MinariExport(dataset_id, get_dataset_path().resolve(), len(buffers),
+                        sum(len(b.rewards) for b in buffers), left_out)
+
+
+def _create(minari: Any, dataset_id: str, buffers: list[Any], env_spec: Any, gymnasium: Any,
+            agent: dict[str, str], recording: Recording) -> None:
+    minari.create_dataset_from_buffers(
+        dataset_id=dataset_id, buffer=buffers, env=env_spec,
+        observation_space=gymnasium.spaces.Box(np.array(OBS_LOW), np.array(OBS_HIGH), dtype=np.float64),
+        action_space=gymnasium.spaces.Discrete(2),
+        algorithm_name=f"on-board learner of {agent.get('name', 'the agent')} (node {agent.get('node_id', '?')})",
+        author="dive log export", data_format="arrow",
+        description=(f"Learning episodes recorded by dive from {', '.join(str(f) for f in recording.files)}; "
+                     f"boots {recording.boots}; agent {agent}; parameters {recording.parameters}"),
+    )
+
+
+def _env_kwargs(recording: Recording) -> dict[str, Any]:
+    """make() options of DivingAgent-v0 that match the recorded task, from the agent's parameters."""
+    params = recording.parameters
+    kwargs: dict[str, Any] = {}
+    for name in ("z_tol_m", "zdot_tol_mps"):
+        if name in params:
+            kwargs[name] = float(params[name])
+    for wire_name, option in (("z_cells", "z_cells"), ("zdot_cells", "zdot_cells"), ("act_bins", "actuator_bins")):
+        if wire_name in params:
+            kwargs[option] = int(float(params[wire_name]))
+    if "target_depth_m" in params:
+        kwargs["params"] = {"target_depth_m": float(params["target_depth_m"])}
+    return kwargs
+
+
+def _episode_buffers(recording: Recording, buffer_type: type) -> tuple[list[Any], int]:
+    samples = recording.samples()
+    learning = samples[samples["mode"] == int(Mode.LEARNING)] if len(samples) else samples
+    step_deg = _action_step_deg(recording)
+    buffers: list[Any] = []
+    left_out = 0
+    for row in recording.episodes():
+        if row["outcome"] not in {r.name.lower() for r in EndReason}:
+            left_out += 1
+            continue
+        rows = learning[(learning["boot"] == row["boot"]) & (learning["episode"] == row["episode"])]
+        if len(rows) < 2 or np.any(np.diff(rows["sample"]) != 1) or rows["sample"][-1] != row["last_sample"]:
+            left_out += 1  # a hole backfill never filled, or its end is missing: leave it out
+            continue
+        buffers.append(_buffer(buffer_type, len(buffers), rows, row["outcome"], step_deg))
+    return buffers, left_out
+
+
+def _buffer(buffer_type: type, episode_id: int, rows: NDArray[np.void], outcome: str, step_deg: float) -> Any:
+    actions = rows["action"][:-1].astype(np.int64)
+    if np.any(actions == int(Action.NONE)):
+        actions = np.where(actions == int(Action.NONE), 0, actions)  # cannot happen inside an episode
+    cmd = rows["actuator_cmd_deg"].astype(np.float64)
+    first = int(rows["action"][0])
+    # SAMPLE t carries the command after action t; the window centre is the command before the first.
+    centre = cmd[0] - (step_deg if first == int(Action.INCREASE_VOLUME) else -step_deg)
+    before = np.concatenate(([centre], cmd[:-1]))
+    observations = np.column_stack([rows["depth_m"], rows["velocity_mps"], before - centre])
+    observations = np.clip(observations, OBS_LOW, OBS_HIGH)
+    n = len(actions)
+    terminations = np.zeros(n, dtype=bool)
+    truncations = np.zeros(n, dtype=bool)
+    terminations[-1] = outcome == EndReason.FAILURE.name.lower()
+    truncations[-1] = not terminations[-1]
+    return buffer_type(
+        id=episode_id, observations=observations, actions=actions,
+        rewards=rows["reward"][1:].astype(np.float64), terminations=terminations, truncations=truncations,
+        # Lists, not 1-D arrays: minari 0.5's arrow storage cannot read back a 1-D info array.
+        infos={"state": rows["state"].tolist(), "sample": rows["sample"].tolist(), "t_us": rows["t_us"].tolist()},
+    )
+
+
+def _action_step_deg(recording: Recording) -> float:
+    value = recording.parameters.get("action_step_deg")
+    if value is not None:
+        return float(value)
+    samples = recording.samples()
+    learning = samples[samples["mode"] == int(Mode.LEARNING)] if len(samples) else samples
+    steps = np.abs(np.diff(learning["actuator_cmd_deg"])) if len(learning) > 1 else np.zeros(0)
+    steps = steps[steps > 1e-6]
+    if not len(steps):
+        raise RecordingError("the recording states no action_step_deg and holds no learner step to infer it")
+    return float(np.median(steps))

@@ -1,0 +1,264 @@
+"""Recordings as data: `open_recording(path, ...)` gives per-topic numpy tables, episodes and time windows.
+
+    from groundstation import open_recording
+    rec = open_recording("recordings/run.mcap")          # or several files / a folder of split parts
+    samples = rec.samples()                              # numpy structured array, one row per sample
+    rec.episodes()                                       # one row per episode, with its boot
+    rec.table("/agent/HEARTBEAT")                        # any JSON topic
+    rec.dataframe("/agent/SAMPLE")                       # the same as a pandas DataFrame (pandas optional)
+    for msg in rec.messages({"/agent/TEXT"}, start_s=10, end_s=20): ...   # a window of agent time
+
+Every row carries `host_time_ns` (when the ground station received it) and, for agent messages, the
+agent's own `t_us`. A recording that spans an agent reboot is told apart by `boot` (the HELLO's
+`boot_id` in force when the message was recorded): sample and episode numbers restart with a boot.
+Samples received twice (live and backfilled) appear once.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Iterable, Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from groundstation.errors import RecordingError
+from groundstation.mcap_io import RecordedMessage, RecordingContents, iter_messages
+from protocol import EndReason
+
+SAMPLE_TOPIC = "/agent/SAMPLE"
+HELLO_TOPIC = "/agent/HELLO"
+EPISODE_START_TOPIC = "/agent/EPISODE_START"
+EPISODE_END_TOPIC = "/agent/EPISODE_END"
+_TIME_FIELDS = ("boot", "host_time_ns")
+_OUTCOMES = {int(r): r.name.lower() for r in EndReason}
+
+
+def recording_files(paths: Iterable[str | Path]) -> list[Path]:
+    """The MCAP files named, a folder standing for the .mcap files in it, in name order (split parts sort)."""
+    files: list[Path] = []
+    for raw in paths:
+        path = Path(raw)
+        if path.is_dir():
+            found = sorted(path.glob("*.mcap"))
+            if not found:
+                raise RecordingError(f"{path} holds no .mcap recordings")
+            files.extend(found)
+        else:
+            files.append(path)
+    if not files:
+        raise RecordingError("no recording given")
+    return files
+
+
+@dataclass
+class _Rows:
+    """Decoded JSON rows of one topic, with the columns every row gets."""
+
+    rows: list[dict[str, Any]] = field(default_factory=list)
+
+
+class Recording:
+    """One or more MCAP files of the same session(s), read once into per-topic rows."""
+
+    def __init__(self, files: list[Path]) -> None:
+        self.files = files
+        self.contents: list[RecordingContents] = []
+        self._topics: dict[str, _Rows] = {}
+        self._raw: list[tuple[str, int, int, int, RecordedMessage]] = []  # topic, boot, host ns, agent us, msg
+        self._boots: list[int] = []
+        self._read()
+
+    # ------------------------------------------------------------------ reading
+    def _read(self) -> None:
+        boot = 0
+        seen_samples: set[tuple[int, int]] = set()
+        for path in self.files:
+            info = RecordingContents()
+            for msg in iter_messages(path, None, info):
+                body = self._json(msg)
+                if msg.topic == HELLO_TOPIC and isinstance(body, dict):
+                    boot = int(body.get("boot_id", 0))
+                    if boot not in self._boots:
+                        self._boots.append(boot)
+                t_us = int(body.get("t_us", -1)) if isinstance(body, dict) else -1
+                self._raw.append((msg.topic, boot, msg.log_time_ns, t_us, msg))
+                if not isinstance(body, dict):
+                    continue
+                if msg.topic == SAMPLE_TOPIC:
+                    key = (boot, int(body.get("sample", -1)))
+                    if key in seen_samples:
+                        continue  # received live and again backfilled, or twice: one row
+                    seen_samples.add(key)
+                body["boot"], body["host_time_ns"] = boot, msg.log_time_ns
+                self._topics.setdefault(msg.topic, _Rows()).rows.append(body)
+            self.contents.append(info)
+
+    @staticmethod
+    def _json(msg: RecordedMessage) -> Any:
+        if msg.encoding != "json":
+            return None
+        try:
+            return json.loads(msg.data)
+        except ValueError:
+            return None  # a damaged or foreign body: kept in messages(), left out of the tables
+
+    # ------------------------------------------------------------------ what it holds
+    @property
+    def truncated(self) -> bool:
+        """True if any file ended early (a crash): what was read up to there is here."""
+        return any(c.truncated for c in self.contents)
+
+    @property
+    def topics(self) -> dict[str, int]:
+        """Message count per topic (every topic, JSON or not)."""
+        counts: dict[str, int] = {}
+        for topic, *_ in self._raw:
+            counts[topic] = counts.get(topic, 0) + 1
+        return counts
+
+    @property
+    def boots(self) -> list[int]:
+        """The agent's boot ids in the order they appear (one per reboot seen)."""
+        return list(self._boots)
+
+    @property
+    def metadata(self) -> dict[str, list[dict[str, str]]]:
+        merged: dict[str, list[dict[str, str]]] = {}
+        for info in self.contents:
+            for name, entries in info.metadata.items():
+                merged.setdefault(name, []).extend(entries)
+        return merged
+
+    @property
+    def agent(self) -> dict[str, str]:
+        """The agent's identity as the newest HELLO recorded it (name, node_id, boot_id, versions)."""
+        entries = self.metadata.get("agent_hello", [])
+        return entries[-1] if entries else {}
+
+    @property
+    def parameters(self) -> dict[str, str]:
+        entries = self.metadata.get("parameters", [])
+        return entries[-1] if entries else {}
+
+    # ------------------------------------------------------------------ tables
+    def table(self, topic: str) -> NDArray[np.void]:
+        """Every JSON message of `topic` as a structured array; columns are the message's fields plus
+        `boot` and `host_time_ns`. Nested values (dicts, lists) are left out; use messages() for those."""
+        rows = self._topics.get(topic)
+        if rows is None:
+            if topic not in self.topics:
+                raise RecordingError(f"the recording has no topic {topic}; it has {', '.join(sorted(self.topics))}")
+            return np.zeros(0, dtype=[(name, "<i8") for name in _TIME_FIELDS])
+        return _structured(rows.rows)
+
+    def samples(self) -> NDArray[np.void]:
+        """SAMPLEs, one row per (boot, sample index), in boot then sample order."""
+        table = self.table(SAMPLE_TOPIC)
+        if len(table) == 0:
+            return table
+        boot_rank = {boot: i for i, boot in enumerate(self._boots)}
+        rank = np.array([boot_rank.get(int(b), -1) for b in table["boot"]])
+        return table[np.lexsort((table["sample"], rank))]
+
+    def episodes(self) -> NDArray[np.void]:
+        """One row per episode: boot, episode, outcome, start/end sample and agent time, steps, return."""
+        starts = {(int(r["boot"]), int(r["episode"])): r for r in self._rows(EPISODE_START_TOPIC)}
+        ends = {(int(r["boot"]), int(r["episode"])): r for r in self._rows(EPISODE_END_TOPIC)}
+        dtype = [("boot", "<i8"), ("episode", "<i8"), ("outcome", "<U8"), ("first_sample", "<i8"),
+                 ("last_sample", "<i8"), ("start_t_us", "<i8"), ("end_t_us", "<i8"), ("steps", "<i8"),
+                 ("duration_s", "<f8"), ("episode_return", "<f8"), ("backfilled", "?")]
+        boot_rank = {boot: i for i, boot in enumerate(self._boots)}
+        keys = sorted(set(starts) | set(ends), key=lambda k: (boot_rank.get(k[0], -1), k[1]))
+        out = np.zeros(len(keys), dtype=dtype)
+        for i, key in enumerate(keys):
+            start, end = starts.get(key, {}), ends.get(key, {})
+            out[i] = (
+                key[0], key[1], _OUTCOMES.get(int(end.get("reason", 0)), "open" if not end else "?"),
+                start.get("sample", -1), end.get("sample", -1), start.get("t_us", -1), end.get("t_us", -1),
+                end.get("steps", 0), end.get("duration_s", np.nan), end.get("episode_return", np.nan),
+                bool(start.get("_backfilled") or end.get("_backfilled")),
+            )
+        return out
+
+    def dataframe(self, topic: str = SAMPLE_TOPIC) -> Any:
+        """table(topic) (samples() for SAMPLE) as a pandas DataFrame; needs pandas installed."""
+        try:
+            import pandas as pd
+        except ImportError as e:
+            raise RecordingError("dataframe() needs pandas: pip install pandas (or use table(), numpy only)") from e
+        return pd.DataFrame(self.samples() if topic == SAMPLE_TOPIC else self.table(topic))
+
+    def messages(
+        self, topics: set[str] | None = None, start_s: float | None = None, end_s: float | None = None,
+        clock: str = "agent",
+    ) -> Iterator[RecordedMessage]:
+        """Messages in recorded order whose time lies in [start_s, end_s): seconds of agent time from the
+        first SAMPLE (`clock="agent"`, messages without agent time are left out of a window) or of host
+        time from the first message (`clock="host"`)."""
+        if clock not in ("agent", "host"):
+            raise RecordingError(f"clock must be 'agent' or 'host', not {clock!r}")
+        windowed = start_s is not None or end_s is not None
+        origin = self._origin(clock)
+        for topic, _boot, host_ns, agent_us, msg in self._raw:
+            if topics is not None and topic not in topics:
+                continue
+            if windowed:
+                if clock == "agent" and agent_us < 0:
+                    continue
+                t = (agent_us - origin) / 1e6 if clock == "agent" else (host_ns - origin) / 1e9
+                if (start_s is not None and t < start_s) or (end_s is not None and t >= end_s):
+                    continue
+            yield msg
+
+    def _origin(self, clock: str) -> int:
+        if clock == "host":
+            return min((host_ns for _, _, host_ns, _, _ in self._raw), default=0)
+        samples = self._topics.get(SAMPLE_TOPIC)
+        return min((int(r["t_us"]) for r in samples.rows), default=0) if samples else 0
+
+    def _rows(self, topic: str) -> list[dict[str, Any]]:
+        rows = self._topics.get(topic)
+        return rows.rows if rows else []
+
+
+def open_recording(*paths: str | Path) -> Recording:
+    """Read one or more recordings (files, or folders of .mcap files) of a session into a Recording."""
+    return Recording(recording_files(paths))
+
+
+def _structured(rows: list[dict[str, Any]]) -> NDArray[np.void]:
+    """Rows of JSON objects as a structured array: ints as int64, floats as float64, bools, strings."""
+    columns: dict[str, str] = {}
+    for row in rows:
+        for key, value in row.items():
+            kind = _kind(value)
+            if kind is None:
+                continue
+            known = columns.get(key)
+            if known is None or (known == "<i8" and kind == "<f8"):
+                columns[key] = kind
+            elif known != kind and not (known == "<f8" and kind == "<i8"):
+                columns[key] = "O"
+    names = list(columns)
+    out = np.zeros(len(rows), dtype=[(name, columns[name]) for name in names])
+    for name in names:
+        kind = columns[name]
+        missing: Any = np.nan if kind == "<f8" else -1 if kind == "<i8" else False if kind == "?" else ""
+        out[name] = [row.get(name, missing) for row in rows]
+    return out
+
+
+def _kind(value: Any) -> str | None:
+    if isinstance(value, bool):
+        return "?"
+    if isinstance(value, int):
+        return "<i8"
+    if isinstance(value, float):
+        return "<f8"
+    if isinstance(value, str):
+        return "O"
+    return None
