@@ -14,10 +14,11 @@ from pathlib import Path
 from types import TracebackType
 from typing import IO, Any, Self
 
+from mcap.data_stream import ReadDataStream
 from mcap.exceptions import McapError
 from mcap.opcode import Opcode
-from mcap.records import Attachment, Channel, Message, MessageIndex, Metadata, Schema
-from mcap.stream_reader import StreamReader
+from mcap.records import Attachment, Channel, Chunk, Message, MessageIndex, Metadata, Schema
+from mcap.stream_reader import StreamReader, get_chunk_data_stream
 from mcap.writer import CompressionType, Writer
 
 from groundstation.errors import RecordingError
@@ -224,8 +225,11 @@ class RecordingContents:
     truncated: bool = False
 
 
-def _records(path: Path) -> Iterator[Any]:
-    """Every record in file order; stops quietly at a truncated or corrupt tail (raises _Truncated after)."""
+def _records(path: Path, emit_chunks: bool = False) -> Iterator[Any]:
+    """Every record in file order; stops quietly at a truncated or corrupt tail (raises _Truncated after).
+
+    With emit_chunks, chunks come whole (Chunk records) instead of as the records they hold.
+    """
     try:
         stream = open(path, "rb")  # noqa: SIM115
     except FileNotFoundError as e:
@@ -234,7 +238,7 @@ def _records(path: Path) -> Iterator[Any]:
         raise RecordingError(f"cannot read {path}: {e.strerror or e}") from e
     with stream:
         try:
-            yield from StreamReader(stream, skip_magic=False, validate_crcs=True).records
+            yield from StreamReader(stream, skip_magic=False, validate_crcs=True, emit_chunks=emit_chunks).records
         except (McapError, EOFError, ValueError, KeyError, IndexError, OSError) as e:
             if isinstance(e, OSError):
                 raise RecordingError(f"cannot read {path}: {e}") from e
@@ -279,6 +283,96 @@ def iter_messages(path: Path, topics: set[str] | None = None,
         info.truncated = True
         if seen == 0:
             raise RecordingError(f"{path} is not an MCAP recording") from None
+
+
+_RECORD_HEAD = struct.Struct("<BQ")  # opcode, length
+_MESSAGE_FIXED = struct.Struct("<HIQQ")  # channel id, sequence, log time, publish time
+
+
+def iter_topic_data(path: Path, topics: set[str],
+                    info: RecordingContents | None = None) -> Iterator[tuple[str, int, bytes]]:
+    """(topic, log time, data) of the messages of `topics`, in file order: iter_messages for bulk reads.
+
+    The mcap reader builds a record object for every message of the file, the hundreds of thousands of
+    an hour's JSON copies too; this decompresses each chunk and walks its records with one struct call
+    each, building nothing for messages of other topics. Same tolerance of a truncated file, same `info`.
+    """
+    info = info if info is not None else RecordingContents()
+    schemas: dict[int, Schema] = {}
+    channels: dict[int, Channel] = {}
+    wanted: dict[int, str] = {}
+
+    def known(record: Any) -> None:
+        if isinstance(record, Schema):
+            schemas[record.id] = record
+        elif isinstance(record, Channel):
+            channels[record.id] = record
+            if record.topic in topics:
+                wanted[record.id] = record.topic
+            schema = schemas.get(record.schema_id)
+            if schema is not None and schema.encoding == JSONSCHEMA:
+                info.schemas[record.topic] = json.loads(schema.data)
+
+    try:
+        stream = open(path, "rb")  # noqa: SIM115
+    except FileNotFoundError as e:
+        raise RecordingError(f"no such recording: {path}") from e
+    except OSError as e:
+        raise RecordingError(f"cannot read {path}: {e.strerror or e}") from e
+    with stream:
+        if stream.read(len(MCAP_MAGIC)) != MCAP_MAGIC:
+            raise RecordingError(f"{path} is not an MCAP recording")
+        while True:
+            head = stream.read(9)
+            if len(head) < 9:
+                info.truncated = True  # no footer: cut short
+                return
+            opcode, length = _RECORD_HEAD.unpack(head)
+            body = stream.read(length)
+            if len(body) < length:
+                info.truncated = True
+                return
+            if opcode == Opcode.FOOTER:
+                return
+            if opcode == Opcode.MESSAGE:  # outside a chunk (files written without chunking)
+                channel_id, _, log_time, _ = _MESSAGE_FIXED.unpack_from(body)
+                topic = wanted.get(channel_id)
+                if topic is not None:
+                    yield topic, log_time, body[22:]
+                continue
+            if opcode not in _READ_OPCODES:
+                continue  # indexes, statistics, summary: nothing a reader of topics needs
+            try:
+                record = _READ_OPCODES[opcode].read(ReadDataStream(BytesIO(body)))
+                if isinstance(record, Chunk):
+                    chunk_stream, size = get_chunk_data_stream(record, validate_crc=True)
+                    data = chunk_stream.read(size)
+                    at = 0
+                    while at < size:
+                        inner_opcode, inner_length = _RECORD_HEAD.unpack_from(data, at)
+                        start = at + 9
+                        at = start + inner_length
+                        if inner_opcode == Opcode.MESSAGE:
+                            channel_id, _, log_time, _ = _MESSAGE_FIXED.unpack_from(data, start)
+                            topic = wanted.get(channel_id)
+                            if topic is not None:
+                                yield topic, log_time, data[start + 22 : at]
+                        elif inner_opcode in (Opcode.SCHEMA, Opcode.CHANNEL):
+                            known(_READ_OPCODES[inner_opcode].read(ReadDataStream(BytesIO(data[start:at]))))
+                elif isinstance(record, Metadata):
+                    info.metadata.setdefault(record.name, []).append(dict(record.metadata))
+                elif isinstance(record, Attachment):
+                    info.attachments.append((record.name, bytes(record.data)))
+                else:
+                    known(record)
+            except (struct.error, McapError, ValueError, EOFError, KeyError, IndexError):
+                info.truncated = True  # a damaged record: what came before it stands
+                return
+
+
+MCAP_MAGIC = b"\x89MCAP0\r\n"
+_READ_OPCODES: dict[int, Any] = {Opcode.SCHEMA: Schema, Opcode.CHANNEL: Channel, Opcode.CHUNK: Chunk,
+                                 Opcode.METADATA: Metadata, Opcode.ATTACHMENT: Attachment}
 
 
 def read_recording(path: Path, topics: set[str] | None = None) -> RecordingContents:
