@@ -114,29 +114,28 @@ def decode_buffer(data: bytes, max_chunk: int, min_inner: int, version: int,
 
 
 @njit(cache=True, nogil=True)
-def encode_frame(payload: bytes, version: int, flags: int, seq: int, msg_id: int, out: NDArray[np.uint8]) -> int:
+def encode_frame(payload: bytes, header: int, out: NDArray[np.uint8]) -> int:
     """The unsigned frame of `payload` as wire bytes (COBS(inner) + 0x00) into `out`; returns their count.
 
-    For inner frames shorter than 254 bytes (payloads up to 246 bytes), where no COBS block can be full.
+    `header` holds the five header bytes, little-endian (version, flags, seq low, seq high, msg_id): one
+    argument instead of four, each costing its unboxing per call. For inner frames shorter than 254 bytes
+    (payloads up to 246 bytes), where no COBS block can be full. Nothing is allocated: the inner frame is
+    walked twice (CRC, then COBS) where it lies, header, payload and CRC.
     """
-    size = 5 + len(payload) + 2
-    inner = np.empty(size, np.uint8)
-    inner[0] = version
-    inner[1] = flags
-    inner[2] = seq & 0xFF
-    inner[3] = (seq >> 8) & 0xFF
-    inner[4] = msg_id
-    for k in range(len(payload)):
-        inner[5 + k] = payload[k]
+    body = 5 + len(payload)
     crc = CRC_INIT
-    for k in range(size - 2):
-        crc = ((crc << 8) & 0xFFFF) ^ _CRC_TABLE[((crc >> 8) ^ inner[k]) & 0xFF]
-    inner[size - 2] = crc >> 8
-    inner[size - 1] = crc & 0xFF
+    for k in range(body):
+        byte = (header >> (8 * k)) & 0xFF if k < 5 else payload[k - 5]
+        crc = ((crc << 8) & 0xFFFF) ^ _CRC_TABLE[((crc >> 8) ^ byte) & 0xFF]
     code_at = 0  # where the code of the block in progress goes
     written = 1
-    for k in range(size):
-        byte = inner[k]
+    for k in range(body + 2):
+        if k < 5:
+            byte = (header >> (8 * k)) & 0xFF
+        elif k < body:
+            byte = payload[k - 5]
+        else:
+            byte = (crc >> 8) if k == body else (crc & 0xFF)
         if byte == 0:
             out[code_at] = written - code_at
             code_at = written
@@ -163,7 +162,7 @@ def frame_writer(version: int) -> Callable[[bytes, int, int, int], bytes]:
     view = memoryview(out)  # type: ignore[arg-type]  # numpy arrays are buffers
 
     def wire(payload: bytes, flags: int, seq: int, msg_id: int) -> bytes:
-        return view[: entry(payload, version, flags, seq, msg_id, out)].tobytes()
+        return view[: entry(payload, version | flags << 8 | seq << 16 | msg_id << 32, out)].tobytes()
 
     return wire
 
@@ -176,6 +175,5 @@ def _encode_entry() -> Any:
     global _entry
     if _entry is None:
         out = np.zeros(1, np.uint8)
-        _entry = encode_frame.compile((numba.typeof(b""), numba.int64, numba.int64, numba.int64, numba.int64,
-                                       numba.typeof(out)))
+        _entry = encode_frame.compile((numba.typeof(b""), numba.int64, numba.typeof(out)))
     return _entry
