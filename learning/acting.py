@@ -9,6 +9,8 @@ from numpy.typing import NDArray
 from learning.rng import uniform
 from learning.spec import KernelSpec
 
+TIED = 2  # policy entry of a tied state when ties are drawn at every step (LearnerConfig.ties_per_step)
+
 
 @njit(cache=True, error_model="numpy", inline="always")
 def _cell(x: float, half_width: float, cells: int) -> int:
@@ -55,6 +57,8 @@ def select_action_kernel(
 ) -> int:
     """The greedy action of the current policy, flipped with probability p_explore (Alg. 2, fixed)."""
     action = int(policy[state])
+    if action == TIED:
+        action = 1 if uniform(rng_state) < 0.5 else 0
     p_rand = uniform(rng_state)
     explore = p_rand > p_explore if spec.explore_literal_gt else p_rand < p_explore
     if explore:

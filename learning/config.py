@@ -8,6 +8,8 @@ from enum import IntEnum
 from learning.errors import LearnerConfigError
 from learning.spec import KernelSpec, kernel_tuple_type, to_kernel_tuple
 
+MAX_VELOCITY_DIFF_STEPS = 16  # depth history the environment keeps for the k-step difference
+
 
 class ModelForm(IntEnum):
     """How the transition counts are stored."""
@@ -42,7 +44,19 @@ class LearnerConfig:
     sparse_slots: int = 12  # successor slots per (s, a); 12 never overflows on the paper's grid
     actuator_bins: int = 1  # > 1 adds the actuator position (relative to neutral) to the state
     in_place_sweeps: bool = False  # Gauss-Seidel value iteration: same fixed point, fewer sweeps
-    max_sweeps: int = 100_000  # safety stop of value iteration, never reached with gamma < 1
+    max_sweeps: int = 100_000  # sweeps per planning call: a safety stop, or a budget (bounded planning)
+    # Tie-breaking: False decides a tied state's action once per planning call (it then repeats for the
+    # whole next episode, the project's original choice); True draws afresh at every step.
+    ties_per_step: bool = False
+    # The shared (relocatable) model of learning/shared.py instead of per-state counts.
+    shared_model: bool = False
+    # > 0 with shared_model: per-state counts as well, the shared histogram their Dirichlet prior of this
+    # weight (in pseudo-counts); 0 = the shared histogram alone.
+    dirichlet_weight: float = 0.0
+    count_bonus: float = 0.0  # MBIE-EB exploration: beta / sqrt(n) added to a pair's reward (0 = off)
+    # 0: the velocity the environment gives (true or observer); k: the agent's own k-step depth
+    # difference (z_t - z_{t-k}) / (k dt).
+    velocity_diff_steps: int = 0
 
     def __post_init__(self) -> None:
         if self.z_cells < 1 or self.zdot_cells < 1 or self.actuator_bins < 1:
@@ -58,6 +72,14 @@ class LearnerConfig:
                 raise LearnerConfigError("exploration probabilities must lie in [0, 1]")
         if self.explore_decay_episodes < 1 or self.known_count < 1 or self.sparse_slots < 1:
             raise LearnerConfigError("explore_decay_episodes, known_count and sparse_slots must be >= 1")
+        if not 0 <= self.velocity_diff_steps <= MAX_VELOCITY_DIFF_STEPS:
+            raise LearnerConfigError(f"velocity_diff_steps must lie in 0..{MAX_VELOCITY_DIFF_STEPS}")
+        if self.dirichlet_weight < 0 or self.count_bonus < 0:
+            raise LearnerConfigError("dirichlet_weight and count_bonus must not be negative")
+        if self.shared_model and self.sparse_slots > 255:
+            raise LearnerConfigError("the shared model holds at most 255 offset slots per type")
+        if self.max_sweeps < 1:
+            raise LearnerConfigError("max_sweeps must be >= 1")
         if n_states(self) > 65535:
             raise LearnerConfigError("at most 65535 states (successor indices are uint16)")
 

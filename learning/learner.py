@@ -11,6 +11,14 @@ from learning.errors import LearningError
 from learning.model import N_ACTIONS, allocate_model, dense_counts, export_model_kernel, record_transition
 from learning.planning import plan_kernel
 from learning.rng import new_stream
+from learning.shared import (
+    allocate_shared,
+    n_types,
+    plan_shared_kernel,
+    record_shared,
+    shared_memory_bytes,
+    state_cell_code,
+)
 from learning.spec import direct_entry
 
 _REWARD_SUM_BYTES = 4  # float32 per (s, a) on the Teensy
@@ -36,7 +44,14 @@ def state_index(
 
 
 def model_memory_bytes(config: LearnerConfig) -> int:
-    """Bytes of the model as the Teensy holds it: counts, successor indices (sparse), reward sums."""
+    """Bytes of the model as the Teensy holds it.
+
+    Per-state learners: counts, successor indices (sparse), reward sums (values and policy not counted,
+    as before). Shared model: everything it needs, values included (learning/shared.py).
+    """
+    if config.shared_model:
+        return shared_memory_bytes(config.z_cells, config.zdot_cells, config.actuator_bins,
+                                   config.sparse_slots, config.dirichlet_weight > 0)
     s = n_states(config)
     pairs = s * N_ACTIONS
     if config.model_form == ModelForm.DENSE:
@@ -48,8 +63,11 @@ def model_memory_bytes(config: LearnerConfig) -> int:
 def learner_memory_bytes(config: LearnerConfig) -> int:
     """Bytes of the whole learner on the Teensy: the model (model_memory_bytes), values (f32) and policy (u8).
 
-    SPEC.md section 13 adds the snapshot copies and compares the sum with the agent's RAM budget.
+    SPEC.md section 13 adds the snapshot copies and compares the sum with the agent's RAM budget. The
+    shared model's count already holds its values and it keeps no policy table (learning/shared.py).
     """
+    if config.shared_model:
+        return model_memory_bytes(config)
     return model_memory_bytes(config) + n_states(config) * (_VALUE_BYTES + _POLICY_BYTES)
 
 
@@ -69,6 +87,15 @@ class Learner:
         self._succ_idx, self._succ_cnt, self._reward_sum = allocate_model(
             s, self._sparse, self._config.sparse_slots
         )
+        self._shared = self._config.shared_model
+        if self._shared and self._config.dirichlet_weight == 0:
+            # The local counts are not used: keep them empty (the shared model alone).
+            self._succ_idx, self._succ_cnt, self._reward_sum = allocate_model(0, True, 1)
+        c = self._config
+        self._codes, self._type_counts, self._totals, self._type_evictions = allocate_shared(
+            n_types(c.z_cells, c.zdot_cells, c.actuator_bins) if self._shared else 0, c.sparse_slots
+        )
+        self.evictions = 0
         self._values = np.zeros(s)
         self._q = np.zeros((s, N_ACTIONS))
         self._policy = np.zeros(s, dtype=np.int8)
@@ -79,10 +106,22 @@ class Learner:
         self._record = direct_entry(
             record_transition, self._succ_idx, self._succ_cnt, self._reward_sum, 0, 0, 0.0, 0, self._sparse
         )
-        self.last_sweeps = plan_kernel(
+        self._record_shared = direct_entry(
+            record_shared, self._codes, self._type_counts, self._totals, self._type_evictions, 0, 0, 0,
+            self._spec,
+        )
+        self.last_sweeps = self._plan()
+
+    def _plan(self) -> int:
+        if self._shared:
+            return int(plan_shared_kernel(
+                self._codes, self._type_counts, self._totals, self._succ_idx, self._succ_cnt, self._values,
+                self._q, self._policy, self._spec, self._rng_state,
+            ))
+        return int(plan_kernel(
             self._succ_idx, self._succ_cnt, self._reward_sum, self._values, self._q, self._policy,
             self._spec, self._rng_state,
-        )
+        ))
 
     @property
     def config(self) -> LearnerConfig:
@@ -103,24 +142,36 @@ class Learner:
         self._check_state(state)
         return int(self._select(self._policy, state, self._p_explore, self._spec, self._rng_state))
 
-    def observe(self, state: int, action: int, reward: float, next_state: int) -> None:
-        """Record one transition into the count model (Alg. 3)."""
+    def observe(
+        self, state: int, action: int, reward: float, next_state: int, next_cell: int | None = None
+    ) -> None:
+        """Record one transition into the count model (Alg. 3).
+
+        The shared model needs where a terminal successor lies: next_cell, the raw cell code of the
+        measurement (learning.shared.raw_cell_kernel); for a live successor its own cell is used if omitted.
+        """
         self._check_state(state)
         self._check_state(next_state, allow_terminal=True)
         if action not in (0, 1):
             raise LearningError(f"action must be 0 or 1, got {action}")
-        self._record(
+        if self._shared:
+            if next_cell is None:
+                if next_state == self._values.shape[0] - 1:
+                    raise LearningError("the shared model needs next_cell for a terminal successor")
+                next_cell = int(state_cell_code(next_state, self._spec))
+            self.evictions += bool(self._record_shared(
+                self._codes, self._type_counts, self._totals, self._type_evictions, state, action, next_cell,
+                self._spec,
+            ))
+            if self._config.dirichlet_weight == 0:
+                return
+        self.evictions += bool(self._record(
             self._succ_idx, self._succ_cnt, self._reward_sum, state, action, reward, next_state, self._sparse
-        )
+        ))
 
     def end_episode(self) -> None:
         """Value iteration on the updated model, warm-started from the current values; next episode."""
-        self.last_sweeps = int(
-            plan_kernel(
-                self._succ_idx, self._succ_cnt, self._reward_sum, self._values, self._q, self._policy,
-                self._spec, self._rng_state,
-            )
-        )
+        self.last_sweeps = self._plan()
         self._episode += 1
         self._p_explore = float(explore_probability(self._episode, self._spec))
 
@@ -136,7 +187,7 @@ class Learner:
 
     @property
     def policy(self) -> NDArray[np.int64]:
-        """Greedy action per state; a copy."""
+        """Greedy action per state (2 = tied, drawn at every step, with ties_per_step); a copy."""
         return self._policy.astype(np.int64)
 
     @property

@@ -45,10 +45,11 @@ def record_transition(
     reward: float,
     next_state: int,
     sparse: bool,
-) -> None:
-    """Alg. 3: count (s, a, s') and add the reward to the (s, a) sum."""
+) -> bool:
+    """Alg. 3: count (s, a, s') and add the reward to the (s, a) sum; True if a sparse slot was evicted."""
     n_slots = succ_cnt.shape[2]
     slot = next_state
+    evicted = False
     if sparse:
         slot = -1
         free = -1
@@ -70,6 +71,7 @@ def record_transition(
                 kept = total - int(succ_cnt[state, action, free])
                 reward_sum[state, action] *= kept / total
                 succ_cnt[state, action, free] = 0
+                evicted = True
             slot = free
             succ_idx[state, action, slot] = next_state
     if succ_cnt[state, action, slot] == COUNT_MAX:
@@ -80,6 +82,7 @@ def record_transition(
         reward_sum[state, action] *= _row_total(succ_cnt, state, action) / total
     succ_cnt[state, action, slot] += 1
     reward_sum[state, action] += reward
+    return evicted
 
 
 @njit(cache=True, error_model="numpy")

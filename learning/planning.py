@@ -6,6 +6,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from learning.acting import TIED
 from learning.rng import uniform
 from learning.spec import KernelSpec
 
@@ -85,16 +86,36 @@ def plan_kernel(
     spec: KernelSpec,
     rng_state: NDArray[np.uint64],
 ) -> int:
-    """Value iteration from the current values until max |change| < tolerance; returns sweeps.
+    """Value iteration over the per-state count model from the current values; returns sweeps."""
+    row_start, succ, prob, mean_reward, known = _compile_rows(succ_idx, succ_cnt, reward_sum, spec)
+    return plan_rows(row_start, succ, prob, mean_reward, known, values, q, policy, spec, rng_state)
+
+
+@njit(cache=True, error_model="numpy")
+def plan_rows(
+    row_start: NDArray[np.int64],
+    succ: NDArray[np.int64],
+    prob: NDArray[np.float64],
+    mean_reward: NDArray[np.float64],
+    known: NDArray[np.bool_],
+    values: NDArray[np.float64],
+    q: NDArray[np.float64],
+    policy: NDArray[np.int8],
+    spec: KernelSpec,
+    rng_state: NDArray[np.uint64],
+) -> int:
+    """Value iteration over compressed rows until max |change| < tolerance or max_sweeps; returns sweeps.
 
     Jacobi sweeps as Alg. 4 prints them, or in-place (Gauss-Seidel) sweeps, which reach the same fixed
-    point in about half the sweeps.
+    point in about half the sweeps. (Alg. 4's printed stopping test compares the signed change with the
+    tolerance, which read literally stops after one sweep; the absolute change is meant.)
 
-    Fills q and the greedy policy (argmax, or argmin under the errata switch), ties broken at random.
+    Fills q and the greedy policy (argmax, or argmin under the errata switch). Ties are broken at random
+    here, once per call (ties_per_step False), or marked TIED for select_action_kernel to draw at every
+    step (ties_per_step True).
     """
     n_states, n_actions = q.shape
     terminal = n_states - 1
-    row_start, succ, prob, mean_reward, known = _compile_rows(succ_idx, succ_cnt, reward_sum, spec)
     values[terminal] = 0.0
     new_values = values.copy()
     sweeps = 0
@@ -125,6 +146,8 @@ def plan_kernel(
             policy[s] = 1
         elif d < 0.0:
             policy[s] = 0
+        elif spec.random_ties and spec.ties_per_step:
+            policy[s] = TIED
         else:
             policy[s] = 1 if (spec.random_ties and uniform(rng_state) < 0.5) else 0
     return sweeps

@@ -8,6 +8,8 @@ from typing import Any
 from learning.config import LearnerConfig
 from learning.errors import LearnerConfigError
 
+_SHARED = LearnerConfig(shared_model=True, p_explore_start=0.0, in_place_sweeps=True)
+
 _PRESETS: dict[str, LearnerConfig] = {
     # Section III as printed, errata fixed.
     "paper": LearnerConfig(),
@@ -17,6 +19,19 @@ _PRESETS: dict[str, LearnerConfig] = {
     "rmax": LearnerConfig(known_count=3),
     # Every printed reading at once, for the errata demonstration.
     "literal": LearnerConfig(explore_literal_gt=True, policy_argmin=True, alg4_printed=True),
+    # The shared (relocatable) model of learning/shared.py, no exploration beyond the optimism of untried
+    # types, in-place sweeps. Named ingredient by ingredient.
+    "shared": _SHARED,
+    "shared-bins3": replace(_SHARED, actuator_bins=3),
+    "shared-bins13": replace(_SHARED, actuator_bins=13),
+    # The velocity the learner sees: its own 4-step depth difference instead of the observer's estimate.
+    "shared-bins13-diff4": replace(_SHARED, actuator_bins=13, velocity_diff_steps=4),
+    # Per-state counts as well, the shared histogram their Dirichlet prior worth 10 transitions: keeps
+    # working where dynamics depend on depth.
+    "shared-dirichlet": replace(_SHARED, dirichlet_weight=10.0),
+    # The paper's exploration schedule on the shared model (it hurts), and an MBIE-EB count bonus.
+    "shared-epsilon": replace(_SHARED, p_explore_start=0.10),
+    "shared-bonus": replace(_SHARED, count_bonus=0.5),
 }
 
 

@@ -96,7 +96,7 @@ _ROWS = (
     _p("zdot_tol_mps", F, "m/s", 0.04, 0.001, 0.5, _LEARNER, "velocity bound of the learning region"),
     _p("z_cells", U8, "", 10, 1, 50, _LEARNER, "depth cells of the grid"),
     _p("zdot_cells", U8, "", 10, 1, 50, _LEARNER, "velocity cells of the grid"),
-    _p("act_bins", U8, "", 1, 1, 9, _LEARNER, "actuator position bins in the state (1 = the paper)"),
+    _p("act_bins", U8, "", 1, 1, 13, _LEARNER, "actuator position bins in the state (1 = the paper)"),
     _p("gamma", F, "", 0.99, 0.0, 0.999, _LEARNER, "discount factor"),
     _p("vi_tol", F, "", 1e-4, 1e-7, 0.1, _LEARNER, "value iteration stops below this change"),
     _p("term_reward", F, "", -10.0, -1000.0, 0.0, _LEARNER, "reward on entering the terminal state"),
@@ -120,6 +120,17 @@ _ROWS = (
     _p("start_at_rest", B, "", 0, 0, 1, _NEVER,
        "simulator only: 1 = an episode starts at once at a random state at rest, with no RECOVERING samples "
        "(the paper's simulation); a real agent reports minimum = maximum = 0", simulator_only=True),
+    # The shared-model learners (learning/shared.py, issue 17).
+    _p("shared_model", B, "", 0, 0, 1, _LEARNER,
+       "shared model: one offset histogram per velocity cell, actuator bin and action, pooled over depth"),
+    _p("dirichlet_w", F, "", 0.0, 0.0, 1000.0, _LEARNER,
+       "shared model: per-state counts too, the shared histogram their prior of this weight (0 = off)"),
+    _p("count_bonus", F, "", 0.0, 0.0, 100.0, _LEARNER, "MBIE-EB exploration bonus beta / sqrt(n) (0 = off)"),
+    _p("vel_diff_steps", U8, "", 0, 0, 16, _LEARNER,
+       "learner velocity from its own k-step depth difference (0 = the observer's)"),
+    _p("ties_per_step", B, "", 0, 0, 1, _LEARNER, "draw a tied state's action at every step (0 = once per plan)"),
+    _p("max_sweeps", U32, "", 100_000, 1, 1_000_000, _LEARNER, "value iteration sweeps per planning call at most"),
+    _p("in_place_sweeps", B, "", 0, 0, 1, _LEARNER, "in-place (Gauss-Seidel) value iteration sweeps"),
 )
 
 

@@ -21,6 +21,7 @@ from simulator.episode import (
     E_VEL_EST,
     E_Z,
     E_ZDOT,
+    episode_cell_kernel,
     episode_reset_kernel,
     episode_step_kernel,
     new_env_state,
@@ -33,7 +34,8 @@ class DivingEnv:
     """reset(*, seed, options) -> (obs, info); step(action) -> (obs, reward, terminated, truncated, info).
 
     obs = [measured depth m, velocity the learner sees m/s, alpha_cmd - window centre deg];
-    info["state"] is the learner's state index. One random stream per environment.
+    info["state"] is the learner's state index;
+    info["cell"] its unclipped cell (learning.shared). One random stream per environment.
     """
 
     def __init__(
@@ -88,6 +90,8 @@ class DivingEnv:
         e = self._env
         return {
             "state": state,
+            # The unclipped grid cell of the measurement: the shared model's successor, inside or out.
+            "cell": int(episode_cell_kernel(e, self.params.target_depth_m, self._spec, self._lspec)),
             "time_s": self.time_s,
             "depth_m": float(e[E_Z]),
             "velocity_mps": float(e[E_ZDOT]),

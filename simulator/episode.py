@@ -7,7 +7,9 @@ from numba import njit
 from numpy.typing import NDArray
 
 from learning.acting import reward_kernel, state_index_kernel
+from learning.config import MAX_VELOCITY_DIFF_STEPS
 from learning.rng import uniform
+from learning.shared import raw_cell_kernel
 from learning.spec import KernelSpec
 from simulator.observer import observer_update_kernel
 from simulator.plant_kernel import plant_step
@@ -25,7 +27,9 @@ E_DEPTH_MEAS = 11  # last measured depth, m
 E_VEL_EST = 12  # velocity the learner sees, m/s
 E_RECOVERY_S = 13  # time the recovery controller needed before this episode, s
 E_STARTED = 14  # 1 after the first reset (the plant state carries over between episodes)
-ENV_SIZE = 15
+E_RING_POS = 15  # next slot of the depth ring (the learner's own k-step depth difference)
+E_RING = 16  # measured depths of the last MAX_VELOCITY_DIFF_STEPS control steps
+ENV_SIZE = E_RING + MAX_VELOCITY_DIFF_STEPS
 _MAX_RECOVERY_ATTEMPTS = 20
 
 
@@ -115,7 +119,32 @@ def episode_reset_kernel(
         env[E_OBS_X2] = 0.0
         _measure(env, 0.0, spec, rng_state)
     env[E_STARTED] = 1.0
+    if lspec.velocity_diff_steps > 0:
+        # The agent has been measuring depth all along (recovery, or at rest): a full, flat history.
+        env[E_RING:E_RING + MAX_VELOCITY_DIFF_STEPS] = env[E_DEPTH_MEAS]
+        env[E_RING_POS] = 0.0
+        env[E_VEL_EST] = 0.0
     return _state(env, target_depth_m, spec, lspec)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _depth_difference(env: NDArray[np.float64], spec: KernelSpec, lspec: KernelSpec) -> None:
+    """The learner's velocity as (z_t - z_{t-k}) / (k dt) over its own measured depths."""
+    k = lspec.velocity_diff_steps
+    pos = int(env[E_RING_POS])
+    oldest = env[E_RING + (pos + MAX_VELOCITY_DIFF_STEPS - k) % MAX_VELOCITY_DIFF_STEPS]
+    env[E_RING + pos] = env[E_DEPTH_MEAS]
+    env[E_RING_POS] = float((pos + 1) % MAX_VELOCITY_DIFF_STEPS)
+    env[E_VEL_EST] = (env[E_DEPTH_MEAS] - oldest) / (k * spec.control_period_s)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def episode_cell_kernel(
+    env: NDArray[np.float64], target_depth_m: float, spec: KernelSpec, lspec: KernelSpec
+) -> int:
+    """The unclipped grid cell of the current measurement (the shared model's successor, inside or out)."""
+    fraction = (env[E_CMD] - env[E_CENTER]) / spec.action_window_deg
+    return raw_cell_kernel(env[E_DEPTH_MEAS], env[E_VEL_EST], target_depth_m, fraction, lspec)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -147,6 +176,8 @@ def episode_step_kernel(
     plant_step(env[E_Z:E_ALPHA + 1], env[E_CMD], spec.control_period_s, spec)
     env[E_STEPS] += 1.0
     _measure(env, spec.control_period_s, spec, rng_state)
+    if lspec.velocity_diff_steps > 0:
+        _depth_difference(env, spec, lspec)
     next_state = _state(env, target_depth_m, spec, lspec)
     reward = reward_kernel(env[E_DEPTH_MEAS], target_depth_m, next_state, lspec)
     terminal = lspec.z_cells * lspec.zdot_cells * lspec.actuator_bins

@@ -54,3 +54,28 @@ class SlidingModeObserver:
     def update(self, measured_depth_m: float, dt_s: float) -> float:
         """Feed one depth reading taken dt_s after the previous one; returns the velocity in m/s."""
         return float(self._update(self._state, measured_depth_m, dt_s, self._spec))
+
+
+class DepthDifference:
+    """The learner's own velocity input: (z_t - z_{t-k}) / (k dt) over its measured depths.
+
+    The agent's alternative to the observer (no lag model, k-1 steps of averaging); the study's kernel
+    keeps the same ring in its environment array (simulator/episode.py).
+    """
+
+    def __init__(self, steps: int) -> None:
+        self._steps = steps
+        self._ring = [0.0] * steps
+        self._pos = 0
+
+    def reset(self, depth_m: float) -> None:
+        """A flat history at the current depth (the agent was measuring all along)."""
+        self._ring = [depth_m] * self._steps
+        self._pos = 0
+
+    def update(self, depth_m: float, dt_s: float) -> float:
+        """Push the newest depth; the velocity over the last k control periods."""
+        oldest = self._ring[self._pos]
+        self._ring[self._pos] = depth_m
+        self._pos = (self._pos + 1) % self._steps
+        return (depth_m - oldest) / (self._steps * dt_s)

@@ -32,13 +32,14 @@ import numpy as np
 from learning import Learner, LearnerConfig, learner_memory_bytes, n_states
 from learning.acting import reward_kernel, state_index_kernel
 from learning.config import kernel_spec
+from learning.shared import raw_cell_kernel
 from learning.spec import direct_entry
 from protocol import AckResult, Action, EndReason, Mode, Severity, messages
 from protocol.parameters import RAM_BUDGET_BYTES, snapshot_ram_bytes
 from protocol.registry import Message
 from simulator.agent_mission import MissionConfig
 from simulator.errors import ParamsError
-from simulator.observer import SlidingModeObserver
+from simulator.observer import DepthDifference, SlidingModeObserver
 from simulator.onboard_hw import SimulatedHardware
 from simulator.onboard_kernel import recovery_period_kernel, sense_kernel
 from simulator.parameters import PlantParams
@@ -87,10 +88,7 @@ class OnboardProgram:
         self._base = (params, learner_config, mission)
         self.params, self.config, self.mission = params, learner_config, mission
         self.learner = Learner(learner_config, rng)
-        self._lspec = kernel_spec(learner_config)
-        self._state_index = direct_entry(state_index_kernel, 0.0, 0.0, 0.0, 0.0, self._lspec)
-        self._reward = direct_entry(reward_kernel, 0.0, 0.0, 0, self._lspec)
-        self._terminal = n_states(learner_config) - 1
+        self._bind_learner(learner_config)
         self.observer = SlidingModeObserver(params)
         self.recovery = RecoveryController(params)
         # One compiled call per sensing / recovery period instead of one per kernel (onboard_kernel.py).
@@ -139,6 +137,17 @@ class OnboardProgram:
         if self.mode in _DIVING:
             self._check_limits()
         self.hw.advance(dt)
+
+    def _bind_learner(self, config: LearnerConfig) -> None:
+        """The compiled per-step learner kernels of this config, and its velocity input."""
+        self._lspec = kernel_spec(config)
+        self._state_index = direct_entry(state_index_kernel, 0.0, 0.0, 0.0, 0.0, self._lspec)
+        self._raw_cell = direct_entry(raw_cell_kernel, 0.0, 0.0, 0.0, 0.0, self._lspec)
+        self._reward = direct_entry(reward_kernel, 0.0, 0.0, 0, self._lspec)
+        self._terminal = n_states(config) - 1
+        self._depth_difference = (
+            DepthDifference(config.velocity_diff_steps) if config.velocity_diff_steps else None
+        )
 
     @property
     def t_us(self) -> int:
@@ -231,6 +240,9 @@ class OnboardProgram:
         self.episode = self.learner.episode + 1
         self._center_deg = center_deg
         self.hw.set_actuator_cmd_deg(center_deg)
+        if self._depth_difference is not None:
+            self._depth_difference.reset(self.depth_m)
+            self.velocity_mps = 0.0
         start_state = self._state()
         self.text(f"mode {self.mode.name} -> LEARNING: episode {self.episode}")
         self.mode = Mode.LEARNING
@@ -243,12 +255,20 @@ class OnboardProgram:
 
     def _learning_step(self, dt: float) -> None:
         self._measure(dt)
+        if self._depth_difference is not None:
+            self.velocity_mps = self._depth_difference.update(self.depth_m, dt)
         state = self._state()
         reward = 0.0
         if self._prev_state >= 0:
             reward = float(self._reward(self.depth_m, self.params.target_depth_m, state, self._lspec))
             self._return += reward
-            self.learner.observe(self._prev_state, self._prev_action, reward, state)
+            cell = None
+            if self.config.shared_model:
+                fraction = (self.hw.actuator_cmd_deg - self._center_deg) / self.params.action_window_deg
+                cell = int(self._raw_cell(
+                    self.depth_m, self.velocity_mps, self.params.target_depth_m, fraction, self._lspec
+                ))
+            self.learner.observe(self._prev_state, self._prev_action, reward, state, cell)
             self.down.model_changed()
         limit = round(self.params.episode_limit_s / self.params.control_period_s)
         if state == self._terminal or self._steps >= limit:
@@ -351,8 +371,7 @@ class OnboardProgram:
         if definition.learner and new_config != self.config:
             self.config = new_config
             self.learner = Learner(new_config, self.rng)
-            self._lspec = kernel_spec(new_config)
-            self._terminal = n_states(new_config) - 1
+            self._bind_learner(new_config)
             self.down.model_changed()
             self.successes = 0
             self._reset_episode()

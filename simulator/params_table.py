@@ -58,6 +58,13 @@ BINDINGS: dict[str, Binding] = {
     "max_episodes": Binding(M, "max_episodes"),
     "low_batt_v": Binding(M, "low_battery_v"),
     "start_at_rest": Binding(P, "start_with_recovery", inverted=True),
+    "shared_model": Binding(L, "shared_model"),
+    "dirichlet_w": Binding(L, "dirichlet_weight"),
+    "count_bonus": Binding(L, "count_bonus"),
+    "vel_diff_steps": Binding(L, "velocity_diff_steps"),
+    "ties_per_step": Binding(L, "ties_per_step"),
+    "max_sweeps": Binding(L, "max_sweeps"),
+    "in_place_sweeps": Binding(L, "in_place_sweeps"),
 }
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import os
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numba
@@ -17,7 +17,7 @@ from learning.config import kernel_spec
 from learning.rng import new_stream
 from simulator.errors import StudyError
 from simulator.parameters import PlantParams, kernel_params
-from simulator.study_kernel import run_trials
+from simulator.study_kernel import N_COUNTERS, run_trials
 
 _POLL_S = 0.1
 
@@ -33,6 +33,9 @@ class StudyResult:
     memory_bytes: int  # the learner's model size on the Teensy
     threads: int  # threads the trials ran on
     seed: int
+    # [trials, 4]: model slot evictions, planning sweeps in all, most sweeps of one call, planning calls
+    counters: NDArray[np.int64] | None = None
+    seeds: tuple[int, ...] = ()  # every seed pooled, trials of seeds[0] first
 
 
 def trial_streams(seed: int, trial: int) -> tuple[NDArray[np.uint64], NDArray[np.uint64]]:
@@ -50,13 +53,21 @@ def run_study(
     seed: int = 0,
     on_progress: Callable[[int], None] | None = None,
     threads: int | None = None,
+    seeds: Sequence[int] | None = None,
 ) -> StudyResult:
-    """Run the trials in parallel; on_progress(episodes done over all trials) is called as they go."""
+    """Run the trials in parallel; on_progress(episodes done over all trials) is called as they go.
+
+    With seeds, `trials` trials of each seed are pooled (trial t of seed k is the same trial as in a
+    study of that seed alone).
+    """
     if trials <= 0 or episodes <= 0:
         raise StudyError(f"trials and episodes must be positive (got {trials} and {episodes})")
+    seed_list = tuple(seeds) if seeds else (seed,)
+    seed = seed_list[0]
     numba_threads: int = numba.config.NUMBA_NUM_THREADS  # type: ignore[attr-defined]
+    streams = [trial_streams(k, t) for k in seed_list for t in range(trials)]
+    trials = len(streams)
     threads = max(1, min(threads or os.cpu_count() or 1, numba_threads, trials))
-    streams = [trial_streams(seed, t) for t in range(trials)]
     learner_streams = np.array([s[0] for s in streams])
     env_streams = np.array([s[1] for s in streams])
     s_count = n_states(config)
@@ -64,9 +75,10 @@ def run_study(
     values = np.zeros((trials, s_count))
     policy = np.zeros((trials, s_count), dtype=np.int8)
     progress = np.zeros(trials, dtype=np.int64)
+    counters = np.zeros((trials, N_COUNTERS), dtype=np.int64)
     args = (
         learner_streams, env_streams, params.target_depth_m, kernel_params(params), kernel_spec(config),
-        durations, values, policy, progress,
+        durations, values, policy, progress, counters,
     )
     failure: list[BaseException] = []
 
@@ -89,4 +101,5 @@ def run_study(
     wall_s = time.perf_counter() - start
     if failure:
         raise StudyError(f"study failed: {failure[0]}") from failure[0]
-    return StudyResult(durations, values, policy, wall_s, model_memory_bytes(config), threads, seed)
+    return StudyResult(durations, values, policy, wall_s, model_memory_bytes(config), threads, seed, counters,
+                       seed_list)

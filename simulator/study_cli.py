@@ -1,56 +1,121 @@
-"""The `study` command: parse, run the study with a progress bar, write the results, map errors."""
+"""The `study` command: parse, run the studies with a progress bar, write the results, map errors."""
 
 from __future__ import annotations
 
 import json
 import sys
+from functools import partial
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Any
 
 import typer
 from rich.console import Console
-from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TaskID, TextColumn, TimeElapsedColumn
+from rich.table import Table
 
-from learning import LearningError, learner_preset
+from learning import LearningError, learner_names
 from simulator.errors import SimulatorError
-from simulator.parameters import load_params, preset
-from simulator.study import run_study
+from simulator.parameters import load_params
+from simulator.study import StudyResult, run_study
+from simulator.study_compare import compare_rows, write_compare, write_overlay
+from simulator.study_options import Exploration, LearnerOptions, RunSpec, Ties, expand_runs
 from simulator.study_output import build_summary, prepare_out_dir, write_results
+
+
+def _seed_list(text: str | None, seed: int) -> list[int]:
+    if text is None:
+        return [seed]
+    try:
+        out: list[int] = []
+        for part in text.split(","):
+            first, _, last = part.partition("-")
+            out.extend(range(int(first), int(last or first) + 1))
+    except ValueError:
+        raise SimulatorError(f"--seeds must be like 0-2 or 0,1,2 (got {text!r})") from None
+    if not out:
+        raise SimulatorError("--seeds names no seed")
+    return out
 
 
 def study(
     preset_name: Annotated[str, typer.Option("--preset", help="paper or hardware")] = "paper",
-    learner: Annotated[str, typer.Option(help="paper, actuator3, rmax or literal")] = "paper",
-    trials: Annotated[int, typer.Option(help="independent learning trials")] = 100,
+    learner: Annotated[str, typer.Option(help=f"one of: {', '.join(learner_names())}")] = "paper",
+    compare: Annotated[str | None, typer.Option(
+        help="comma-separated learners or preset/learner pairs run on the same seeds; ratios to the first "
+             "of each preset")] = None,
+    trials: Annotated[int, typer.Option(help="independent learning trials (per seed)")] = 100,
     episodes: Annotated[int, typer.Option(help="episodes per trial")] = 400,
     out: Annotated[Path, typer.Option(help="output folder")] = Path("study-out"),
     seed: Annotated[int, typer.Option(help="seed of every trial's random streams")] = 0,
+    seeds: Annotated[str | None, typer.Option(help="pool trials of several seeds, e.g. 0-2")] = None,
     params_file: Annotated[Path | None, typer.Option("--params", help="TOML/JSON overrides")] = None,
-    as_json: Annotated[bool, typer.Option("--json", help="print summary.json to stdout")] = False,
+    z_tol: Annotated[float | None, typer.Option(
+        "--z-tol", help="learning region half-height, m (hardware default: both 0.1 and 0.15)")] = None,
+    zdot_tol: Annotated[float | None, typer.Option(
+        "--zdot-tol", help="learning region half-width in velocity, m/s")] = None,
+    exploration: Annotated[Exploration, typer.Option(help="override the learner's exploration")] = (
+        Exploration.PRESET),
+    bonus: Annotated[float, typer.Option(help="count bonus beta with --exploration bonus")] = 0.5,
+    ties: Annotated[Ties, typer.Option(help="when ties between the two actions are drawn")] = Ties.PRESET,
+    actuator_bins: Annotated[int | None, typer.Option(help="actuator bins in the state")] = None,
+    velocity_diff: Annotated[int | None, typer.Option(
+        help="learner velocity from its own k-step depth difference (0: the preset's velocity)")] = None,
+    dirichlet: Annotated[float | None, typer.Option(
+        help="shared model: local counts with the shared histogram as a prior of this weight")] = None,
+    max_sweeps: Annotated[int | None, typer.Option(help="planning sweeps per call at most")] = None,
+    sweep: Annotated[Path | None, typer.Option(help="run the grid of a sweep TOML file instead")] = None,
+    cluster: Annotated[str | None, typer.Option(
+        help="with --sweep: Dask scheduler address, e.g. tcp://scheduler:8786")] = None,
+    as_json: Annotated[bool, typer.Option("--json", help="print summary.json (or compare.json) to stdout")] = False,
 ) -> None:
-    """Run N trials x E episodes of a learner on the simulated plant; CSV, npz, summary.json, figures."""
-    err = Console(stderr=True)
+    """Run N trials x E episodes of learners on the simulated plant; CSV, npz, summary.json, figures."""
+    # A log file gets the table at full width (a terminal keeps its own width).
+    err = Console(stderr=True, width=None if sys.stderr.isatty() else 200)
     try:
-        params = preset(preset_name)
-        if params_file is not None:
-            params = load_params(params_file, params)
-        config = learner_preset(learner)
+        if sweep is not None:
+            from simulator.study_sweep import run_sweep_command
+
+            run_sweep_command(sweep, out, cluster, err)
+            return
+        if cluster is not None:
+            raise SimulatorError("--cluster needs --sweep")
         if trials <= 0 or episodes <= 0:
             raise SimulatorError(f"--trials and --episodes must be positive (got {trials} and {episodes})")
+        options = LearnerOptions(exploration, bonus, ties, actuator_bins, velocity_diff, dirichlet, max_sweeps,
+                                 z_tol, zdot_tol)
+        override = None if params_file is None else (lambda p: load_params(params_file, p))
+        runs = expand_runs(compare.split(",") if compare else [learner], preset_name, options, override)
+        seed_list = _seed_list(seeds, seed)
         out_dir = prepare_out_dir(out)
+        results: list[StudyResult] = []
+        summaries: list[dict[str, Any]] = []
         with Progress(
             TextColumn("[bold]study[/] {task.description}"), BarColumn(), MofNCompleteColumn(),
             TimeElapsedColumn(), console=err, transient=as_json,
         ) as bar:
-            task = bar.add_task(f"{preset_name}/{learner}", total=trials * episodes)
-            result = run_study(params, config, trials, episodes, seed,
-                               on_progress=lambda done: bar.update(task, completed=done))
-            bar.update(task, completed=trials * episodes)
-        summary = build_summary(result, params, config, preset_name, learner)
-        write_results(result, summary, config, params.episode_limit_s, out_dir)
+            tasks = [bar.add_task(run.label, total=trials * len(seed_list) * episodes) for run in runs]
+            for run, task in zip(runs, tasks, strict=True):
+                result = run_study(run.params, run.config, trials, episodes, seed_list[0],
+                                   on_progress=partial(_advance, bar, task), seeds=seed_list)
+                bar.update(task, completed=trials * len(seed_list) * episodes)
+                summary = build_summary(result, run.params, run.config, run.preset, run.learner)
+                run_dir = out_dir if len(runs) == 1 else prepare_out_dir(out_dir / run.slug)
+                write_results(result, summary, run.config, run.params.episode_limit_s, run_dir)
+                results.append(result)
+                summaries.append(summary)
+        if len(runs) > 1:
+            rows = _write_comparison(runs, results, summaries, out_dir)
     except (SimulatorError, LearningError) as e:
         print(f"error: {e}", file=sys.stderr)
         raise typer.Exit(2) from None
+    if len(runs) > 1:
+        if as_json:
+            print(json.dumps(rows, indent=2))
+        else:
+            _print_table(rows, err)
+            err.print(f"results in {out_dir}")
+        return
+    summary, result = summaries[0], results[0]
     if as_json:
         print(json.dumps(summary, indent=2))
     else:
@@ -61,3 +126,44 @@ def study(
             f"wall {result.wall_s:.1f} s on {result.threads} threads; median ALC stable from {median}, "
             f"best quarter from {best}; results in {out_dir}"
         )
+
+
+def _advance(bar: Progress, task: TaskID, done: int) -> None:
+    bar.update(task, completed=done)
+
+
+def _write_comparison(
+    runs: list[RunSpec], results: list[StudyResult], summaries: list[dict[str, Any]], out_dir: Path
+) -> list[dict[str, Any]]:
+    limits = [run.params.episode_limit_s for run in runs]
+    rows = compare_rows([r.label for r in runs], [r.preset for r in runs], results, summaries, limits)
+    write_compare(rows, out_dir)
+    write_overlay([r.label for r in runs], results, max(limits), out_dir / "compare_fig5_alc.png")
+    return rows
+
+
+def _fmt(value: Any) -> str:
+    if value is None:
+        return "never"
+    if isinstance(value, list):
+        return "-".join(_fmt(v) for v in value)
+    return f"{value:g}" if isinstance(value, float) else str(value)
+
+
+def _print_table(rows: list[dict[str, Any]], console: Console) -> None:
+    table = Table(title="study comparison (95 % bootstrap intervals over trials)")
+    for column in ("learner", "trials", "first success", "median ALC stable from", "own stable from (median)",
+                   "never stable", "ratio", "RAM B", "sweeps/plan (max)"):
+        table.add_column(column)
+    for r in rows:
+        table.add_row(
+            r["label"], str(r["trials"]),
+            f"{_fmt(r['first_success_median'])} ({_fmt(r['first_success_ci95'])})",
+            f"{_fmt(r['median_alc_stable_from'])} ({_fmt(r['median_alc_ci95'])})",
+            f"{_fmt(r['own_stable_from_median'])} ({_fmt(r['own_stable_from_ci95'])})",
+            f"{100 * r['never_stable_fraction']:.1f} %",
+            f"{_fmt(r['ratio_to_reference'])} ({_fmt(r['ratio_ci95'])})",
+            str(r["memory_bytes"]),
+            f"{r['sweeps_per_plan_mean']:g} ({r['sweeps_per_plan_max']})",
+        )
+    console.print(table)

@@ -9,8 +9,19 @@ from numpy.typing import NDArray
 from learning.acting import explore_probability, select_action_kernel
 from learning.model import N_ACTIONS, allocate_model, record_transition
 from learning.planning import plan_kernel
+from learning.shared import allocate_shared, plan_shared_kernel, record_shared
 from learning.spec import KernelSpec
-from simulator.episode import E_STEPS, episode_reset_kernel, episode_step_kernel, new_env_state
+from simulator.episode import (
+    E_STEPS,
+    episode_cell_kernel,
+    episode_reset_kernel,
+    episode_step_kernel,
+    new_env_state,
+)
+
+# Columns of a trial's planning/model counters.
+C_EVICTIONS, C_SWEEPS_TOTAL, C_SWEEPS_MAX, C_PLANS = 0, 1, 2, 3
+N_COUNTERS = 4
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
@@ -25,14 +36,23 @@ def run_trial(
     policy: NDArray[np.int8],
     progress: NDArray[np.int64],
     trial: int,
+    counters: NDArray[np.int64],
 ) -> None:
-    """One learning trial: len(durations_s) episodes; fills durations, final values and policy."""
+    """One learning trial: len(durations_s) episodes; fills durations, final values, policy and counters."""
     n_states = values.shape[0]
     sparse = lspec.model_form == 1
-    succ_idx, succ_cnt, reward_sum = allocate_model(n_states, sparse, lspec.sparse_slots)
+    shared = lspec.shared_model
+    local = (not shared) or lspec.dirichlet_weight > 0.0
+    succ_idx, succ_cnt, reward_sum = allocate_model(n_states if local else 0, sparse, lspec.sparse_slots)
+    n_type = lspec.zdot_cells * lspec.actuator_bins * N_ACTIONS if shared else 0
+    codes, type_counts, totals, type_evictions = allocate_shared(n_type, lspec.sparse_slots)
     q = np.zeros((n_states, N_ACTIONS))
     values[:] = 0.0
-    plan_kernel(succ_idx, succ_cnt, reward_sum, values, q, policy, lspec, learner_stream)
+    if shared:
+        plan_shared_kernel(codes, type_counts, totals, succ_idx, succ_cnt, values, q, policy, lspec,
+                           learner_stream)
+    else:
+        plan_kernel(succ_idx, succ_cnt, reward_sum, values, q, policy, lspec, learner_stream)
     env = new_env_state(spec)
     for episode in range(durations_s.shape[0]):
         state = episode_reset_kernel(env, target_depth_m, spec, lspec, env_stream)
@@ -42,12 +62,26 @@ def run_trial(
             next_state, reward, terminated, truncated = episode_step_kernel(
                 env, action, target_depth_m, spec, lspec, env_stream
             )
-            record_transition(succ_idx, succ_cnt, reward_sum, state, action, reward, next_state, sparse)
+            if shared:
+                cell = episode_cell_kernel(env, target_depth_m, spec, lspec)
+                if record_shared(codes, type_counts, totals, type_evictions, state, action, cell, lspec):
+                    counters[C_EVICTIONS] += 1
+            if local and record_transition(
+                succ_idx, succ_cnt, reward_sum, state, action, reward, next_state, sparse
+            ):
+                counters[C_EVICTIONS] += 1
             state = next_state
             if terminated or truncated:
                 break
         durations_s[episode] = env[E_STEPS] * spec.control_period_s
-        plan_kernel(succ_idx, succ_cnt, reward_sum, values, q, policy, lspec, learner_stream)
+        if shared:
+            sweeps = plan_shared_kernel(codes, type_counts, totals, succ_idx, succ_cnt, values, q, policy,
+                                        lspec, learner_stream)
+        else:
+            sweeps = plan_kernel(succ_idx, succ_cnt, reward_sum, values, q, policy, lspec, learner_stream)
+        counters[C_SWEEPS_TOTAL] += sweeps
+        counters[C_SWEEPS_MAX] = max(counters[C_SWEEPS_MAX], sweeps)
+        counters[C_PLANS] += 1
         progress[trial] = episode + 1
 
 
@@ -62,10 +96,11 @@ def run_trials(
     values: NDArray[np.float64],
     policy: NDArray[np.int8],
     progress: NDArray[np.int64],
+    counters: NDArray[np.int64],
 ) -> None:
     """All trials in parallel; row t of every output belongs to trial t."""
     for t in prange(durations_s.shape[0]):
         run_trial(
             learner_streams[t], env_streams[t], target_depth_m, spec, lspec,
-            durations_s[t], values[t], policy[t], progress, t,
+            durations_s[t], values[t], policy[t], progress, t, counters[t],
         )

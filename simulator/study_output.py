@@ -35,6 +35,8 @@ def build_summary(
 ) -> dict[str, Any]:
     """summary.json: run metadata, statistics per trial and across trials."""
     stats = summarise(result.durations_s, params.episode_limit_s, result.seed)
+    counters = result.counters if result.counters is not None else np.zeros((1, 4), dtype=np.int64)
+    plans = max(int(counters[:, 3].sum()), 1)
     return {
         "preset": preset,
         "learner": learner,
@@ -43,7 +45,15 @@ def build_summary(
         "seed": result.seed,
         "wall_time_s": round(result.wall_s, 3),
         "threads": result.threads,
+        "seeds": list(result.seeds) or [result.seed],
         "memory_bytes": result.memory_bytes,
+        "model": {
+            # A successor that finds every slot of its row taken evicts the rarest one.
+            "slot_evictions": int(counters[:, 0].sum()),
+            "trials_with_evictions": int((counters[:, 0] > 0).sum()),
+            "planning_sweeps_per_call_mean": round(float(counters[:, 1].sum()) / plans, 3),
+            "planning_sweeps_per_call_max": int(counters[:, 2].max()),
+        },
         **stats,
         "params": asdict(params),
         "learner_config": {k: (int(v) if hasattr(v, "value") else v) for k, v in asdict(config).items()},

@@ -33,10 +33,9 @@ def stable_from(curve: NDArray[np.float64], limit_s: float) -> int | None:
     return int(bad[-1] + 1) if bad.size else 0
 
 
-def _stable_batch(curves: NDArray[np.float64], limit_s: float) -> NDArray[np.float64]:
-    """stable_from for every row; NaN where a row never settles."""
-    ok = np.nan_to_num(curves, nan=-1.0) >= limit_s - _EPS_S
-    n = curves.shape[-1]
+def _stable_rows(ok: NDArray[np.bool_]) -> NDArray[np.float64]:
+    """First index from which every entry of a row is True; NaN where the row ends False."""
+    n = ok.shape[-1]
     last_bad = n - 1 - np.argmax(~ok[..., ::-1], axis=-1)
     result = np.where(ok.all(axis=-1), 0, last_bad + 1).astype(float)
     return np.where(ok[..., -1], result, np.nan)
@@ -58,13 +57,28 @@ def per_trial(durations_s: NDArray[np.float64], limit_s: float) -> list[dict[str
     return rows
 
 
-def _spread(values: list[int | None]) -> dict[str, Any]:
-    known = np.array([v for v in values if v is not None], dtype=float)
-    never = 1.0 - known.size / len(values)
-    if known.size == 0:
-        return {"median": None, "q25": None, "q75": None, "fraction_never": never}
-    q25, med, q75 = np.percentile(known, [25, 50, 75])
-    return {"median": float(med), "q25": float(q25), "q75": float(q75), "fraction_never": never}
+def _spread(values: list[int | None], never: float, censored: bool = True) -> dict[str, Any]:
+    """Quartiles over trials with the trials that never got there censored at `never`, not dropped.
+
+    A quartile that lands on a censored trial is reported as None ("never"), since its true value is
+    only known to lie beyond the run.
+    """
+    x = np.array([never if v is None else v for v in values], dtype=float)
+    n_never = sum(v is None for v in values) if censored else 0
+    out: dict[str, Any] = {"censored_at": never, "fraction_never": sum(v is None for v in values) / len(values)}
+    for key, q in (("q25", 25.0), ("median", 50.0), ("q75", 75.0)):
+        value = float(np.percentile(x, q))
+        out[key] = None if (n_never and value >= never) else value
+    return out
+
+
+def bootstrap_median(values: list[int | None], never: float, seed: int, level: float = 95.0) -> list[float | None]:
+    """Percentile bootstrap interval of the median over trials, never-trials censored at `never`."""
+    x = np.array([never if v is None else v for v in values], dtype=float)
+    rng = np.random.default_rng(seed)
+    medians = np.median(x[rng.integers(0, x.size, size=(BOOTSTRAP_SAMPLES, x.size))], axis=1)
+    lo, hi = np.percentile(medians, [50 - level / 2, 50 + level / 2])
+    return [float(lo), None if (never >= 0 and hi >= never) else float(hi)]
 
 
 def curve_statistic(alc: NDArray[np.float64], q: float, limit_s: float) -> int | None:
@@ -72,21 +86,38 @@ def curve_statistic(alc: NDArray[np.float64], q: float, limit_s: float) -> int |
     return stable_from(np.percentile(alc, q, axis=0), limit_s)
 
 
+def bootstrap_samples(alc: NDArray[np.float64], q: float, limit_s: float, seed: int) -> NDArray[np.float64]:
+    """curve_statistic of BOOTSTRAP_SAMPLES resamples of the trials; never-settling samples count as the
+    last episode + 1. The same seed and trial count draw the same resamples, so two studies on the same
+    seeds give paired samples (their ratio is a paired bootstrap).
+
+    No percentile is computed: an ALC never exceeds the limit, so the q-th percentile (linear
+    interpolation between sorted values lo and lo + 1) is at the limit exactly when value lo is, i.e. when
+    at least n - lo trials of the resample are. Counting trials at the limit is one matrix product.
+    """
+    rng = np.random.default_rng(seed)
+    n_trials, n_episodes = alc.shape
+    valid = alc[:, WINDOW - 1:] if n_episodes >= WINDOW else alc
+    at_limit = (np.nan_to_num(valid, nan=-1.0) >= limit_s - _EPS_S).astype(np.float64)
+    lo = int(np.floor(q / 100.0 * (n_trials - 1)))
+    stats = np.empty(BOOTSTRAP_SAMPLES)
+    for start in range(0, BOOTSTRAP_SAMPLES, 100):
+        idx = rng.integers(0, n_trials, size=(min(100, BOOTSTRAP_SAMPLES - start), n_trials))
+        rows = len(idx)
+        flat = (idx + n_trials * np.arange(rows)[:, None]).ravel()
+        picks = np.bincount(flat, minlength=rows * n_trials).reshape(rows, n_trials).astype(np.float64)
+        ok = picks @ at_limit >= n_trials - lo
+        stats[start:start + len(idx)] = _stable_rows(ok) + (n_episodes - valid.shape[1])
+    stats[np.isnan(stats)] = n_episodes
+    return stats
+
+
 def bootstrap_interval(
     alc: NDArray[np.float64], q: float, limit_s: float, seed: int, levels: tuple[float, ...] = (80.0, 95.0)
 ) -> dict[str, Any]:
     """Bootstrap over trials of curve_statistic; samples that never settle count as the last episode + 1."""
-    rng = np.random.default_rng(seed)
-    n_trials, n_episodes = alc.shape
-    valid = alc[:, WINDOW - 1:] if n_episodes >= WINDOW else alc
-    stats = np.empty(BOOTSTRAP_SAMPLES)
-    for start in range(0, BOOTSTRAP_SAMPLES, 100):
-        idx = rng.integers(0, n_trials, size=(min(100, BOOTSTRAP_SAMPLES - start), n_trials))
-        curves = np.percentile(valid[idx], q, axis=1)
-        stats[start:start + len(idx)] = _stable_batch(curves, limit_s) + (n_episodes - valid.shape[1])
-    censored = np.isnan(stats)
-    stats[censored] = n_episodes
-    out: dict[str, Any] = {"samples": BOOTSTRAP_SAMPLES, "fraction_never": float(censored.mean())}
+    stats = bootstrap_samples(alc, q, limit_s, seed)
+    out: dict[str, Any] = {"samples": BOOTSTRAP_SAMPLES, "fraction_never": float(np.mean(stats >= alc.shape[1]))}
     for level in levels:
         lo, hi = np.percentile(stats, [50 - level / 2, 50 + level / 2])
         out[f"ci{int(level)}"] = [float(lo), float(hi)]
@@ -97,6 +128,10 @@ def summarise(durations_s: NDArray[np.float64], limit_s: float, seed: int) -> di
     """The summary.json statistics (without run metadata)."""
     alc = moving_average(durations_s)
     trials = per_trial(durations_s, limit_s)
+    n_episodes = durations_s.shape[1]
+    # Never reached: censored at the end of the run (first success, stable from); a trial that never
+    # failed has its last failure before episode 0.
+    never = {"first_success": float(n_episodes), "last_failure": -1.0, "alc_stable_from": float(n_episodes)}
     curve = {}
     for label, q in (("median", 50.0), ("best_quarter_q75", 75.0), ("worst_quarter_q25", 25.0)):
         curve[label] = {
@@ -110,7 +145,10 @@ def summarise(durations_s: NDArray[np.float64], limit_s: float, seed: int) -> di
             f"which a curve stays at {limit_s:g} s to the end of the run"
         ),
         "across_trials": {
-            key: _spread([t[key] for t in trials])
+            key: {
+                **_spread([t[key] for t in trials], never[key], censored=key != "last_failure"),
+                "median_ci95": bootstrap_median([t[key] for t in trials], never[key], seed),
+            }
             for key in ("first_success", "last_failure", "alc_stable_from")
         },
         "alc_curves": curve,

@@ -1,0 +1,296 @@
+"""The shared (relocatable) transition model: one histogram of grid offsets per state *type*.
+
+Why: the plant's dynamics do not depend on depth (both presets; not true of a compressible hull), so what
+happens after action a in velocity cell v with the actuator in bin b is the same at every depth cell. One
+histogram per type (v, b, a) pools the experience of all ten depth cells: the model is learnt ten times
+faster and in a tenth of the memory.
+
+Model, for porting (the C twin keeps exactly this layout; `shared_memory_bytes` counts it):
+
+- Grid: Z depth cells x V velocity cells x B actuator bins; state s = (b * Z + z) * V + v, the terminal
+  state S - 1 = Z * V * B last (as in the paper's learner).
+- Types: t = (b * V + v) * 2 + a, T = V * B * 2 of them.
+- Per type, `slots` (12) slots of {uint8 offset code, uint16 count}, then uint16 total (sum of the
+  counts) and uint16 evictions (saturating): 3 * slots + 4 bytes, 40 B with 12 slots.
+- Offset code of a successor: ((dz + 2) * 17 + (dv + 8)) * 3 + (db + 1) for dz in -2..2, dv in -8..8,
+  db in -1..1 (cells of the *unclipped* grid: a successor outside the region has cells beyond it);
+  any other offset is FAR = 255, which is always terminal.
+- Shifting: the successor of s = (b, z, v) under code (dz, dv, db) is (clip(b + db), z + dz, v + dv);
+  z + dz outside 0..Z-1, or v + dv outside 0..V-1 (unless depth_only_terminal, which clips v), is the
+  terminal state.
+- Reward from the cell, no reward table: r(s') = -|centre of s' depth cell - z_d|, the terminal reward
+  (-10) for the terminal state.
+- No Q table, no policy table: Q(s, a) = sum_k c_k / total * (r(s'_k) + gamma v(s'_k)) (+ count bonus)
+  from V and the type's slots when acting or planning; a type with total < known_count has Q =
+  untried_q_value (0: optimistic). Values: float32 per state, terminal included (always 0).
+- Counts saturate as the per-state model's do: when a total would pass 65535 every count of the type is
+  halved (rounding up) and the total recomputed. A successor that finds no free slot evicts the rarest
+  one (its count leaves the total; the eviction counter counts it).
+- Optional Dirichlet blend (dirichlet_weight w > 0): the per-state sparse model of learning/model.py as
+  well (slots of {uint8 successor, uint16 count} per (s, a), no reward sums); P(s'|s, a) = (c_local(s')
+  + w * P_shared(s')) / (n_local + w).
+
+Python precomputes the shifted rows once per planning call (compressed rows, plan_rows); the firmware
+may shift on the fly. Both give the same Q.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+from numpy.typing import NDArray
+
+from learning.model import COUNT_MAX, N_ACTIONS
+from learning.planning import plan_rows
+from learning.spec import KernelSpec
+
+DZ_MAX, DV_MAX, DB_MAX = 2, 8, 1  # offsets a code can hold; beyond them a successor is FAR (terminal)
+_DV_SPAN, _DB_SPAN = 2 * DV_MAX + 1, 2 * DB_MAX + 1
+FAR = 255
+_TYPE_HEADER_BYTES = 4  # uint16 total + uint16 evictions
+_SLOT_BYTES = 3  # uint8 offset code + uint16 count
+_VALUE_BYTES = 4  # float32 per state
+_LOCAL_SLOT_BYTES_SMALL, _LOCAL_SLOT_BYTES_LARGE = 3, 4  # uint8 / uint16 successor + uint16 count
+
+
+def n_types(z_cells: int, zdot_cells: int, actuator_bins: int) -> int:
+    """Number of (velocity cell, actuator bin, action) types."""
+    del z_cells  # depth is what the model pools over
+    return zdot_cells * actuator_bins * N_ACTIONS
+
+
+def shared_memory_bytes(
+    z_cells: int, zdot_cells: int, actuator_bins: int, slots: int, dirichlet: bool
+) -> int:
+    """Exact Teensy bytes: the type histograms, the values (float32, terminal included), local counts."""
+    n_states = z_cells * zdot_cells * actuator_bins + 1
+    total = n_types(z_cells, zdot_cells, actuator_bins) * (slots * _SLOT_BYTES + _TYPE_HEADER_BYTES)
+    total += n_states * _VALUE_BYTES
+    if dirichlet:
+        per_slot = _LOCAL_SLOT_BYTES_SMALL if n_states <= 256 else _LOCAL_SLOT_BYTES_LARGE
+        total += n_states * N_ACTIONS * slots * per_slot
+    return total
+
+
+@njit(cache=True, error_model="numpy")
+def allocate_shared(
+    n_type: int, slots: int
+) -> tuple[NDArray[np.uint8], NDArray[np.uint16], NDArray[np.uint16], NDArray[np.uint16]]:
+    """Empty (offset codes, counts, totals, evictions) of every type."""
+    codes = np.zeros((n_type, slots), dtype=np.uint8)
+    counts = np.zeros((n_type, slots), dtype=np.uint16)
+    totals = np.zeros(n_type, dtype=np.uint16)
+    evictions = np.zeros(n_type, dtype=np.uint16)
+    return codes, counts, totals, evictions
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _raw(x: float, half_width: float, cells: int) -> int:
+    """Cell index on the grid extended by one region width each side (clipped beyond that)."""
+    i = int(np.floor((x + half_width) / (2.0 * half_width) * cells))
+    return min(max(i, -cells), 2 * cells - 1)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def raw_cell_kernel(
+    depth_m: float, velocity_mps: float, target_depth_m: float, actuator_fraction: float, spec: KernelSpec
+) -> int:
+    """The unclipped cell of a measurement (inside the region or not), packed for record_shared."""
+    rz = _raw(depth_m - target_depth_m, spec.z_tol_m, spec.z_cells) + spec.z_cells
+    rv = _raw(velocity_mps, spec.zdot_tol_mps, spec.zdot_cells) + spec.zdot_cells
+    ib = 0
+    if spec.actuator_bins > 1:
+        ib = int(np.floor((actuator_fraction + 1.0) / 2.0 * spec.actuator_bins))
+        ib = min(max(ib, 0), spec.actuator_bins - 1)
+    return (ib * 3 * spec.z_cells + rz) * 3 * spec.zdot_cells + rv
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def state_cell_code(state: int, spec: KernelSpec) -> int:
+    """The raw cell code of a live state (what raw_cell_kernel gives for a point inside that cell)."""
+    iv = state % spec.zdot_cells
+    iz = (state // spec.zdot_cells) % spec.z_cells
+    ib = state // (spec.zdot_cells * spec.z_cells)
+    return (ib * 3 * spec.z_cells + iz + spec.z_cells) * 3 * spec.zdot_cells + iv + spec.zdot_cells
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _offset_code(dz: int, dv: int, db: int) -> int:
+    if abs(dz) > DZ_MAX or abs(dv) > DV_MAX or abs(db) > DB_MAX:
+        return FAR
+    return ((dz + DZ_MAX) * _DV_SPAN + (dv + DV_MAX)) * _DB_SPAN + (db + DB_MAX)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def type_of(state: int, action: int, spec: KernelSpec) -> int:
+    iv = state % spec.zdot_cells
+    ib = state // (spec.zdot_cells * spec.z_cells)
+    return (ib * spec.zdot_cells + iv) * N_ACTIONS + action
+
+
+@njit(cache=True, error_model="numpy")
+def record_shared(
+    codes: NDArray[np.uint8],
+    counts: NDArray[np.uint16],
+    totals: NDArray[np.uint16],
+    evictions: NDArray[np.uint16],
+    state: int,
+    action: int,
+    next_cell: int,
+    spec: KernelSpec,
+) -> bool:
+    """Count the offset from state's cell to next_cell in the type's histogram; True if a slot was evicted."""
+    z3, v3 = 3 * spec.z_cells, 3 * spec.zdot_cells
+    here = state_cell_code(state, spec)
+    dv = next_cell % v3 - here % v3
+    dz = (next_cell // v3) % z3 - (here // v3) % z3
+    db = next_cell // (v3 * z3) - here // (v3 * z3)
+    code = _offset_code(dz, dv, db)
+    t = type_of(state, action, spec)
+    n_slots = counts.shape[1]
+    slot = -1
+    free = -1
+    for k in range(n_slots):
+        if counts[t, k] > 0:
+            if int(codes[t, k]) == code:
+                slot = k
+                break
+        elif free < 0:
+            free = k
+    evicted = False
+    if slot < 0:
+        if free < 0:
+            free = 0
+            for k in range(1, n_slots):
+                if counts[t, k] < counts[t, free]:
+                    free = k
+            totals[t] = int(totals[t]) - int(counts[t, free])
+            counts[t, free] = 0
+            if evictions[t] < COUNT_MAX:
+                evictions[t] += 1
+            evicted = True
+        slot = free
+        codes[t, slot] = code
+    if totals[t] == COUNT_MAX:
+        total = 0
+        for k in range(n_slots):
+            counts[t, k] = (int(counts[t, k]) + 1) // 2
+            total += int(counts[t, k])
+        totals[t] = total
+    counts[t, slot] += 1
+    totals[t] += 1
+    return evicted
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _shift(state: int, code: int, spec: KernelSpec) -> int:
+    """The successor state of `state` under an offset code; the terminal state if it leaves the region."""
+    terminal = spec.z_cells * spec.zdot_cells * spec.actuator_bins
+    if code == FAR:
+        return terminal
+    db = code % _DB_SPAN - DB_MAX
+    dv = (code // _DB_SPAN) % _DV_SPAN - DV_MAX
+    dz = code // (_DB_SPAN * _DV_SPAN) - DZ_MAX
+    iv = state % spec.zdot_cells + dv
+    iz = (state // spec.zdot_cells) % spec.z_cells + dz
+    ib = min(max(state // (spec.zdot_cells * spec.z_cells) + db, 0), spec.actuator_bins - 1)
+    if iz < 0 or iz >= spec.z_cells:
+        return terminal
+    if iv < 0 or iv >= spec.zdot_cells:
+        if not spec.depth_only_terminal:
+            return terminal
+        iv = min(max(iv, 0), spec.zdot_cells - 1)
+    return (ib * spec.z_cells + iz) * spec.zdot_cells + iv
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def cell_reward(state: int, spec: KernelSpec) -> float:
+    """The reward of arriving in a state: minus its depth cell's centre distance, or the terminal reward."""
+    if state == spec.z_cells * spec.zdot_cells * spec.actuator_bins:
+        return spec.terminal_reward
+    iz = (state // spec.zdot_cells) % spec.z_cells
+    return -abs(-spec.z_tol_m + (iz + 0.5) * 2.0 * spec.z_tol_m / spec.z_cells)
+
+
+@njit(cache=True, error_model="numpy")
+def compile_shared_rows(
+    codes: NDArray[np.uint8],
+    counts: NDArray[np.uint16],
+    totals: NDArray[np.uint16],
+    succ_idx: NDArray[np.uint16],
+    succ_cnt: NDArray[np.uint16],
+    spec: KernelSpec,
+) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]:
+    """Every (s, a) row of P (shifted type histogram, blended with local counts) and its mean reward."""
+    n_states = spec.z_cells * spec.zdot_cells * spec.actuator_bins + 1
+    blend = spec.dirichlet_weight > 0.0 and succ_cnt.shape[0] == n_states
+    n_slots = counts.shape[1]
+    local_slots = succ_cnt.shape[2] if blend else 0
+    n_rows = n_states * N_ACTIONS
+    row_start = np.zeros(n_rows + 1, dtype=np.int64)
+    succ = np.empty(n_rows * (n_slots + local_slots), dtype=np.int64)
+    prob = np.empty(n_rows * (n_slots + local_slots))
+    mean_reward = np.zeros(n_rows)
+    known = np.zeros(n_rows, dtype=np.bool_)
+    j = 0
+    w = spec.dirichlet_weight
+    for s in range(n_states):
+        for a in range(N_ACTIONS):
+            row = s * N_ACTIONS + a
+            if s == n_states - 1:
+                row_start[row + 1] = j
+                continue
+            t = type_of(s, a, spec)
+            shared_total = float(totals[t])
+            local_total = 0.0
+            for k in range(local_slots):
+                local_total += float(succ_cnt[s, a, k])
+            # Weights of the two parts: the Dirichlet posterior mean, or whichever part has data.
+            if local_total > 0.0 and shared_total > 0.0:
+                w_local, w_shared = 1.0 / (local_total + w), w / (local_total + w) / shared_total
+            elif local_total > 0.0:
+                w_local, w_shared = 1.0 / local_total, 0.0
+            else:
+                w_local, w_shared = 0.0, (1.0 / shared_total if shared_total > 0.0 else 0.0)
+            r = 0.0
+            for k in range(n_slots):
+                c = counts[t, k]
+                if c > 0 and w_shared > 0.0:
+                    nxt = _shift(s, int(codes[t, k]), spec)
+                    succ[j] = nxt
+                    prob[j] = c * w_shared
+                    r += prob[j] * cell_reward(nxt, spec)
+                    j += 1
+            for k in range(local_slots):
+                c = succ_cnt[s, a, k]
+                if c > 0:
+                    nxt = int(succ_idx[s, a, k])
+                    succ[j] = nxt
+                    prob[j] = c * w_local
+                    r += prob[j] * cell_reward(nxt, spec)
+                    j += 1
+            n = shared_total + local_total
+            known[row] = n >= spec.known_count
+            if spec.count_bonus > 0.0 and n > 0.0:
+                r += spec.count_bonus / np.sqrt(n)
+            mean_reward[row] = r
+            row_start[row + 1] = j
+    return row_start, succ[:j], prob[:j], mean_reward, known
+
+
+@njit(cache=True, error_model="numpy")
+def plan_shared_kernel(
+    codes: NDArray[np.uint8],
+    counts: NDArray[np.uint16],
+    totals: NDArray[np.uint16],
+    succ_idx: NDArray[np.uint16],
+    succ_cnt: NDArray[np.uint16],
+    values: NDArray[np.float64],
+    q: NDArray[np.float64],
+    policy: NDArray[np.int8],
+    spec: KernelSpec,
+    rng_state: NDArray[np.uint64],
+) -> int:
+    """Value iteration over the shared model (see plan_rows); returns sweeps."""
+    row_start, succ, prob, mean_reward, known = compile_shared_rows(codes, counts, totals, succ_idx, succ_cnt, spec)
+    return plan_rows(row_start, succ, prob, mean_reward, known, values, q, policy, spec, rng_state)

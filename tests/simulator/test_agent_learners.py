@@ -1,0 +1,41 @@
+"""The virtual agent runs the shared-model learners (`dive sim --learner ...`), velocity input included."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from learning import learner_preset
+from simulator.agent_mission import MissionConfig
+from simulator.onboard import OnboardProgram
+from simulator.onboard_hw import SimulatedHardware
+from simulator.parameters import preset
+from tests.simulator.test_onboard_fast_path import CheckingDownlink
+
+
+@pytest.mark.slow  # two agents of 8000 steps each
+@pytest.mark.parametrize("learner", ["shared-bins13-diff4", "shared-dirichlet"])
+def test_the_agent_learns_with_the_shared_model(learner: str) -> None:
+    params, config = preset("hardware"), learner_preset(learner)
+    rng = np.random.default_rng(2)
+    down = CheckingDownlink()
+    program = OnboardProgram(params, config, MissionConfig(), SimulatedHardware(params, rng), rng, down)
+    down.program = program
+    program.start(0)
+    depths: list[float] = []
+    velocities: list[float] = []
+    for _ in range(8000):
+        program.step()
+        if program.mode.name == "LEARNING" and program.learner.episode == 0:
+            depths.append(program.depth_m)
+            velocities.append(program.velocity_mps)
+    assert program.learner.episode > 0 and down.samples > 5000
+    assert program.learner.memory_bytes == (15604 if learner.endswith("diff4") else 1204 + 101 * 2 * 12 * 3)
+    # Every learning step saw a velocity; with diff4 it is the agent's own 4-step depth difference.
+    k, dt = config.velocity_diff_steps, params.control_period_s
+    if k:
+        got = np.array(velocities[k + 1:])
+        expected = (np.array(depths[k + 1:]) - np.array(depths[1:-k])) / (k * dt)
+        np.testing.assert_allclose(got, expected, atol=1e-12)
+    values = program.learner.values
+    assert np.any(values[:-1] != 0.0)  # planning ran on what the shared model learnt
