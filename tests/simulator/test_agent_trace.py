@@ -1,7 +1,8 @@
 """The virtual agent sends the same wire bytes and logs the same records as before its fast paths, seed for seed.
 
-The fixture was captured from main (one step and one link tick per call) before any speed-up: first at aa759ad,
-again at 1e82738 because SPEC 1.1 (merged there) changed the wire itself (one more frame in this script).
+The fixture was captured from main (one step and one link tick per call), never from this branch: first at aa759ad,
+again at 1e82738 and at c766169, whose SPEC 1.1 changes altered the wire themselves (main's own code gives the new
+bytes; the speed-ups give the same).
 """
 
 from __future__ import annotations
