@@ -22,7 +22,7 @@ from groundstation.links import open_link
 from groundstation.recorder import Recorder, RecorderConfig, message_json, message_schema
 from groundstation.session import Session, SessionConfig
 from groundstation.stats import percentile
-from protocol import StreamDecoder
+from protocol import StreamDecoder, compiled
 from protocol import messages as m
 
 CAPTURE_S = 6.0
@@ -155,6 +155,7 @@ def echo_rtts(n: int = 300) -> list[float]:
 
 
 def main() -> None:
+    compiled.wait()  # the compiled decoder loads in the background: measure it loaded
     wire = capture_wire(CAPTURE_S)
     ratios: list[float] = []
     with tempfile.TemporaryDirectory() as tmp:

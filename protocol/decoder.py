@@ -8,6 +8,7 @@ from dataclasses import dataclass, field, fields
 from typing import Any, NamedTuple
 
 from protocol.cobs import cobs_decode
+from protocol.compiled import fast_frames
 from protocol.crc import CRC_INIT
 from protocol.enums import INCOMPATIBLE_FLAGS_MASK, PROTOCOL_VERSION, FrameFlag
 from protocol.errors import CobsError
@@ -87,20 +88,11 @@ class Frame(NamedTuple):
 
 
 def _compiled_decoder() -> _CompiledDecoder | None:
-    """protocol.fast_frames.decode_buffer, imported on the first read; None without numba (stdlib codec then)."""
-    global _decode_buffer, _compiled_tried
-    if not _compiled_tried:
-        _compiled_tried = True
-        try:
-            from protocol.fast_frames import decode_buffer
-        except ImportError:
-            return None
-        _decode_buffer = decode_buffer
-    return _decode_buffer
+    """protocol.fast_frames.decode_buffer once it is loaded in the background; None before and without numba."""
+    module = fast_frames()
+    return None if module is None else module.decode_buffer  # type: ignore[no-any-return]
 
 
-_decode_buffer: _CompiledDecoder | None = None
-_compiled_tried = False
 _PLAIN = {msg_id: (cls._struct.unpack_from, cls._build, MIN_INNER + cls.DEFINITION.fixed_size)
           for msg_id, cls in message_classes().items() if not (cls._text_indices or cls.DEFINITION.has_tail)}
 

@@ -6,6 +6,7 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING, NamedTuple
 
 from protocol.cobs import CobsFrameEncoder, cobs_decode
+from protocol.compiled import fast_frames
 from protocol.enums import PROTOCOL_VERSION, FrameFlag
 from protocol.frame import HEADER, build_inner, payload_end
 from protocol.registry import Message
@@ -26,15 +27,6 @@ _new_encoded = tuple.__new__  # EncodedFrame(...) without the named tuple's Pyth
 _COMPILED_MAX_PAYLOAD = 246  # protocol.fast_frames.COMPILED_MAX_PAYLOAD (a test checks they agree)
 
 
-def _compiled_writer() -> Callable[[bytes, int, int, int], bytes] | None:
-    """A compiled frame writer (protocol.fast_frames.frame_writer), or None without numba: the stdlib path then."""
-    try:
-        from protocol.fast_frames import frame_writer
-    except ImportError:
-        return None
-    return frame_writer(PROTOCOL_VERSION)
-
-
 class FrameEncoder:
     """Keeps the per-sender sequence counter (+1 per frame, wraps at 65536).
 
@@ -45,8 +37,9 @@ class FrameEncoder:
         self._seq = first_seq & 0xFFFF
         self.signer = signer
         self._cobs = CobsFrameEncoder()  # senders repeat a few zero patterns (SAMPLEs): cached COBS codes
-        # Header, CRC and COBS of an unsigned frame in one compiled call, where numba is installed.
-        self._compiled = _compiled_writer() if compiled else None
+        # Header, CRC and COBS of an unsigned frame in one compiled call, where numba is installed, once loaded.
+        self._use_compiled = compiled
+        self._compiled: Callable[[bytes, int, int, int], bytes] | None = None
 
     @property
     def next_seq(self) -> int:
@@ -57,7 +50,7 @@ class FrameEncoder:
         if message.DEFINITION.needs_ack:
             flags |= _ACK_REQUESTED
         payload = message.pack()
-        compiled = self._compiled
+        compiled = self._compiled or self._compiled_writer()
         if compiled is not None and self.signer is None and len(payload) <= _COMPILED_MAX_PAYLOAD:
             # encode_payload's compiled path, inlined: a sender of SAMPLEs saves a call per frame.
             seq = self._seq
@@ -68,11 +61,19 @@ class FrameEncoder:
     def encode_payload(self, msg_id: int, payload: bytes, flags: int = 0) -> EncodedFrame:
         """Frame an already packed payload (raises FrameError if it exceeds 247 bytes, 234 when signed)."""
         seq = self._seq
-        compiled = self._compiled
+        compiled = self._compiled or self._compiled_writer()
         if compiled is not None and self.signer is None and len(payload) <= _COMPILED_MAX_PAYLOAD:
             self._seq = (seq + 1) & 0xFFFF
             return _new_encoded(EncodedFrame, (seq, compiled(payload, flags, seq, msg_id)))
         return _new_encoded(EncodedFrame, (seq, self.wire(self.next_inner(msg_id, payload, flags))))
+
+    def _compiled_writer(self) -> Callable[[bytes, int, int, int], bytes] | None:
+        """The compiled writer once protocol.compiled has loaded it (None until then, and without numba)."""
+        if self._use_compiled:
+            module = fast_frames()
+            if module is not None:
+                self._compiled = module.frame_writer(PROTOCOL_VERSION)
+        return self._compiled
 
     def next_inner(self, msg_id: int, payload: bytes, flags: int = 0) -> bytes:
         """The inner frame of a payload with the next seq, for senders that keep it (the agent's on-board log)."""

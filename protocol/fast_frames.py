@@ -177,3 +177,9 @@ def _encode_entry() -> Any:
         out = np.zeros(1, np.uint8)
         _entry = encode_frame.compile((numba.typeof(b""), numba.int64, numba.typeof(out)))
     return _entry
+
+
+def warm_up() -> None:
+    """Compile (or load from the cache) every kernel here, so that no frame waits for it."""
+    frame_writer(1)(b"\x00", 0, 0, 0)
+    decode_buffer(b"\x02\x01\x00" * 100, 255, 7, 1, 0)

@@ -5,7 +5,7 @@ from __future__ import annotations
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from protocol import FrameEncoder, StreamDecoder, encoder
+from protocol import FrameEncoder, StreamDecoder, compiled, encoder
 from protocol import decoder as decoder_module
 from protocol.cobs import cobs_decode, cobs_encode
 from protocol.decoder import CHUNK_COBS_ERROR, CHUNK_OK
@@ -14,6 +14,9 @@ from protocol.errors import CobsError
 from protocol.fast_frames import COMPILED_MAX_PAYLOAD, decode_buffer, frame_writer
 from protocol.frame import build_inner
 from tests.protocol.strategies import any_message
+
+# The compiled path loads in the background; these tests compare it, so it must be there.
+assert compiled.wait(300), "numba is a dependency: the compiled path must load"
 
 # Streams of good frames, garbage and stray delimiters, cut into reads of any size.
 _pieces = st.lists(st.one_of(

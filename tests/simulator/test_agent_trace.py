@@ -11,6 +11,7 @@ import json
 
 import pytest
 
+from protocol import compiled
 from tests.simulator import agent_trace
 
 EXPECTED = {(t["preset"], t["seed"]): t for t in json.loads(agent_trace.FIXTURE.read_text())}
@@ -18,4 +19,5 @@ EXPECTED = {(t["preset"], t["seed"]): t for t in json.loads(agent_trace.FIXTURE.
 
 @pytest.mark.parametrize(("preset_name", "seed"), sorted(EXPECTED))
 def test_the_served_agent_sends_and_logs_the_bytes_of_the_fixture(preset_name: str, seed: int) -> None:
+    assert compiled.wait(300)  # the compiled frame writer in use, not the stdlib one it falls back to while loading
     assert agent_trace.run(preset_name, seed) == EXPECTED[preset_name, seed]
