@@ -282,6 +282,8 @@ def mark(text: Annotated[str, typer.Argument(help="what happened (recorded on /m
     add_marker(text)
 
 
+REPLY_TIMEOUT_S = 2.0
+SIM_REPLY_TIMEOUT_S = 10.0  # a virtual agent compiles kernels on first use: its first answer may take seconds
 VIRTUAL_LOW_BATTERY_V = 3.0  # the low_batt_v minimum: below the simulated battery's empty voltage (3.4 V)
 
 
@@ -307,7 +309,9 @@ def check_command(
     only: Annotated[list[str] | None, typer.Option(help="run only these checks or groups, e.g. junk, ack.echo")] = None,
     param: Annotated[list[str] | None, typer.Option(
         help="NAME=VALUE set for the run and put back after it (repeatable)")] = None,
-    timeout: Annotated[float, typer.Option(help="seconds to wait for an ACK or a reply")] = 2.0,
+    timeout: Annotated[float | None, typer.Option(
+        help="seconds to wait for an ACK or a reply [default: 2; sim://: 10, its first use of a learner compiles]")]
+    = None,
     mode_timeout: Annotated[float, typer.Option(help="seconds to wait for a mode change (surfacing, recovery)")]
     = 60.0,
     as_json: Annotated[bool, typer.Option("--json", help="machine-readable report")] = False,
@@ -318,6 +322,8 @@ def check_command(
     from groundstation.check import CheckOptions, Timeouts, run_checks, selected
     from groundstation.check.report import print_report
 
+    if timeout is None:
+        timeout = SIM_REPLY_TIMEOUT_S if (url or default_url()).startswith("sim://") else REPLY_TIMEOUT_S
     if timeout <= 0 or mode_timeout <= 0:
         raise typer.BadParameter("timeouts must be positive", param_hint="--timeout/--mode-timeout")
     checks = selected(tuple(only or ()))
@@ -334,7 +340,7 @@ def check_command(
         values.setdefault("low_batt_v", VIRTUAL_LOW_BATTERY_V)
         extra = {k: v for k, v in (("speed", "max"), ("key_file", key_file and str(key_file)))
                  if v and f"{k}=" not in url}
-        url = url + ("&" if "?" in url else "?") + urlencode(extra) if extra else url
+        url = url + ("&" if "?" in url else "?") + urlencode(extra, safe="/") if extra else url
     options = CheckOptions(url=url, key=key, allow_motion=allow_motion, only=tuple(only or ()),
                            params=tuple(values.items()),
                            timeouts=Timeouts(reply_s=timeout, heartbeat_s=max(3.0, timeout), mode_s=mode_timeout))

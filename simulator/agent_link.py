@@ -217,6 +217,8 @@ class AgentLink:
     def _command(self, frame: Frame) -> None:
         """SPEC s. 5, order of checks: truncated, HMAC, ACK memory, timestamp, unknown id, the command itself."""
         message, verifier = frame.message, self.verifier
+        if verifier is None:  # without a key every frame counted in rx_frames is a sign of life (SPEC s. 4)
+            self._alive()
         if isinstance(message, UndecodedCommand) and message.truncated:
             self._refuse(frame, "truncated signature")
             return
@@ -236,8 +238,6 @@ class AgentLink:
             elif frame.msg_id != _SURFACE_ID:  # surfacing is always safe: CMD_SURFACE runs whatever its timestamp
                 self._refuse(frame, f"signature {check.name.lower().replace('_', ' ')}")
                 return
-        else:
-            self._alive()
         self._execute(frame)
 
     def _execute(self, frame: Frame) -> None:

@@ -28,9 +28,9 @@ def _param_values_after(probe: Probe, ex: Exchange) -> int:
     return len(probe.messages(m.ParamValue, ex.sent_at))
 
 
-@check("ack.echo", SECTION, """The agent answers every command, exactly once per received frame, with ACK:
-       cmd_msg_id and cmd_seq echo the command's msg_id and frame seq. The ACK is sent before anything the command
-       causes (replies, EPISODE frames).""")
+@check("ack.echo", SECTION, """Every command frame that passes the CRC and version checks gets exactly one ACK per
+       received frame. cmd_msg_id and cmd_seq echo the command's msg_id and frame seq. The ACK is sent before
+       anything the command causes (replies, TEXT, EPISODE frames).""")
 def echo(probe: Probe) -> str:
     ex = _get(probe)
     expect(ex.ack is not None, f"PARAM_GET: no ACK within {probe.timeouts.reply_s:g} s")
@@ -41,8 +41,8 @@ def echo(probe: Probe) -> str:
     return f"ACK echoes 0x{ex.msg_id:02X} seq {ex.seq}, before its PARAM_VALUE"
 
 
-@check("ack.without_ack_requested", SECTION, """Every command frame (id 0x80-0xFF) that passes CRC/version gets
-       exactly one ACK per received frame, whether ACK_REQUESTED is set or not (decisions: O7).""")
+@check("ack.without_ack_requested", SECTION, """Every command frame [...] gets exactly one ACK per received frame,
+       whether ACK_REQUESTED is set or not.""")
 def without_ack_requested(probe: Probe) -> str:
     ex = _get(probe, flags=0)
     expect(ex.ack is not None, "a PARAM_GET without ACK_REQUESTED got no ACK")
@@ -50,8 +50,8 @@ def without_ack_requested(probe: Probe) -> str:
     return "ACKed"
 
 
-@check("ack.unknown_command", SECTION, """Unknown command id → ACK UNSUPPORTED (counted in rx_frames, not
-       rx_rejects) (decisions: disagreement 4).""")
+@check("ack.unknown_command", SECTION, """[exactly one ACK] whether or not the agent knows its id. Unknown command
+       id → UNSUPPORTED. rx_frames [counts] unknown command ids (UNSUPPORTED).""")
 def unknown_command(probe: Probe) -> str:
     before = probe.counters()
     sent = probe.sent_valid
@@ -73,24 +73,29 @@ def unknown_command(probe: Probe) -> str:
     return "0x8C, 0xC0, 0xFF: one ACK UNSUPPORTED each, counted in rx_frames"
 
 
-@check("ack.retry_not_executed", SECTION, """A frame matching one [of the last 16 (msg_id, seq, result)] is not
-       executed; the same result is re-sent.""")
+@check("ack.retry_not_executed", SECTION, """ACK memory: a frame whose (msg_id, seq) matches a remembered one is
+       not executed; the remembered result is sent again.""")
 def retry_not_executed(probe: Probe) -> str:
     ex = _get(probe)
     expect(ex.ack is not None, "PARAM_GET: no ACK")
     probe.barrier()
     values = _param_values_after(probe, ex)
     expect(values == 1, f"PARAM_GET answered with {values} PARAM_VALUEs")
-    retry = probe.command_inner(probe.retry_inner(ex.inner))
-    expect(retry.ack is not None, "the retry got no ACK")
-    _one_ack(probe, retry, AckResult.ACCEPTED, "the retry")
-    again = _param_values_after(probe, retry)
-    expect(again == 0, f"the retry was executed again ({again} more PARAM_VALUE)")
+    _retry_not_run(probe, ex, "the retry")
     return "the retry got the same ACK and no second PARAM_VALUE"
 
 
-@check("ack.retry_nack", SECTION, """The agent remembers the last 16 (msg_id, seq, result) it answered [...]
-       executed or refused on its merits; the same result is re-sent.""")
+def _retry_not_run(probe: Probe, first: Exchange, what: str) -> None:
+    """A retry of an accepted PARAM_GET: one ACK ACCEPTED and no PARAM_VALUE (it is not executed again)."""
+    retry = probe.command_inner(probe.retry_inner(first.inner))
+    expect(retry.ack is not None, f"{what} got no ACK")
+    _one_ack(probe, retry, AckResult.ACCEPTED, what)
+    again = _param_values_after(probe, retry)
+    expect(again == 0, f"{what} was executed again ({again} PARAM_VALUE)")
+
+
+@check("ack.retry_nack", SECTION, """The agent remembers the last 16 (msg_id, seq, result) it answered at steps 5-7
+       (executed, or refused on the command's merits).""")
 def retry_nack(probe: Probe) -> str:
     ex = _get(probe, index=30000)
     expect(ex.result == AckResult.BAD_VALUE, f"PARAM_GET index 30000: {result_name(ex.result)}, wanted BAD_VALUE")
@@ -99,17 +104,13 @@ def retry_nack(probe: Probe) -> str:
     return "BAD_VALUE again"
 
 
-@check("ack.memory_16", SECTION, """The agent remembers the last 16 (msg_id, seq, result) it answered; a command
-       matching one of them is not executed again, only its ACK is re-sent.""")
+@check("ack.memory_16", SECTION, """The agent remembers the last 16 (msg_id, seq, result) it answered. A ground
+       must not reuse a seq for a different command within 16 commands.""")
 def memory_16(probe: Probe) -> str:
     first = _get(probe)
     expect(first.ack is not None, "PARAM_GET: no ACK")
     for _ in range(ACK_MEMORY - 1):
         other = probe.command(m.LogRequest(first_sample=1, end_sample=0))
         expect(other.ack is not None, "LOG_REQUEST: no ACK")
-    retry = probe.command_inner(probe.retry_inner(first.inner))
-    expect(retry.ack is not None, "the retry after 15 other commands got no ACK")
-    _one_ack(probe, retry, AckResult.ACCEPTED, "the retry after 15 other commands")
-    again = _param_values_after(probe, retry)
-    expect(again == 0, f"the command 15 commands back was executed again ({again} PARAM_VALUE)")
+    _retry_not_run(probe, first, "the retry after 15 other commands")
     return "a retry 15 commands later: same ACK, not executed"

@@ -101,9 +101,8 @@ def kinds(probe: Probe) -> str:
     return f"S = {s}: " + ", ".join(sizes)
 
 
-@check("dump.partial", SECTION, """dump_id ≠ 0: re-send that range from the snapshot with that id. CMD_DUMP:
-       offset = size → ACCEPTED, no chunk; a range past the end is cut at the end; offset > size → BAD_VALUE
-       (decisions: O7).""")
+@check("dump.partial", SECTION, """dump_id ≠ 0: that snapshot. offset > the snapshot's size → BAD_VALUE.
+       offset = size → ACCEPTED, no chunk. [...] a range past the end is cut at the end.""")
 def partial(probe: Probe) -> str:
     whole = request(probe, int(DumpKind.Q_VALUES), size_hint=8 * 1024)
     _accepted(whole, "CMD_DUMP Q_VALUES")
@@ -124,15 +123,15 @@ def partial(probe: Probe) -> str:
     return f"range re-sent byte-identical; cut at the end; offset = size empty; size + 1 refused ({total} B)"
 
 
-@check("dump.bad_kind", SECTION, "CMD_DUMP: kind not 1-4 → BAD_VALUE (decisions: O7).")
+@check("dump.bad_kind", SECTION, "kind not 1-4 → BAD_VALUE. After a NACK nothing follows.")
 def bad_kind(probe: Probe) -> str:
     for kind in (0, 5, 255):
         _refused(probe, kind, 0, 0, 0, AckResult.BAD_VALUE, f"kind {kind}")
     return "kinds 0, 5, 255: BAD_VALUE"
 
 
-@check("dump.stale", SECTION, """dump_id not held or of another kind → STALE. The agent keeps the newest 4
-       snapshots (any kind); older ids are STALE (decisions: O8).""")
+@check("dump.stale", SECTION, """if the agent does not hold it, or it is of another kind → STALE. The agent keeps
+       the newest 4 snapshots (of any kind); a request for an older id is STALE.""")
 def stale(probe: Probe) -> str:
     taken = [request(probe, int(DumpKind.POLICY), size_hint=4096) for _ in range(SNAPSHOTS_HELD + 1)]
     for r in taken:
@@ -151,8 +150,8 @@ def stale(probe: Probe) -> str:
     return f"newest {SNAPSHOTS_HELD} held, the one before STALE; wrong kind and unknown id STALE"
 
 
-@check("dump.counts_stale", SECTION, """A COUNTS snapshot is rendered from the live model and goes STALE when the
-       model changes (next observed transition) (decisions: O8).""", motion=True)
+@check("dump.counts_stale", SECTION, """A COUNTS snapshot [...] goes STALE when the model changes (the next
+       observed transition, CMD_RESET_MODEL, or a learner parameter change).""", motion=True)
 def counts_stale(probe: Probe) -> str:
     reach(probe, Mode.IDLE)
     first = request(probe, int(DumpKind.COUNTS), 0, 0, 1)
@@ -168,8 +167,8 @@ def counts_stale(probe: Probe) -> str:
     return "STALE after learning steps"
 
 
-@check("dump.each_episode", SECTION, """dump_each_episode: VALUES then POLICY after every EPISODE_END (decisions:
-       O8).""", motion=True)
+@check("dump.each_episode", SECTION, """If the parameter dump_each_episode is 1, the agent sends a VALUES snapshot
+       and then a POLICY snapshot (new ids, all chunks, unprompted) after every EPISODE_END.""", motion=True)
 def each_episode(probe: Probe) -> str:
     s = states(probe)
     with overridden(probe, {"dump_each_episode": 1.0}):

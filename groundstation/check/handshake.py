@@ -5,7 +5,7 @@ from __future__ import annotations
 import os
 
 from groundstation.check.probe import Probe
-from groundstation.check.registry import CheckFailed, check, expect
+from groundstation.check.registry import CheckFailed, CheckSkipped, check, expect
 from groundstation.hello import ground_hello
 from protocol import PROTOCOL_VERSION, NodeKind, definitions_hash
 from protocol import messages as m
@@ -13,15 +13,18 @@ from protocol import messages as m
 LINK = "4 Link life cycle"
 FRAME = "1 Frame: sequence numbers"
 UNPROMPTED_HELLO_S = 1.5  # a serial agent repeats its HELLO once per second until it hears the ground
+HELLO_REPEAT_S = 1.5  # one repeat is due within a second of link time after the first HELLO (plus the reply wait)
 
 
 def _ground_hello() -> m.Hello:
     return ground_hello(int.from_bytes(os.urandom(4), "little"), int.from_bytes(os.urandom(4), "little"))
 
 
-@check("handshake.agent_hello", LINK, """When a link comes up (TCP connect, serial port opened, or the agent boots),
-       each side sends HELLO unprompted. The agent sends HELLO on every new TCP connection.""")
+@check("handshake.agent_hello", LINK, """The agent sends HELLO when it boots and whenever it sees a link come up (a new
+       TCP connection). Until it has received a frame from the ground that passed the CRC and version checks, it
+       repeats its HELLO once per second of link time.""")
 def agent_hello(probe: Probe) -> str:
+    probe.keepalive = False  # the ground stays silent until the agent has repeated its HELLO (next check)
     found = probe.wait_message(m.Hello, 0, UNPROMPTED_HELLO_S)
     if found is not None:
         return "HELLO arrived unprompted"
@@ -33,6 +36,21 @@ def agent_hello(probe: Probe) -> str:
     if probe.link.url.startswith(("tcp://", "sim://")):
         raise CheckFailed("no HELLO on the new TCP connection (only in answer to ours)")
     return "no unprompted HELLO (a serial agent that already heard a ground); it answered ours"
+
+
+@check("handshake.hello_repeat", LINK, """Until it has received a frame from the ground that passed the CRC and
+       version checks, it repeats its HELLO once per second of link time.""")
+def hello_repeat(probe: Probe) -> str:
+    if probe.sent_valid:
+        raise CheckSkipped("the agent had to be asked for its HELLO (it heard a ground before this run)")
+    try:
+        found = probe.wait(lambda _: len(probe.messages(m.Hello, 0)) >= 2, 0, HELLO_REPEAT_S + probe.timeouts.reply_s)
+    finally:
+        probe.keepalive = True
+    hellos = len(probe.messages(m.Hello, 0))
+    waited = HELLO_REPEAT_S + probe.timeouts.reply_s
+    expect(found is not None, f"{hellos} HELLO in {waited:g} s of silence from the ground, wanted a repeat")
+    return "HELLO repeated while the ground was silent"
 
 
 @check("handshake.hello_fields", "3 Messages: HELLO", """protocol_version: protocol major version; 1.
@@ -52,8 +70,8 @@ def hello_fields(probe: Probe) -> str:
             f"hash 0x{hello.definitions_hash:08X}")
 
 
-@check("handshake.answers_every_hello", LINK, """[The agent] answers every ground HELLO with its HELLO
-       (decisions: O4, a serial agent never sees a TCP connect).""")
+@check("handshake.answers_every_hello", LINK, """The agent answers every HELLO from the ground with its own HELLO (on
+       any link), at once.""")
 def answers_every_hello(probe: Probe) -> str:
     boot = probe.hello.boot_id if probe.hello else None
     answers = 0
@@ -68,8 +86,8 @@ def answers_every_hello(probe: Probe) -> str:
     return "2 ground HELLOs, 2 HELLOs back"
 
 
-@check("handshake.heartbeat", LINK, """Both sides send HEARTBEAT about once per second [of agent time]
-       (decisions: O10, HEARTBEAT once per second of agent time).""")
+@check("handshake.heartbeat", LINK, """Both sides send HEARTBEAT once per second of their own clock (the agent: agent
+       time). HEARTBEAT reports log_first_sample (the oldest SAMPLE index held) and log_next_sample.""")
 def heartbeat(probe: Probe) -> str:
     start = probe.end
     beats: list[m.Heartbeat] = []
@@ -88,7 +106,7 @@ def heartbeat(probe: Probe) -> str:
 
 
 @check("seq.agent_counter", FRAME, """seq: sender's frame counter, +1 per frame sent (any message), wraps
-       65535 → 0.""")
+       65535 → 0. Each side keeps one counter for all frames it sends.""")
 def agent_counter(probe: Probe) -> str:
     probe.settle(0.3)
     stats = probe.decoder.stats
@@ -97,8 +115,9 @@ def agent_counter(probe: Probe) -> str:
     return f"{stats.frames} frames in order"
 
 
-@check("seq.gap_counted", FRAME, """If gap < 32768 the frames in between were lost (lost += gap) and
-       expected = seq + 1. rx_lost: the sequence-gap count.""")
+@check("seq.gap_counted", FRAME, """Synchronised, a frame with seq gives gap = (seq - expected) mod 65536. If
+       gap < 32768, gap frames were lost (lost += gap) and expected = seq + 1. rx_lost: the sum of the sequence
+       gaps.""")
 def gap_counted(probe: Probe) -> str:
     before = probe.counters()
     probe.skip_seqs(5)
@@ -120,8 +139,8 @@ def late_not_lost(probe: Probe) -> str:
     return "a late frame is not a loss"
 
 
-@check("seq.hello_resets", FRAME, """Any HELLO received resets tracking to unsynchronised before it is counted
-       (so the HELLO synchronises) (decisions: O3).""")
+@check("seq.hello_resets", FRAME, """Any HELLO received resets tracking to unsynchronised before the HELLO is
+       counted, so the HELLO itself synchronises.""")
 def hello_resets(probe: Probe) -> str:
     before = probe.counters()
     probe.skip_seqs(1000)

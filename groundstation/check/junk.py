@@ -12,9 +12,10 @@ from protocol.cobs import cobs_encode
 from protocol.crc import crc16_ccitt_false
 
 RECEIVE = "1 Frame: receiving"
-COUNTERS = "3 Messages: HEARTBEAT counters"
+COUNTERS = "4 Link life cycle: counters"
 _SENTENCE_REJECTS = """rx_rejects: every chunk dropped without being acted on: oversize, COBS error, runt, CRC error,
-    incompatible, unknown id outside the command range, malformed (decisions: O9)."""
+    incompatible, unknown id below 0x80, malformed (SIGNED set on a non-command frame too short for a trailer). Each
+    such chunk counts exactly once."""
 
 
 def _wire(inner: bytes) -> bytes:
@@ -49,14 +50,15 @@ def counted_once(probe: Probe, junk: Callable[[], bytes], what: str, rejects: in
     return f"{what}: rx_rejects +{rejects}, other counters unchanged"
 
 
-@check("junk.oversize", RECEIVE, """A chunk (bytes between two 0x00, delimiter excluded) longer than 255 bytes is
-       oversize. Discard as it grows (decisions: C5). """ + _SENTENCE_REJECTS)
+@check("junk.oversize", RECEIVE, """A chunk longer than 255 bytes is oversize: discard it as it grows (keep dropping
+       bytes until the next 0x00), so the buffer never holds more than 255 bytes; count it once. """
+       + _SENTENCE_REJECTS)
 def oversize(probe: Probe) -> str:
     return counted_once(probe, lambda: b"\x00" + b"\x11" * 300 + b"\x00", "a 300-byte chunk")
 
 
-@check("junk.oversize_256", RECEIVE, """A chunk longer than 255 bytes is oversize (an inner frame of at most 254
-       bytes encodes to at most 255) (decisions: C5).""")
+@check("junk.oversize_256", RECEIVE, """A chunk longer than 255 bytes is oversize. A 254-byte inner frame encodes
+       to at most 255 bytes.""")
 def oversize_256(probe: Probe) -> str:
     def chunk() -> bytes:
         # A TEXT frame of 255 inner bytes (one more than allowed) with a valid CRC: 256 bytes of COBS.
@@ -96,36 +98,36 @@ def version(probe: Probe) -> str:
     return counted_once(probe, chunk, "a version-2 frame")
 
 
-@check("junk.incompatible_flag", RECEIVE, """flags bits [above SIGNED] clear (incompatible): a frame with any of
-       them set is dropped (counted as incompatible). """ + _SENTENCE_REJECTS)
+@check("junk.incompatible_flag", RECEIVE, """ver = 1 and no unknown incompatible flag, i.e. flags & 0xE0 = 0
+       (incompatible). """ + _SENTENCE_REJECTS)
 def incompatible_flag(probe: Probe) -> str:
     return counted_once(probe, lambda: _wire(_with_crc(_header(probe, m.Timesync.MSG_ID, 0x80, take_seq=False)
                                                        + bytes(24))), "a frame with flag bit 7 set")
 
 
-@check("junk.unknown_id", RECEIVE, """Unknown ids below 0x80: dropped, rx_rejects (decisions: O7). A frame that
-       passed the CRC and version checks counts for sequence tracking even when its msg_id is unknown.""")
+@check("junk.unknown_id", RECEIVE, """sequence tracking counts the frame, whatever its msg_id; look up msg_id. An
+       unknown id below 0x80 is dropped (unknown id).""")
 def unknown_id(probe: Probe) -> str:
     return counted_once(probe, lambda: _wire(_with_crc(_header(probe, 0x30, take_seq=True))),
                         "a frame with unknown id 0x30")
 
 
-@check("junk.malformed_signed", RECEIVE, """malformed (SIGNED set on a non-command frame too short for a trailer)
-       [goes into rx_rejects] (decisions: O9).""")
+@check("junk.malformed_signed", RECEIVE, """if SIGNED is set: an inner frame shorter than 7 + 13 = 20 bytes has no
+       room for its trailer. [...] any other frame [than a command] is dropped (malformed).""")
 def malformed_signed(probe: Probe) -> str:
     signed = int(FrameFlag.SIGNED)
     return counted_once(probe, lambda: _wire(_with_crc(_header(probe, m.Timesync.MSG_ID, signed, take_seq=True)
                                                        + bytes(4))), "a SIGNED TIMESYNC too short for a trailer")
 
 
-@check("junk.empty_chunk", RECEIVE, """An empty chunk (two 0x00 in a row) is ignored, so a sender may start with
+@check("junk.empty_chunk", RECEIVE, """An empty chunk is ignored and counted nowhere, so a sender may start with
        0x00 to flush line noise.""")
 def empty_chunk(probe: Probe) -> str:
     return counted_once(probe, lambda: b"\x00\x00\x00", "three 0x00 bytes", rejects=0)
 
 
-@check("counters.rx_frames", COUNTERS, """rx_frames: frames that passed CRC and version checks and were handed to
-       the program (decisions: O9).""")
+@check("counters.rx_frames", COUNTERS, """rx_frames: frames that passed the CRC and version checks and were handed
+       to the program. A frame is counted in rx_frames or in rx_rejects, never both.""")
 def rx_frames(probe: Probe) -> str:
     before = probe.counters()
     sent = probe.sent_valid

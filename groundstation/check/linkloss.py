@@ -2,13 +2,16 @@
 
 from __future__ import annotations
 
+import time
+
 from groundstation.check.agent import overridden, reach
 from groundstation.check.probe import Probe, mode_of
 from groundstation.check.registry import check, expect
 from protocol import Mode
+from protocol import messages as m
 
 SECTION = "4 Link life cycle: link loss"
-TIMEOUT_S = 1.0  # link_timeout_s while the check runs
+TIMEOUT_S = 0.5  # link_timeout_s while the check runs
 GRACE_S = 3.0  # wall seconds past the timeout the agent may take to notice
 
 
@@ -23,9 +26,9 @@ def _silence(probe: Probe, seconds: float, until: set[Mode] | None = None) -> li
     return [x for f in probe.frames(start) if (x := mode_of(f)) is not None]
 
 
-@check("linkloss.surfaces", SECTION, """The agent counts time since the last valid frame from the ground; after the
-       parameter link_timeout_s (0 = never) it aborts learning and surfaces (mode SURFACING) if surface_on_link_loss
-       is set. Link silence is measured on the link's real clock (decisions: O10).""", motion=True)
+@check("linkloss.surfaces", SECTION, """When it exceeds the parameter link_timeout_s (0 = never), the link is lost;
+       if surface_on_link_loss is 1 and the agent is diving, it aborts any episode and surfaces (SURFACING). Link
+       silence (link_timeout_s) is measured on the link's real clock.""", motion=True)
 def surfaces(probe: Probe) -> str:
     reach(probe, Mode.HOVER)
     with overridden(probe, {"link_timeout_s": TIMEOUT_S, "surface_on_link_loss": 1.0}):
@@ -39,12 +42,32 @@ def surfaces(probe: Probe) -> str:
     return f"surfaced after {TIMEOUT_S:g} s of silence, not before half of it"
 
 
-@check("linkloss.off", SECTION, """[The agent surfaces on link loss only] if surface_on_link_loss is set.""",
-       motion=True)
+@check("linkloss.unsigned_not_alive", SECTION, """for an agent with a key: since the last validly signed frame. An
+       unsigned or refused non-command frame [...] does not count as a sign of life for link_timeout_s, so a
+       stranger cannot keep a lost link "alive".""", key=True, motion=True)
+def unsigned_not_alive(probe: Probe) -> str:
+    reach(probe, Mode.HOVER)
+    with overridden(probe, {"link_timeout_s": TIMEOUT_S, "surface_on_link_loss": 1.0}):
+        start = probe.end
+        deadline = time.monotonic() + TIMEOUT_S + GRACE_S
+        with probe.quiet():
+            while time.monotonic() < deadline and probe.wait(lambda f: mode_of(f) == Mode.SURFACING, start, 0.1) \
+                    is None:
+                probe.send(m.Heartbeat(uptime_ms=0, mode=0, battery_mv=0, rx_frames=0, rx_rejects=0, rx_lost=0,
+                                       log_first_sample=0, log_next_sample=0, episode=0, signing_rejects=0),
+                           signer=False)
+        modes = [x for f in probe.frames(start) if (x := mode_of(f)) is not None]
+        expect(Mode.SURFACING in modes or Mode.IDLE in modes,
+               f"unsigned HEARTBEATs every 0.1 s kept the link alive for {TIMEOUT_S + GRACE_S:g} s")
+    reach(probe, Mode.IDLE)
+    return "unsigned HEARTBEATs every 0.1 s did not keep the link alive"
+
+
+@check("linkloss.off", SECTION, """if surface_on_link_loss is 1 [...] it surfaces.""", motion=True)
 def off(probe: Probe) -> str:
     reach(probe, Mode.HOVER)
     with overridden(probe, {"link_timeout_s": TIMEOUT_S, "surface_on_link_loss": 0.0}):
-        modes = _silence(probe, TIMEOUT_S + 1.0)
+        modes = _silence(probe, TIMEOUT_S * 3)
         expect(Mode.SURFACING not in modes, "the agent surfaced on link loss with surface_on_link_loss = 0")
     reach(probe, Mode.IDLE)
-    return f"still hovering after {TIMEOUT_S + 1.0:g} s of silence"
+    return f"still hovering after {TIMEOUT_S * 3:g} s of silence"

@@ -8,7 +8,7 @@ from protocol import AckResult, FrameFlag
 from protocol import messages as m
 from protocol.decoder import Frame
 
-SECTION = "7 Data streams: on-board log"
+SECTION = "7 Data streams and the on-board log"
 REPLAY_BOUND = 512  # one LOG_REQUEST replays at most 512 samples (decisions: issue 13 amplification bound)
 _LOGGED = (m.Sample, m.EpisodeStart, m.EpisodeEnd)
 _REPLAYED = int(FrameFlag.REPLAYED)
@@ -42,9 +42,10 @@ def _live_samples(probe: Probe, count: int) -> dict[int, Frame]:
     return {i: seen[i] for i in range(newest - count + 1, newest + 1)}
 
 
-@check("log.replay_identical", SECTION, """LOG_REQUEST [first_sample, end_sample) re-sends every logged frame whose
-       sample lies in that range, in the order they were produced, with the REPLAYED flag set and new seq numbers,
-       then one LOG_RANGE. Replayed frames: original msg_id and payload, REPLAYED flag, a new seq.""")
+@check("log.replay_identical", SECTION, """LOG_REQUEST [first_sample, end_sample): the agent ACKs, re-sends the
+       logged records whose sample index lies in the range, in the order they were produced, then sends one
+       LOG_RANGE. A replayed frame carries its original msg_id and payload, the REPLAYED flag and a new seq (it
+       counts in the sequence like any frame).""")
 def replay_identical(probe: Probe) -> str:
     live = _live_samples(probe, 3)
     first, end = min(live), max(live) + 1
@@ -65,8 +66,8 @@ def replay_identical(probe: Probe) -> str:
     return f"samples [{first}, {end}) replayed byte-identical with REPLAYED set"
 
 
-@check("log.empty_request", SECTION, """LOG_REQUEST: end <= first → ACCEPTED, no frames, then LOG_RANGE
-       (replayed 0) (decisions: O7).""")
+@check("log.empty_request", SECTION, """end_sample ≤ first_sample → ACCEPTED, no frames, LOG_RANGE with replayed
+       0.""")
 def empty_request(probe: Probe) -> str:
     for first, end in ((10, 10), (10, 5)):
         replayed, log_range = _replay(probe, first, end)
@@ -75,9 +76,8 @@ def empty_request(probe: Probe) -> str:
     return "[10, 10) and [10, 5): nothing replayed, LOG_RANGE replayed 0"
 
 
-@check("log.range", SECTION, """HEARTBEAT reports log_first_sample and log_next_sample. LOG_RANGE: what the on-board
-       log holds; bytes_used = sum of (1 + L); capacity_bytes = 524 288 (a virtual agent may be configured
-       smaller) (decisions: O5).""")
+@check("log.range", SECTION, """capacity_bytes = 524 288 (a virtual agent may be configured smaller). bytes_used is
+       the sum of (1 + L) over the records held. HEARTBEAT reports log_first_sample and log_next_sample.""")
 def log_range(probe: Probe) -> str:
     hb = probe.counters()
     _, r = _replay(probe, 0, 0)
@@ -89,8 +89,9 @@ def log_range(probe: Probe) -> str:
     return (f"samples [{r.first_sample}, {r.next_sample}), {r.bytes_used} of {r.capacity_bytes} bytes")
 
 
-@check("log.bound_512", SECTION, """One request replays at most 512 samples (and the EPISODE frames among them);
-       the ground asks again from the next sample (decisions: issue 13).""")
+@check("log.bound_512", SECTION, """Bound: one request replays at most 512 SAMPLE records and the EPISODE frames
+       whose sample index lies among them: with c the sample index of the 512th SAMPLE replayed, the range is cut
+       at c + 1. LOG_RANGE replayed is the number of frames re-sent.""")
 def bound_512(probe: Probe) -> str:
     hb = probe.counters()
     held = hb.log_next_sample - hb.log_first_sample
@@ -105,8 +106,8 @@ def bound_512(probe: Probe) -> str:
     return f"{len(samples)} samples for a request of {REPLAY_BOUND + 50}+"
 
 
-@check("log.gone", SECTION, """Samples no longer held are simply not replayed; LOG_RANGE first_sample proves what
-       is gone (decisions: O5).""")
+@check("log.gone", SECTION, """Samples no longer held (overwritten) are simply not replayed; LOG_RANGE
+       first_sample tells the ground what is gone.""")
 def gone(probe: Probe) -> str:
     hb = probe.counters()
     if hb.log_first_sample == 0:

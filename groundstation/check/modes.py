@@ -16,8 +16,11 @@ from groundstation.check.registry import CheckSkipped, check, expect
 from protocol import AckResult, DumpKind, EndReason, Message, Mode
 from protocol import messages as m
 
-SECTION = "6 Modes: command x mode matrix"
+SECTION = "6 Modes of the agent"
 TRIES = 6
+# An agent far faster than real time (the C firmware behind sim:// at full speed: ~500x) may end an episode before
+# the command arrives; each try at LEARNING costs one recovery.
+TRIES_LEARNING = 20
 ID, LE, RE, HO, PA, SU = Mode.IDLE, Mode.LEARNING, Mode.RECOVERING, Mode.HOVER, Mode.PAUSED, Mode.SURFACING
 OK, NO = AckResult.ACCEPTED, AckResult.NOT_ALLOWED_IN_MODE
 # What a mode becomes on its own (an episode ends, recovery settles, the surface is reached): a command that leaves
@@ -98,7 +101,7 @@ def matrix_row(name: str) -> Callable[[Probe], str]:
         passed: set[Mode] = set()
         failures: dict[Mode, list[str]] = {}
         for wanted in ORDER:
-            for _ in range(TRIES):
+            for _ in range(TRIES_LEARNING if wanted == LE else TRIES):
                 # A race (the agent left the mode between its last frame and the command) fails once; a wrong
                 # agent fails every time: a cell fails when it failed twice and never passed.
                 if wanted in passed or len(failures.get(wanted, ())) >= 2:
@@ -115,7 +118,8 @@ def matrix_row(name: str) -> Callable[[Probe], str]:
         problems = [found[0] for mode, found in failures.items() if mode not in passed]
         missed = [x.name for x in ORDER if x not in passed and x not in failures]
         expect(not problems, "; ".join(problems))
-        expect(not missed, f"could not put the agent in {', '.join(missed)} in {TRIES} tries")
+        expect(not missed, f"could not put the agent in {', '.join(missed)} in {TRIES}-{TRIES_LEARNING} tries "
+               "(a virtual agent: a lower speed helps)")
         return "; ".join(f"{x.name} {_describe(MATRIX[name][x])}" for x in ORDER)
     return run
 
@@ -128,7 +132,7 @@ def _describe(cell: Cell) -> str:
 
 for _name in MATRIX:
     check(f"modes.{_name.lower()}", SECTION, f"""{_name}: """ + "; ".join(
-        f"{x.name} → {_describe(MATRIX[_name][x])}" for x in ORDER) + " (decisions: command x mode matrix).",
+        f"{x.name} → {_describe(MATRIX[_name][x])}" for x in ORDER) + " (the command × mode matrix).",
           motion=True)(matrix_row(_name))
 
 
@@ -139,8 +143,8 @@ ANY_MODE = {
 }
 
 
-@check("modes.any_mode", SECTION, """CMD_DUMP, PARAM_LIST, PARAM_GET, LOG_REQUEST: any mode (decisions: command x
-       mode matrix).""", motion=True)
+@check("modes.any_mode", SECTION, """CMD_DUMP, PARAM_LIST, PARAM_GET, LOG_REQUEST: ACCEPTED in every mode (the
+       command × mode matrix).""", motion=True)
 def any_mode(probe: Probe) -> str:
     problems = []
     for wanted in (ID, HO, PA, LE):
@@ -154,8 +158,8 @@ def any_mode(probe: Probe) -> str:
     return "accepted in IDLE, HOVER, PAUSED, LEARNING"
 
 
-@check("modes.hover_range", SECTION, """CMD_HOVER depth range [0, 2.5] m, NaN refused (BAD_VALUE). Value checks come
-       before mode checks (BAD_VALUE wins over NOT_ALLOWED_IN_MODE).""")
+@check("modes.hover_range", SECTION, """CMD_HOVER depth_m must lie in [0, 2.5] m; NaN or outside → BAD_VALUE. Value
+       checks come first: a CMD_HOVER at 7 m in LEARNING is BAD_VALUE.""")
 def hover_range(probe: Probe) -> str:
     for depth in (2.6, -0.1, float("nan")):
         ex = probe.command(m.Hover(depth_m=depth))
@@ -163,8 +167,8 @@ def hover_range(probe: Probe) -> str:
     return "2.6, -0.1, NaN: BAD_VALUE"
 
 
-@check("modes.idle_refusals", SECTION, """CMD_PAUSE in IDLE: NOT_ALLOWED_IN_MODE; CMD_STOP in IDLE: ACCEPTED, stays
-       IDLE (decisions: command x mode matrix).""")
+@check("modes.idle_refusals", SECTION, """CMD_PAUSE in IDLE: NOT_ALLOWED; CMD_STOP: in IDLE and SURFACING it is
+       ACCEPTED and changes nothing.""")
 def idle_refusals(probe: Probe) -> str:
     if probe.current_mode() != ID:
         raise CheckSkipped(f"the agent is in {probe.current_mode().name}, not IDLE")
@@ -174,8 +178,9 @@ def idle_refusals(probe: Probe) -> str:
     return "CMD_PAUSE refused, CMD_STOP accepted, still IDLE"
 
 
-@check("modes.start_max_episodes", SECTION, """CMD_START max_episodes 0 means "the max_episodes parameter"
-       (whose 0 is "no limit"); episode limit reached → SURFACING, then IDLE.""", motion=True)
+@check("modes.start_max_episodes", SECTION, """CMD_START max_episodes: the episode budget of this start; 0 means
+       "the max_episodes parameter", whose 0 is "no limit". Each EPISODE_END that is not aborted uses one; when the
+       budget is used up the agent surfaces.""", motion=True)
 def start_max_episodes(probe: Probe) -> str:
     reach(probe, ID)
     with overridden(probe, {"max_episodes": 1.0}):

@@ -16,9 +16,9 @@ _TYPES = {int(t) for t in ParamType}
 MAX_STATES_REFUSED = 22_501  # decisions O2: 50 x 50 x 9 + 1 states must be refused
 
 
-@check("params.list", SECTION, """PARAM_LIST → the ACK, then one PARAM_VALUE per parameter in index order. F32
-       values are stored as f32; PARAM_VALUE value is the stored f32 widened exactly to f64, for defaults too;
-       min/max of F32 parameters likewise f32-rounded.""")
+@check("params.list", SECTION, """PARAM_LIST: one PARAM_VALUE per parameter, index 0 to count-1. An F32 parameter
+       is stored as f32; PARAM_VALUE value is the stored f32 widened exactly to f64, for defaults too. minimum and
+       maximum of F32 parameters are f32-rounded likewise.""")
 def listing(probe: Probe) -> str:
     ex = probe.accepted(m.ParamListRequest())
     first = probe.wait_message(m.ParamValue, ex.ack_at, probe.timeouts.reply_s)
@@ -46,9 +46,8 @@ def listing(probe: Probe) -> str:
     return f"{count} parameters, in order, f32 values exact"
 
 
-@check("params.table", SECTION, """Every parameter with index, name, type, unit, default, min, max [as the
-       parameter table of SPEC.md section 13 lists it]; a real agent reports simulator-only parameters with
-       min = max = 0.""")
+@check("params.table", SECTION, """Every learner and mission parameter, by index and name [the table of section
+       13: index, name, type, min, max]. A real agent reports start_at_rest with minimum = maximum = 0.""")
 def table(probe: Probe) -> str:
     values = param_table(probe)
     problems = []
@@ -65,8 +64,8 @@ def table(probe: Probe) -> str:
     return f"{len(spec_params.PARAMS)} parameters as SPEC.md lists them"
 
 
-@check("params.get", SECTION, """Index: -1 → by name; 0..count-1 → by index (name ignored); any other →
-       BAD_VALUE. No PARAM_VALUE follows a NACK.""")
+@check("params.get", SECTION, """index = -1: by name (no such name → BAD_VALUE); index 0 .. count-1: by index,
+       name ignored; any other index → BAD_VALUE. After a NACK nothing follows.""")
 def get(probe: Probe) -> str:
     by_index = probe.accepted(m.ParamGet(index=2, name="target_depth_m"), "PARAM_GET index 2")
     found = probe.wait_message(m.ParamValue, by_index.ack_at, probe.timeouts.reply_s)
@@ -83,8 +82,8 @@ def get(probe: Probe) -> str:
     return "by index, by name; index -2, index = count and an unknown name: BAD_VALUE, no PARAM_VALUE"
 
 
-@check("params.set", SECTION, """Accepted → ACK then one PARAM_VALUE with the value as stored. F32 values are
-       stored as f32.""")
+@check("params.set", SECTION, """Stored. ACCEPTED, then one PARAM_VALUE with the value as stored. An F32 parameter
+       is stored as f32.""")
 def set_value(probe: Probe) -> str:
     old = get_param(probe, "link_timeout_s")
     try:
@@ -101,9 +100,9 @@ def set_value(probe: Probe) -> str:
     return "12.3 stored as its f32; set by index answered once"
 
 
-@check("params.refused", SECTION, """A value that is not finite, outside [min, max], or not integral for an integer
-       or bool type (bool: 0 or 1) is refused with BAD_VALUE, nothing changes, and no PARAM_VALUE follows a
-       NACK.""")
+@check("params.refused", SECTION, """The value is refused with BAD_VALUE if it is not finite, if it is not integral
+       for an integer or bool type (bool: 0 or 1), or if it lies outside [min, max]. Nothing is clamped. A NACK
+       changes nothing and no PARAM_VALUE follows it.""")
 def refused(probe: Probe) -> str:
     values = param_table(probe)
     link = values["link_timeout_s"]
@@ -122,8 +121,8 @@ def refused(probe: Probe) -> str:
     return f"{len(cases)} bad values refused, nothing changed"
 
 
-@check("params.set_target", "5 Commands: CMD_SET_TARGET", """CMD_SET_TARGET is PARAM_SET of target_depth_m (same
-       range, same refusal).""")
+@check("params.set_target", "6 Modes: CMD_SET_TARGET", """CMD_SET_TARGET is PARAM_SET of target_depth_m (same
+       range, same refusals, section 13); it sends no PARAM_VALUE.""")
 def set_target(probe: Probe) -> str:
     target = get_param(probe, "target_depth_m")
     ex = probe.command(m.SetTarget(target_depth_m=target.maximum + 1.0))
@@ -131,17 +130,20 @@ def set_target(probe: Probe) -> str:
     if probe.current_mode() != Mode.LEARNING:
         ex = probe.command(m.SetTarget(target_depth_m=target.value))
         expect(ex.result == AckResult.ACCEPTED, f"CMD_SET_TARGET {target.value}: {result_name(ex.result)}")
+        probe.barrier()
+        expect(not probe.messages(m.ParamValue, ex.sent_at), "CMD_SET_TARGET was answered with a PARAM_VALUE")
     after = get_param(probe, "target_depth_m").value
     expect(after == target.value, f"target_depth_m changed from {target.value} to {after}")
     return "above the maximum: BAD_VALUE; the current value: ACCEPTED"
 
 
-@check("params.refused_in_mode", SECTION, """Refused-in: learner parameters in LEARNING and RECOVERING;
-       plant/mission-of-the-episode parameters in LEARNING; the rest never. Value checks come before mode checks
-       (BAD_VALUE wins over NOT_ALLOWED_IN_MODE).""", motion=True)
+@check("params.refused_in_mode", SECTION, """Refused in. Learner parameters: LEARNING and RECOVERING. Parameters of
+       the plant or of the episode in progress: LEARNING. The others: never. [The value check comes before the mode
+       check.]""", motion=True)
 def refused_in_mode(probe: Probe) -> str:
     values = param_table(probe)
-    settable = [d for d in spec_params.PARAMS if values[d.name].minimum != values[d.name].maximum]
+    missing = [d.name for d in spec_params.PARAMS if d.name not in values]
+    settable = [d for d in spec_params.PARAMS if d.name in values and values[d.name].minimum != values[d.name].maximum]
     in_learning: set[str] = set()
     problems: list[str] = []
     for _ in range(8):
@@ -164,29 +166,34 @@ def refused_in_mode(probe: Probe) -> str:
     expect(bad.result == AckResult.BAD_VALUE,
            f"gamma = NaN in {probe.mode_before(bad)}: {result_name(bad.result)}, wanted BAD_VALUE (value first)")
     expect(not problems, "; ".join(problems[:4]))
+    expect(not missing, f"the agent lacks {', '.join(missing)}")
     expect(len(in_learning) == len(settable),
            f"only {len(in_learning)} of {len(settable)} parameters met the agent in LEARNING")
     return f"{len(settable)} parameters set in LEARNING (and the modes met on the way) as the table says"
 
 
-@check("params.ram_budget", SECTION, """The agent refuses (BAD_VALUE, reason names the bytes) a learner parameter
-       change whose model would not fit its RAM budget. 22 501 states are refused.""", motion=True)
+@check("params.ram_budget", SECTION, """An agent refuses (BAD_VALUE, the reason naming the bytes) a learner
+       parameter change whose learner would not fit its RAM budget. S = 320 needs 45 120 and is refused, and so is
+       z_cells = zdot_cells = 50, act_bins = 9 (S = 22 501).""", motion=True)
 def ram_budget(probe: Probe) -> str:
     reach(probe, Mode.IDLE)
     names = ("z_cells", "zdot_cells", "act_bins")
     old = {n: get_param(probe, n).value for n in names}
-    refusals = []
+    steps = (  # (name, value, S after it, refused?): S = 291 fits, S = 320 does not (SPEC.md 13)
+        ("act_bins", 1.0, None, False), ("z_cells", 10.0, None, False), ("zdot_cells", 29.0, 291, False),
+        ("z_cells", 11.0, 320, True), ("z_cells", 50.0, 1451, True), ("zdot_cells", 50.0, 501, True),
+    )
+    seen = []
     try:
-        for name, value in zip(names, (50.0, 50.0, 9.0), strict=True):
+        for name, value, count, refused in steps:
             ex, _ = set_param(probe, name, value)
-            if ex.result == AckResult.BAD_VALUE:
-                refusals.append(name)
-            else:
-                expect(ex.result == AckResult.ACCEPTED, f"{name} = {value}: {result_name(ex.result)}")
+            wanted = AckResult.BAD_VALUE if refused else AckResult.ACCEPTED
+            expect(ex.result == wanted, f"{name} = {value:g}" + (f" (S = {count})" if count else "")
+                   + f": {result_name(ex.result)}, wanted {wanted.name}")
+            seen.append(f"{name}={value:g} {result_name(ex.result)}")
         count = states(probe)
     finally:
-        for name in reversed(names):
+        for name in ("zdot_cells", "z_cells", "act_bins"):
             set_param(probe, name, old[name])
-    expect(bool(refusals), "50 x 50 x 9 cells (22 501 states) were all accepted")
     expect(count < MAX_STATES_REFUSED, f"the agent holds {count} states after the refusals")
-    return f"refused {', '.join(refusals)}; S stayed {count}"
+    return "S = 291 accepted, S = 320 and 50 x 50 cells refused"

@@ -88,6 +88,9 @@ class Probe:
         self.keepalive = True
         self._last_send_s = time.monotonic()
         self._origin = 0
+        self._held = b""  # a deferred frame, sent with the next one
+        self._writes = 0  # link writes so far: counters read after the last one are still current
+        self._counters: tuple[tuple[int, int], m.Heartbeat] | None = None
         self.entered: tuple[Exchange, Mode] | None = None  # a command sent without waiting, and the mode it enters
         self.notes: dict[str, float | None] = {}  # what checks learned about the agent (shared between checks)
         self.originals: dict[str, float | None] = {}  # parameter values to put back at the end of the run
@@ -121,8 +124,21 @@ class Probe:
             self.sent_valid += 1
 
     def send_raw(self, data: bytes) -> None:
-        self.link.send(data)
+        """Write bytes; a deferred frame (see defer) goes out first, in the same write."""
+        held, self._held = self._held, b""
+        self.link.send(held + data)
         self._last_send_s = time.monotonic()
+        self._writes += 1
+
+    def defer(self, message: Message, enters: Mode) -> None:
+        """Hold a command that enters `enters` until the next send, so that both reach the agent in one write: the
+        agent handles them back to back, before its next step (on a pty, two writes may be two reads with steps
+        between them, long enough for a virtual agent at full speed to leave the mode again)."""
+        start = self.end
+        inner = self.inner(message.MSG_ID, message.pack(), _ACK_REQUESTED)
+        self._held += cobs_encode(inner) + b"\x00"
+        self.sent_valid += 1
+        self.entered = (Exchange(message.MSG_ID, int.from_bytes(inner[2:4], "little"), inner, start), enters)
 
     def send(self, message: Message, flags: int | None = None, *, seq: int | None = None,
              signer: Signer | None | bool = True) -> bytes:
@@ -159,6 +175,9 @@ class Probe:
 
     def pump(self, timeout_s: float = 0.0) -> int:
         """Read what the link has (waiting at most timeout_s); returns how many frames arrived."""
+        if self._held:  # a deferred command nobody sent a frame behind: it goes now, on its own
+            self.entered = None
+            self.send_raw(b"")
         if self.keepalive and time.monotonic() - self._last_send_s > KEEPALIVE_S:
             self.send(self._ground_heartbeat())
         data = self.link.recv(timeout_s)
@@ -176,6 +195,12 @@ class Probe:
             self._frames.popleft()
             self._first += 1
         return len(frames)
+
+    def drain(self, most: int = 200) -> None:
+        """Read what has already arrived (at most `most` reads): the newest frames show the agent's present."""
+        for _ in range(most):
+            if not self.pump(0.0):
+                return
 
     def wait(self, predicate: Callable[[Frame], bool], start: int, timeout_s: float) -> tuple[int, Frame] | None:
         """The first frame at or after index `start` that satisfies predicate, pumping up to timeout_s."""
@@ -257,11 +282,19 @@ class Probe:
         return found[0]
 
     def counters(self) -> m.Heartbeat:
-        """The agent's counters after everything sent so far: the first HEARTBEAT after a barrier."""
-        after = self.barrier()
-        found = self.wait_message(m.Heartbeat, after, self.timeouts.heartbeat_s)
+        """The agent's counters after everything sent so far: the first HEARTBEAT after a barrier.
+
+        No keep-alive goes out meanwhile: the agent would count it after the HEARTBEAT that is read here. Nothing
+        sent and no seq skipped since the last reading: that reading (a real agent sends one HEARTBEAT a second).
+        """
+        if self._counters is not None and self._counters[0] == (self._writes, self._seq) and not self._held:
+            return self._counters[1]
+        with self.quiet():
+            after = self.barrier()
+            found = self.wait_message(m.Heartbeat, after, self.timeouts.heartbeat_s)
         if found is None:
             raise CheckFailed(f"no HEARTBEAT within {self.timeouts.heartbeat_s:g} s")
+        self._counters = ((self._writes, self._seq), found[1])
         return found[1]
 
     def current_mode(self) -> Mode:

@@ -15,10 +15,10 @@ _STYLE = {Result.PASS: "green", Result.FAIL: "bold red", Result.SKIP: "yellow"}
 
 def table(outcomes: list[Outcome], sentences: bool = False) -> Table:
     t = Table(show_lines=False, expand=False)
-    t.add_column("section", style="dim", no_wrap=True)
+    t.add_column("section", style="dim", max_width=28)
     t.add_column("check", no_wrap=True)
     t.add_column("result", no_wrap=True)
-    t.add_column("detail")
+    t.add_column("detail", ratio=1)
     for o in outcomes:  # Text, never markup: a detail quotes what the agent sent (issue 13 item 8)
         detail = styled(o.detail, "")
         if sentences or o.result == Result.FAIL:
@@ -36,6 +36,11 @@ def summary(report: Report) -> Text:
                          styled(f": {counts} in {report.seconds:.1f} s{aborted}", ""))
 
 
+WIDTH_NOT_A_TERMINAL = 160  # piped into a file or a CI log: wide enough that details are not cut into slivers
+
+
 def print_report(report: Report, console: Console, sentences: bool = False) -> None:
+    if not console.is_terminal:
+        console = Console(file=console.file, width=WIDTH_NOT_A_TERMINAL, highlight=False)
     console.print(table(report.outcomes, sentences))
     console.print(summary(report))

@@ -45,9 +45,8 @@ def refused_once(probe: Probe, send: Callable[[], Exchange], what: str) -> str:
     return f"{what}: one ACK UNAUTHORIZED, signing_rejects +1 ({acks[0].reason or 'no reason'})"
 
 
-@check("signing.unsigned_refused", SECTION, """An agent that holds a key refuses every command (ids 0x80-0xFF)
-       that is not validly signed [...] answers it with ACK result 6 UNAUTHORIZED [...] and adds 1 to HEARTBEAT's
-       signing_rejects.""", key=True)
+@check("signing.unsigned_refused", SECTION, """SIGNED clear → refuse (unsigned). A refused command is not executed;
+       the agent answers it with ACK result 6 UNAUTHORIZED and adds 1 to HEARTBEAT's signing_rejects.""", key=True)
 def unsigned_refused(probe: Probe) -> str:
     return refused_once(probe, lambda: probe.command(_get(), signer=False), "an unsigned PARAM_GET")
 
@@ -69,9 +68,9 @@ def wrong_key(probe: Probe) -> str:
     return refused_once(probe, lambda: probe.command(_get(), signer=other), "a PARAM_GET signed with another key")
 
 
-@check("signing.truncated", SECTION, """A command with SIGNED set but too short for the trailer (inner < 20 bytes)
-       → ACK UNAUTHORIZED ("truncated signature"), counted in signing_rejects, whether or not the agent holds a key
-       (decisions: C2).""")
+@check("signing.truncated", SECTION, """SIGNED set but the frame too short for a trailer → UNAUTHORIZED
+       ("truncated signature"), whether or not the agent holds a key. Refusals of steps 1, 2 and 4 add 1 to
+       signing_rejects.""")
 def truncated(probe: Probe) -> str:
     def send() -> Exchange:
         flags = int(FrameFlag.ACK_REQUESTED | FrameFlag.SIGNED)
@@ -82,7 +81,7 @@ def truncated(probe: Probe) -> str:
 
 
 @check("signing.replayed_timestamp", SECTION, """Keep, per link_id, the last accepted timestamp. A timestamp not
-       greater than it → refuse (replayed).""", key=True)
+       greater than it, or not greater than the mark stored before this boot → refuse (replayed).""", key=True)
 def replayed_timestamp(probe: Probe) -> str:
     probe.accepted(_get())  # the probe's link id has a fresh accepted timestamp
     assert probe.signer is not None
@@ -91,16 +90,16 @@ def replayed_timestamp(probe: Probe) -> str:
                         "a new PARAM_GET stamped 5 s before the last accepted one")
 
 
-@check("signing.too_old", SECTION, """A link_id not seen since boot: refuse its frame if the timestamp is more than
-       60 s behind the agent's estimate of the current timestamp (too old).""", key=True)
+@check("signing.too_old", SECTION, """a link_id not in the table whose timestamp is more than 60 s behind the
+       estimate → refuse (too old).""", key=True)
 def too_old(probe: Probe) -> str:
     probe.accepted(_get())
     return refused_once(probe, lambda: probe.command(_get(), signer=_signer_at(probe, -180.0)),
                         "a PARAM_GET from a new link id stamped 180 s ago")
 
 
-@check("signing.too_new", SECTION, """Too new: once the agent has an estimate, a timestamp more than 60 s ahead of
-       it is refused (decisions: signing).""", key=True)
+@check("signing.too_new", SECTION, """Once the agent has an estimate of the current timestamp: [...] any timestamp
+       more than 60 s ahead of it → refuse (too new).""", key=True)
 def too_new(probe: Probe) -> str:
     probe.accepted(_get())
     return refused_once(probe, lambda: probe.command(_get(), signer=_signer_at(probe, 180.0)),
@@ -108,8 +107,8 @@ def too_new(probe: Probe) -> str:
 
 
 @check("signing.exact_replay", SECTION, """An exact replay of an already accepted signed command (valid HMAC, same
-       msg_id+seq) gets the same ACK as the original (ACCEPTED) and is not executed again; it is never answered
-       UNAUTHORIZED (decisions: disagreement 7).""", key=True)
+       msg_id and seq) gets ACCEPTED again and is not executed again; it is never answered UNAUTHORIZED.""",
+       key=True)
 def exact_replay(probe: Probe) -> str:
     first = probe.accepted(_get())
     before = probe.counters()
@@ -137,8 +136,8 @@ def retry_new_trailer(probe: Probe) -> str:
     return "ACCEPTED, not executed again"
 
 
-@check("signing.refusal_not_remembered", SECTION, """ACK memory: the last 16 (msg_id, seq, result) answered with a
-       command that was executed or refused on its merits (not signature refusals) (decisions: O11).""", key=True)
+@check("signing.refusal_not_remembered", SECTION, """Refusals of steps 1, 2 and 4 add 1 to signing_rejects and are
+       not remembered.""", key=True)
 def refusal_not_remembered(probe: Probe) -> str:
     unsigned = probe.command(_get(), signer=False)
     expect(unsigned.result == AckResult.UNAUTHORIZED, f"unsigned PARAM_GET: {result_name(unsigned.result)}")
@@ -150,9 +149,9 @@ def refusal_not_remembered(probe: Probe) -> str:
     return "a signature refusal is not remembered: the signed retry ran"
 
 
-@check("signing.keyless_strips_trailer", SECTION, """A frame with [SIGNED] set loses its 13-byte signature trailer
-       before its payload is decoded [...] whether or not the receiver checks signatures. An agent without a key
-       accepts every command.""")
+@check("signing.keyless_strips_trailer", SECTION, """The last 13 bytes before the CRC are the trailer and are removed
+       before the payload is decoded. This holds for every message [...] and whether or not the receiver checks
+       signatures.""")
 def keyless_strips_trailer(probe: Probe) -> str:
     if probe.key is not None:
         signer: Signer | bool = True
@@ -166,8 +165,9 @@ def keyless_strips_trailer(probe: Probe) -> str:
     return "signed command decoded without its trailer" + ("" if probe.key else " (agent without a key)")
 
 
-@check("signing.surface_always", SECTION, """CMD_SURFACE with a valid HMAC is executed whatever its timestamp
-       (replayed / too old / too new): surfacing is always safe (decisions: signing).""", key=True, motion=True)
+@check("signing.surface_always", SECTION, """Exception: CMD_SURFACE with a valid HMAC (it passed steps 1-2) is
+       executed whatever its timestamp (replayed, too old or too new), ACCEPTED and not counted.""", key=True,
+       motion=True)
 def surface_always(probe: Probe) -> str:
     probe.accepted(_get())
     ex = probe.command(m.Surface(), signer=_signer_at(probe, -180.0))

@@ -33,16 +33,15 @@ def reply(probe: Probe) -> str:
     return f"agent clock {second.receive_us / 1e6:.3f} s, origin echoed"
 
 
-@check("timesync.reply_not_request", SECTION, """A request has receive_us = transmit_us = 0; a reply never carries
-       transmit_us = 0 (an agent at t = 0 sends 1) (decisions: O10).""")
+@check("timesync.reply_not_request", SECTION, """A reply never carries transmit_us = 0: an agent whose clock reads 0
+       sends 1.""")
 def reply_not_request(probe: Probe) -> str:
     answer = _exchange(probe, 12345)
     expect(answer.transmit_us != 0, "a reply with transmit_us = 0 reads as a request")
     return f"transmit_us = {answer.transmit_us}"
 
 
-@check("timesync.reply_unanswered", SECTION, """The ground sends TIMESYNC with receive_us = transmit_us = 0. The
-       agent answers [a request]: a reply (receive_us, transmit_us set) is not answered.""")
+@check("timesync.reply_unanswered", SECTION, """The agent ignores a TIMESYNC that is not a request.""")
 def reply_unanswered(probe: Probe) -> str:
     start = probe.end
     probe.send(m.Timesync(origin_us=777, receive_us=5, transmit_us=6))

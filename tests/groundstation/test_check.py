@@ -7,15 +7,19 @@ from __future__ import annotations
 
 import json
 import signal
+import socket
 import subprocess
 import sys
+import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
 import pytest
+from typer.testing import CliRunner
 
+from groundstation.cli import app
 from groundstation.keys import write_key_file
 from tests.reliability.recordings import DIVE_MAIN, ROOT
 
@@ -47,10 +51,10 @@ def agent(tmp_path: Path, *args: str, script: list[str] | None = None) -> Iterat
 
 
 def check(url: str, *args: str) -> tuple[int, dict[str, Any]]:
-    done = subprocess.run([sys.executable, "-c", DIVE_MAIN, "check", url, "--json", *args], capture_output=True,
-                          text=True, timeout=240, cwd=ROOT)
-    assert "Traceback" not in done.stderr, done.stderr
-    return done.returncode, json.loads(done.stdout)
+    """`dive check URL --json ARGS`, in this process (importing the CLI takes seconds; the agent is a process)."""
+    result = CliRunner().invoke(app, ["check", url, "--json", *args])
+    assert result.exception is None or isinstance(result.exception, SystemExit), result.exception
+    return result.exit_code, json.loads(result.stdout)
 
 
 def by_result(report: dict[str, Any], result: str) -> list[str]:
@@ -67,12 +71,14 @@ def test_dive_sim_conforms(tmp_path: Path, transport: str, preset: str, signed: 
         key_args = ["--key-file", str(key)]
     where = ["--tcp", "127.0.0.1:0"] if transport == "tcp" else ["--pty"]
     with agent(tmp_path, *where, "--preset", preset, "--seed", "3", *key_args) as url:
-        code, report = check(url, "--allow-motion", *key_args)
+        # A virtual agent compiles some kernels on first use, taking seconds on a loaded machine: a longer wait.
+        code, report = check(url, "--allow-motion", "--timeout", "10", *key_args)
     assert by_result(report, "FAIL") == [], report
     assert code == 0
-    skipped = by_result(report, "SKIP")
-    # Every check ran: signing ones with the key; a bound or overwritten log only when the log is long enough.
-    assert all(s.startswith(("log.bound_512", "log.gone")) for s in skipped), skipped
+    skipped = [c["id"] for c in report["checks"] if c["result"] == "SKIP" and not (c["requires_key"] and not signed)]
+    # Every check ran (the signing ones when there is a key), but those that need a long log to be meaningful.
+    assert set(skipped) <= {"log.bound_512", "log.gone"}, skipped
+    print(f"{transport} {preset} signed={signed}: {report['counts']} in {report['seconds']} s")
     assert report["counts"]["PASS"] >= 60
 
 
@@ -95,16 +101,30 @@ def test_a_broken_agent_fails_in_the_right_sections(tmp_path: Path) -> None:
 
 
 def test_a_dead_link_is_one_line_and_exit_1() -> None:
-    done = subprocess.run([sys.executable, "-c", DIVE_MAIN, "check", "tcp://127.0.0.1:1"], capture_output=True,
-                          text=True, timeout=60, cwd=ROOT)
-    assert done.returncode == 1
-    assert "Traceback" not in done.stderr
-    assert done.stderr.strip().startswith("dive:") and len(done.stderr.strip().splitlines()) == 1
+    with socket.socket() as s:  # a port nobody listens on
+        s.bind(("127.0.0.1", 0))
+        url = f"tcp://127.0.0.1:{s.getsockname()[1]}"
+    result = CliRunner().invoke(app, ["check", url])
+    assert result.exit_code == 1
+    lines = [line for line in result.stderr.splitlines() if line.strip()]
+    assert len(lines) == 1 and lines[0].startswith("dive:") and "cannot connect" in lines[0], result.stderr
+
+
+def test_a_link_that_dies_mid_run_ends_it_with_exit_1() -> None:
+    """An agent that hangs up after the connect: the check in progress fails naming the link, the rest are not run."""
+    with socket.create_server(("127.0.0.1", 0)) as server:
+        url = f"tcp://127.0.0.1:{server.getsockname()[1]}"
+        hang_up = threading.Thread(target=lambda: server.accept()[0].close(), daemon=True)
+        hang_up.start()
+        code, report = check(url, "--only", "handshake", "--only", "junk")
+        hang_up.join(5)
+    assert code == 1
+    assert report["aborted"].startswith("link: ")
+    assert all(c["result"] == "FAIL" for c in report["checks"])
+    assert report["checks"][-1]["detail"].startswith("not run: link: ")
 
 
 def test_bad_options_are_usage_errors() -> None:
     for args in (["--timeout", "0"], ["--param", "low_batt_v"], ["--only", "no_such_check"]):
-        done = subprocess.run([sys.executable, "-c", DIVE_MAIN, "check", "tcp://127.0.0.1:1", *args],
-                              capture_output=True, text=True, timeout=60, cwd=ROOT)
-        assert done.returncode == 2, (args, done.stderr)
-        assert "Traceback" not in done.stderr
+        result = CliRunner().invoke(app, ["check", "tcp://127.0.0.1:1", *args])
+        assert result.exit_code == 2, (args, result.output)

@@ -6,7 +6,7 @@ import math
 
 import pytest
 
-from protocol import Mode, ParamType
+from protocol import Mode, ParamType, messages
 from protocol.parameters import NAME_BYTES, PARAMS, f32, param
 
 
@@ -50,3 +50,10 @@ def test_refused_in_modes_follow_the_kind_of_parameter() -> None:
         assert param(name).refused_in == (Mode.LEARNING,)
     for name in ("link_timeout_s", "surface_on_link_loss", "dump_each_episode", "max_episodes", "start_at_rest"):
         assert param(name).refused_in == ()
+
+
+def test_a_char24_text_longer_than_24_bytes_is_cut_at_a_character_boundary() -> None:
+    long_name = "é" * 12 + "x"  # 25 bytes: cut to 24
+    assert messages.ParamGet.unpack(messages.ParamGet(index=-1, name=long_name).pack()).name == "é" * 12
+    odd = "x" + "é" * 12  # 25 bytes: a cut at 24 would split the last é, so 23 bytes go out
+    assert messages.ParamGet.unpack(messages.ParamGet(index=-1, name=odd).pack()).name == "x" + "é" * 11

@@ -74,8 +74,9 @@ def test_each_receive_vector_over_tcp_adds_its_counters_and_acks() -> None:
 
 
 @pytest.mark.slow  # two wall seconds or two agent starts
-def test_hello_is_repeated_until_the_ground_is_heard_and_every_ground_hello_is_answered() -> None:
-    with connected(*FAST) as (_, c):
+@pytest.mark.parametrize("link", [FAST, ("--pty", *FAST[2:])], ids=["tcp", "pty"])
+def test_hello_is_repeated_until_the_ground_is_heard_and_every_ground_hello_is_answered(link: tuple[str, ...]) -> None:
+    with connected(*link) as (_, c):
         deadline = time.monotonic() + 2.6
         while time.monotonic() < deadline:
             c.pump()
