@@ -35,6 +35,7 @@ from groundstation.recorder import Recorder, RecorderConfig  # noqa: E402
 from groundstation.rerun_view import new_recording, send_batch, send_styles  # noqa: E402
 from groundstation.session import Session, SessionConfig  # noqa: E402
 from groundstation.view_model import ENTITIES, Batch, Kind  # noqa: E402
+from protocol import Mode  # noqa: E402
 from protocol import messages as m  # noqa: E402
 from tests.groundstation.synthetic_agent import generate, record  # noqa: E402
 
@@ -86,15 +87,18 @@ def convert_rows(mcap: Path, rrd: Path) -> tuple[float, int]:
 
 
 class _AgentClock:
-    """Session listener: the agent time of the newest live SAMPLE."""
+    """Session listener: the agent time of the newest SAMPLE, from the first one out of IDLE."""
 
     def __init__(self) -> None:
         self.first_s: float | None = None
         self.agent_s = 0.0
 
     def on_received(self, received: Received) -> None:
-        if isinstance(received.message, m.Sample):
-            self.agent_s = max(self.agent_s, received.message.t_us / 1e6)
+        # The hour counts from the first SAMPLE out of IDLE: before CMD_START the agent idles at --speed max,
+        # one SAMPLE per agent second, for as long as the handshake takes in wall time.
+        sample = received.message
+        if isinstance(sample, m.Sample) and (self.first_s is not None or sample.mode != Mode.IDLE):
+            self.agent_s = max(self.agent_s, sample.t_us / 1e6)
             self.first_s = self.agent_s if self.first_s is None else self.first_s
 
     def on_sent(self, sent: object) -> None:
