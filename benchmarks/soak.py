@@ -24,6 +24,7 @@ from groundstation.links import make_link
 from groundstation.mcap_io import iter_messages
 from groundstation.recorder import Recorder, RecorderConfig
 from groundstation.session import Session, SessionConfig
+from protocol import compiled
 from protocol import messages as m
 
 DEFAULT_FAULTS = "--drop 0.02 --corrupt 0.005 --disconnect-every 600 --blackout-below 1.5"
@@ -58,11 +59,13 @@ class AgentClock:
         pass
 
 
-def missing_samples(path: Path) -> tuple[int, list[int], int]:
-    """(samples held, indices missing between the first held and the last reported, duplicates)."""
+def missing_samples(path: Path) -> tuple[int, list[int], int, int]:
+    """(samples held, indices missing between the first held and the last reported, duplicates, the most
+    records the agent's on-board log held at once by its HEARTBEATs)."""
     held: set[int] = set()
     duplicates = 0
     reported_end = 0
+    log_window = 0
     for msg in iter_messages(path, {"/agent/SAMPLE", "/agent/HEARTBEAT"}):
         body = msg.json()
         if msg.topic == "/agent/SAMPLE":
@@ -71,10 +74,11 @@ def missing_samples(path: Path) -> tuple[int, list[int], int]:
             held.add(index)
         else:
             reported_end = max(reported_end, int(body["log_next_sample"]))
+            log_window = max(log_window, int(body["log_next_sample"]) - int(body["log_first_sample"]))
     if not held:
-        return 0, [], 0
+        return 0, [], 0, log_window
     end = max(max(held) + 1, reported_end)
-    return len(held), sorted(set(range(min(held), end)) - held), duplicates
+    return len(held), sorted(set(range(min(held), end)) - held), duplicates, log_window
 
 
 def main() -> None:
@@ -97,6 +101,7 @@ def main() -> None:
     session = Session(make_link(url), SessionConfig(), [recorder, clock])
     wall0 = time.monotonic()
     rss: list[tuple[str, float]] = []
+    compiled.wait()  # numba's ~60 MB are loaded in the background: the start RSS must include them
     try:
         session.connect()
         session.command(m.StartLearning(max_episodes=0))
@@ -126,7 +131,7 @@ def main() -> None:
     wall_s = time.monotonic() - wall0
     stats = session.decoder.stats
     agent_report = json.loads(report.read_text())
-    held, missing, duplicates = missing_samples(recorder.paths[-1])
+    held, missing, duplicates, log_window = missing_samples(recorder.paths[-1])
     print(f"agent time       {soaked_agent_s:,.0f} s at --speed {args.speed} in {soaked_wall_s:,.1f} s wall (soak); "
           f"{clock.agent_s - start_agent_s:,.0f} s and {wall_s:,.1f} s wall when the session closed "
           "(after CMD_STOP and the backfill wait)")
@@ -142,6 +147,12 @@ def main() -> None:
           f"{len(missing)} missing (session says {still_missing})")
     if missing:
         print(f"missing samples  {missing[:50]}{' ...' if len(missing) > 50 else ''}")
+        # A lost SAMPLE can be backfilled only while the agent's 512 KiB log still holds it; at --speed max that
+        # is a short stretch of wall time, so a missing sample here is one the log had overwritten, not one lost
+        # by the ground station, unless the window below is long against the session's retry times.
+        per_wall_s = held / soaked_wall_s if soaked_wall_s else 0.0
+        print(f"on-board log     held at most {log_window:,} samples: {log_window / per_wall_s:.1f} s of wall time "
+              f"at the soak's {per_wall_s:,.0f} samples/s" if per_wall_s else "")
     print(f"recording        {recorder.paths[-1]}")
 
 
