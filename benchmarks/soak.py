@@ -43,12 +43,14 @@ class AgentClock:
     def __init__(self) -> None:
         self.agent_s = 0.0
         self.first_s: float | None = None  # agent time of the first live SAMPLE: the soak counts from there
+        self.last_sample = 0  # index of the newest live SAMPLE
         self.changed = threading.Event()
 
     def on_received(self, received: Received) -> None:
         msg = received.message
         if isinstance(msg, m.Sample) and not received.backfilled:
             self.agent_s = max(self.agent_s, msg.t_us / 1e6)
+            self.last_sample = max(self.last_sample, msg.sample)
             if self.first_s is None:
                 self.first_s = self.agent_s
 
@@ -59,9 +61,10 @@ class AgentClock:
         pass
 
 
-def missing_samples(path: Path) -> tuple[int, list[int], int, int]:
+def missing_samples(path: Path, last: int) -> tuple[int, list[int], int, int]:
     """(samples held, indices missing between the first held and the last reported, duplicates, the most
-    records the agent's on-board log held at once by its HEARTBEATs)."""
+    records the agent's on-board log held at once by its HEARTBEATs). Only samples up to `last` count: the
+    soak's, not those the agent sent while it was stopped and the backfill waited."""
     held: set[int] = set()
     duplicates = 0
     reported_end = 0
@@ -70,6 +73,8 @@ def missing_samples(path: Path) -> tuple[int, list[int], int, int]:
         body = msg.json()
         if msg.topic == "/agent/SAMPLE":
             index = int(body["sample"])
+            if index > last:
+                continue
             duplicates += index in held
             held.add(index)
         else:
@@ -77,7 +82,7 @@ def missing_samples(path: Path) -> tuple[int, list[int], int, int]:
             log_window = max(log_window, int(body["log_next_sample"]) - int(body["log_first_sample"]))
     if not held:
         return 0, [], 0, log_window
-    end = max(max(held) + 1, reported_end)
+    end = min(max(max(held) + 1, reported_end), last + 1)
     return len(held), sorted(set(range(min(held), end)) - held), duplicates, log_window
 
 
@@ -117,6 +122,7 @@ def main() -> None:
                 rss.append(("middle", rss_mb()))
                 halfway = True
         soaked_agent_s, soaked_wall_s = clock.agent_s - start_agent_s, time.monotonic() - wall0
+        soaked_last = clock.last_sample
         try:
             session.command(m.Stop())
         except Exception as e:  # noqa: BLE001 the soak reports, it does not stop on a lost command
@@ -131,7 +137,7 @@ def main() -> None:
     wall_s = time.monotonic() - wall0
     stats = session.decoder.stats
     agent_report = json.loads(report.read_text())
-    held, missing, duplicates, log_window = missing_samples(recorder.paths[-1])
+    held, missing, duplicates, log_window = missing_samples(recorder.paths[-1], soaked_last)
     print(f"agent time       {soaked_agent_s:,.0f} s at --speed {args.speed} in {soaked_wall_s:,.1f} s wall (soak); "
           f"{clock.agent_s - start_agent_s:,.0f} s and {wall_s:,.1f} s wall when the session closed "
           "(after CMD_STOP and the backfill wait)")
@@ -143,8 +149,9 @@ def main() -> None:
           + f"  (end/start {rss[-1][1] / rss[0][1]:.3f})")
     print(f"agent lost       {agent_report['out']['dropped']:,} dropped, {agent_report['out']['corrupted']:,} "
           f"corrupted, {agent_report['out']['blacked_out']:,} blacked out")
-    print(f"samples          {held:,} recorded, {session.stats.backfilled:,} backfilled, {duplicates} duplicated, "
-          f"{len(missing)} missing (session says {still_missing})")
+    print(f"samples          {held:,} recorded up to the soak's last (#{soaked_last:,}), {duplicates} duplicated, "
+          f"{len(missing)} missing; {session.stats.backfilled:,} backfilled in all (session says {still_missing} "
+          "still missing when it closed)")
     if missing:
         print(f"missing samples  {missing[:50]}{' ...' if len(missing) > 50 else ''}")
         # A lost SAMPLE can be backfilled only while the agent's 512 KiB log still holds it; at --speed max that
