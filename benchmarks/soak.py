@@ -24,7 +24,7 @@ from groundstation.links import make_link
 from groundstation.mcap_io import iter_messages
 from groundstation.recorder import Recorder, RecorderConfig
 from groundstation.session import Session, SessionConfig
-from protocol import compiled
+from protocol import Mode, compiled
 from protocol import messages as m
 
 DEFAULT_FAULTS = "--drop 0.02 --corrupt 0.005 --disconnect-every 600 --blackout-below 1.5"
@@ -42,13 +42,16 @@ class AgentClock:
 
     def __init__(self) -> None:
         self.agent_s = 0.0
-        self.first_s: float | None = None  # agent time of the first live SAMPLE: the soak counts from there
+        self.first_s: float | None = None  # agent time of the first live SAMPLE out of IDLE: the soak counts from there
         self.last_sample = 0  # index of the newest live SAMPLE
         self.changed = threading.Event()
 
     def on_received(self, received: Received) -> None:
         msg = received.message
-        if isinstance(msg, m.Sample) and not received.backfilled:
+        # From the first live SAMPLE out of IDLE: before CMD_START the agent idles at --speed max (one cheap step per
+        # 0.1 s of agent time), thousands of agent seconds per wall second of the handshake, none of them learning.
+        learning = self.first_s is not None or (isinstance(msg, m.Sample) and msg.mode != Mode.IDLE)
+        if isinstance(msg, m.Sample) and not received.backfilled and learning:
             self.agent_s = max(self.agent_s, msg.t_us / 1e6)
             self.last_sample = max(self.last_sample, msg.sample)
             if self.first_s is None:
