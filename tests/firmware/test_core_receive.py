@@ -168,3 +168,26 @@ def test_dump_values_in_224_byte_chunks(agent: Agent) -> None:
     assert [(c.offset, len(c.data)) for c in resent] == [(224, 10)]
     at_end = agent.command(messages.DumpRequest(kind=3, dump_id=chunks[0].dump_id, offset=total))
     assert [f.message.result for f in at_end if isinstance(f.message, messages.Ack)] == [AckResult.ACCEPTED]
+
+
+def test_stop_in_learning_acks_then_aborts_the_episode(agent: Agent) -> None:
+    """The LEARNING cell of CMD_STOP and CMD_PAUSE: ACK first, then EPISODE_END aborted, then the new mode."""
+    for command, mode in ((messages.Stop(), Mode.SURFACING), (messages.Pause(), Mode.PAUSED)):
+        while agent.mode() != Mode.IDLE:
+            pass
+        agent.command(messages.StartLearning(max_episodes=0))
+        started = False
+        for _ in range(20_000):  # recovery to the start depth, then the settle time: ~40 s of agent time
+            agent.agent.step()
+            if any(isinstance(f.message, messages.EpisodeStart) for f in agent.take()):
+                started = True
+                break
+        assert started, "no episode began"
+        frames = agent.command(command)
+        kinds = [type(f.message).__name__ for f in frames if not isinstance(f.message, messages.Text)]
+        assert kinds[:2] == ["Ack", "EpisodeEnd"], kinds
+        assert frames[0].message.result == AckResult.ACCEPTED
+        end = next(f.message for f in frames if isinstance(f.message, messages.EpisodeEnd))
+        assert end.reason == 3  # aborted
+        assert agent.mode() == mode
+        agent.command(messages.Surface())
