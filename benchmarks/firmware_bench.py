@@ -2,9 +2,10 @@
 
 Run: .venv/bin/python benchmarks/firmware_bench.py [--episodes N]
 
-Flash and RAM: `make -C firmware teensy` with the learner's arenas sized for the paper learner (S = 101)
-and for the actuator-state learner (S = 301), read with arm-none-eabi-size; RAM = .data + .bss + the
-stack peak measured on the emulated board (the same core, painted stack).
+Flash and RAM: the two variants of `make -C firmware teensy`, whose learner storage fits the paper
+learner (S = 101) and the actuator-state learner (S = 301), read with arm-none-eabi-size; RAM = .data +
+.bss, which holds the linker script's stack reserve; the stack peak measured on the emulated board (the
+same core, painted stack) shows whether the reserve suffices.
 
 Instructions: the QEMU build runs under `-icount shift=0` (one instruction = 1 ns of virtual time) and
 times each agent step on the 25 MHz APB timer (40 instructions per tick); a calibration loop of a known
@@ -34,22 +35,23 @@ from simulator.firmware_qemu import FIRMWARE_DIR, QemuAgent, QemuConfig, build_e
 CPU_HZ = 72e6
 GOAL_RAM_BYTES = 32 * 1024
 GOAL_FLASH_BYTES = 96 * 1024
-GOAL_STEP_SHARE = 0.05
+TEENSY_STACK_BYTES = 4096  # the .stack reserve of boards/teensy/mk20dx256.ld, inside .bss
 PERIOD_S = {Mode.LEARNING: 0.1, Mode.RECOVERING: 0.025, Mode.IDLE: 0.1, Mode.SURFACING: 0.1,
             Mode.HOVER: 0.025, Mode.PAUSED: 0.025}
-LEARNERS: dict[str, tuple[LearnerConfig, list[str]]] = {
-    "paper (S = 101)": (LearnerConfig(), []),
-    "actuator3 (S = 301)": (learner_preset("actuator3"), ["--param", "act_bins=3"]),
+# name -> (learner, `dive run` arguments that select it, the Teensy variant of `make teensy`)
+LEARNERS: dict[str, tuple[LearnerConfig, list[str], str]] = {
+    "paper (S = 101)": (LearnerConfig(), [], "paper"),
+    "actuator3 (S = 301)": (learner_preset("actuator3"), ["--param", "act_bins=3"], "actuator3"),
 }
 _FIELDS = re.compile(r"(\w+)=(\d+)")
-console = Console()
 
 
 def arena_flags(config: LearnerConfig) -> str:
     """The learner's and the snapshot store's arenas sized for this learner (what its build would hold)."""
     s = n_states(config)
     learner_bytes = learner_memory_bytes(config) + 4 * s  # + the Jacobi sweep buffer
-    return f"-DLEARNER_ARENA_BYTES={learner_bytes}u -DDUMPS_ARENA_BYTES={SNAPSHOTS_HELD * SNAPSHOT_BYTES_PER_STATE * s}u"
+    dumps_bytes = SNAPSHOTS_HELD * SNAPSHOT_BYTES_PER_STATE * s
+    return f"-DLEARNER_ARENA_BYTES={learner_bytes}u -DDUMPS_ARENA_BYTES={dumps_bytes}u"
 
 
 @dataclass
@@ -65,15 +67,14 @@ def arm_size(elf: Path) -> Sizes:
     return Sizes(text, data, bss)
 
 
-def teensy_build(flags: str, build_dir: Path) -> Sizes | str:
-    """The Teensy ELF's sizes, or why it could not be built."""
-    done = subprocess.run(["make", "-s", "-C", str(FIRMWARE_DIR), "teensy", f"BUILD={build_dir}",
-                           f"TEENSY_EXTRA_CFLAGS={flags}"], capture_output=True, text=True, check=False)
-    elves = sorted(build_dir.rglob("*.elf"))
-    if done.returncode != 0 or not elves:
+def teensy_builds(build_dir: Path) -> dict[str, Sizes] | str:
+    """Sizes of each Teensy variant of `make -C firmware teensy`, or why it could not be built."""
+    done = subprocess.run(["make", "-s", "-C", str(FIRMWARE_DIR), "teensy", f"BUILD={build_dir}"],
+                          capture_output=True, text=True, check=False)
+    if done.returncode != 0:
         lines = [x for x in (done.stderr or done.stdout).splitlines() if x.strip()]
-        return lines[-1] if lines else "no ELF produced"
-    return arm_size(elves[0])
+        return lines[-1] if lines else "make teensy failed"
+    return {elf.parent.name: arm_size(elf) for elf in sorted((build_dir / "teensy").glob("*/agent.elf"))}
 
 
 @dataclass
@@ -133,27 +134,30 @@ def main() -> None:
     for tool in ("arm-none-eabi-gcc", "arm-none-eabi-size", "qemu-system-arm", "make"):
         if shutil.which(tool) is None:
             raise SystemExit(f"{tool} not found: the firmware benchmark needs it")
+    console = Console(stderr=True)
     rows: list[str] = []
     step_rows: list[str] = []
     with tempfile.TemporaryDirectory(prefix="firmware-bench-") as scratch:
-        for name, (config, run_args) in LEARNERS.items():
+        with console.status("make -C firmware teensy"):
+            teensy_sizes = teensy_builds(Path(scratch) / "teensy-build")
+        for name, (config, run_args, variant) in LEARNERS.items():
             work = Path(scratch) / name.split()[0]
             work.mkdir()
-            with console.status(f"{name}: Teensy build"):
-                teensy = teensy_build(arena_flags(config), work / "teensy")
+            teensy = teensy_sizes if isinstance(teensy_sizes, str) else teensy_sizes.get(variant, "no such variant")
             with console.status(f"{name}: {args.episodes} episodes on QEMU (icount)"):
                 run = qemu_run(config, run_args, args.episodes, work)
-            console.print(f"{name}: calibration loop 2,000,000 instructions = {run.calibration_ticks} ticks, "
+            print(f"{name}: calibration loop 2,000,000 instructions = {run.calibration_ticks} ticks, "
                           f"{run.instructions_per_tick:.2f} instructions per tick (anchor: 40.00, ratio "
                           f"{run.instructions_per_tick / 40.0:.4f})")
             if isinstance(teensy, Sizes):
                 flash = teensy.text + teensy.data
-                ram = teensy.data + teensy.bss + run.stack_peak_bytes
-                rows.append(f"| {name} | {flash} ({flash / GOAL_FLASH_BYTES:.0%} of the 96 KB goal) | "
-                            f"{ram} = {teensy.data} data + {teensy.bss} bss + {run.stack_peak_bytes} stack peak "
-                            f"({ram / GOAL_RAM_BYTES:.0%} of the 32 KB goal) | {run.learner_bytes} |")
+                ram = teensy.data + teensy.bss
+                rows.append(f"| {name} | {flash:,} ({flash / GOAL_FLASH_BYTES:.0%} of the 96 KB goal) | "
+                            f"{ram:,} = {teensy.data} data + {teensy.bss:,} bss with the {TEENSY_STACK_BYTES} B "
+                            f"stack reserve ({ram / GOAL_RAM_BYTES:.0%} of the 32 KB goal) | "
+                            f"{run.stack_peak_bytes:,} | {run.learner_bytes:,} |")
             else:
-                rows.append(f"| {name} | not built: {teensy} | - | {run.learner_bytes} |")
+                rows.append(f"| {name} | not built: {teensy} | - | {run.stack_peak_bytes:,} | {run.learner_bytes:,} |")
             ipt = run.instructions_per_tick
             for (mode, planning), st in sorted(run.steps.items()):
                 period = PERIOD_S.get(Mode(mode), 0.1)
@@ -164,13 +168,12 @@ def main() -> None:
                     f"| {name} | {what} | {st.steps} | {mean:,.0f} | {peak:,.0f} | {period * 1e3:.0f} ms | "
                     f"{share(mean, period):.2%} | {share(peak, period):.2%} |")
             step_rows.append(f"| {name} | most sweeps in one planning run | {run.max_sweeps} | | | | | |")
-    console.print("\n| Teensy build | flash B | RAM B | learner arrays B |\n|---|---|---|---|")
-    for row in rows:
-        console.print(row, markup=False)
-    console.print("\n| learner | step | steps | instructions mean | instructions max | period | mean share at "
-                  "72 MHz | max share |\n|---|---|---|---|---|---|---|---|", markup=False)
-    for row in step_rows:
-        console.print(row, markup=False)
+    # Plain prints: the tables go into docs/firmware.md as they are (rich would wrap them).
+    print("\n| Teensy build | flash B | RAM B | stack peak B (QEMU) | learner arrays B |\n|---|---|---|---|---|")
+    print("\n".join(rows))
+    print("\n| learner | step | steps | instructions mean | instructions max | period | mean share at 72 MHz | "
+          "max share |\n|---|---|---|---|---|---|---|---|")
+    print("\n".join(step_rows))
 
 
 if __name__ == "__main__":

@@ -62,9 +62,9 @@ class _Partial:
 
 # Untrusted sizes (issue 13 item 1): a chunk's total_bytes is checked against what the agent can hold before a
 # byte is allocated. S = z_cells * zdot_cells * act_bins + 1 comes from the agent's parameters (PARAM_VALUE) when
-# they have been seen; until then S is taken as at most UNKNOWN_GRID_STATES.
+# they have been seen; until then S is taken as at most UNKNOWN_GRID_STATES, the most any agent can hold.
 HELD_SNAPSHOTS = 4  # the agent keeps the newest 4 snapshots (SPEC.md 1.1); an older one can never be completed
-UNKNOWN_GRID_STATES = 1024
+UNKNOWN_GRID_STATES = 319  # SPEC.md s. 10/13: the agent's RAM budget allows S <= 319 (COUNTS: 407 044 bytes)
 _GRID_PARAMETERS = ("z_cells", "zdot_cells", "act_bins")
 
 

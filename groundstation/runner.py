@@ -166,6 +166,7 @@ class _AgentWatch:
     SURFACING_WAIT_S = 60.0
     FIRST_HEARTBEAT_WAIT_S = 2.0  # heartbeats come at 1 Hz of agent time
     START_WAIT_S = 60.0
+    BACKFILL_AT_SURFACE_S = 3.0  # wait after the last backfilled sample before a restart (at most 4x in all)
 
     def __init__(self, session: Session, episodes: int, status: RunStatus) -> None:
         self.session, self.episodes, self.status = session, episodes, status
@@ -203,6 +204,9 @@ class _AgentWatch:
         self.left_idle = False
         left = self.episodes - done if self.episodes else 0
         self.status.messages.append(f"the agent surfaced after episode {beat.episode}; starting it again")
+        # At the surface the radio works: fetch what was lost while it was deep before it dives again, or the
+        # on-board log may turn over before the next window (issue 13 item 4).
+        self.session.request_backfill(timeout_s=self.BACKFILL_AT_SURFACE_S, limit_s=4 * self.BACKFILL_AT_SURFACE_S)
         try:
             self.session.command(m.StartLearning(max_episodes=left))
         except (CommandError, LinkError) as e:

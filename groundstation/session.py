@@ -503,6 +503,9 @@ class Session:
             self._restoring = False
             self.link_up = True
             self._next_backfill_s = time.monotonic() + 0.3  # let a heartbeat announce the log window first
+            # Ask for every hole again at once: the link may be up only briefly (a radio near the surface), and
+            # waits grown while it was down would skip the whole window while the on-board log turns over.
+            self.backfill.retry_now()
             self._emit(LinkEvent(EventKind.LINK_RESTORED, time.time_ns(), self.link.url, self._hello_data()))
 
     def _impossible_sample(self, msg: m.Sample) -> None:

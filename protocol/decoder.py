@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from binascii import crc_hqx
+from collections import deque
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, fields
 from typing import Any, NamedTuple
@@ -21,6 +22,7 @@ _HELLO_ID = 0x01
 HEADER_SIZE = HEADER.size
 unpack_header = HEADER.unpack_from
 _SIGNED = int(FrameFlag.SIGNED)
+REORDER_WINDOW = 64  # skipped seqs remembered: a late one among them was reordered, not lost
 _SEQ_HALF = 0x8000  # a seq this far or more behind the expected one is late/duplicate, not a gap
 _new_frame = tuple.__new__  # Frame(...) without the named tuple's Python-level __new__
 # The compiled decoder's verdict on a chunk (protocol.fast_frames) and the DecoderStats counter of each reject.
@@ -114,6 +116,7 @@ class StreamDecoder:
     compiled: bool = True  # COBS and CRC of a whole read in one compiled call where numba is installed
     # msg_id -> (struct unpack_from, builder, shortest inner frame) of messages of fixed fields only
     _plain: dict[int, tuple[Any, Any, int]] = field(default_factory=lambda: _PLAIN, repr=False)
+    _skipped: deque[int] = field(default_factory=lambda: deque(maxlen=REORDER_WINDOW), repr=False)
     _classes: Mapping[int, type[Message]] = field(default_factory=message_classes, repr=False)
     agent: bool = False
 
@@ -157,6 +160,7 @@ class StreamDecoder:
     def reset_sequence(self) -> None:
         """Forget the expected seq (the sender rebooted or the link was re-established)."""
         self._expected_seq = None
+        self._skipped.clear()
 
     def _decode_chunk(self, chunk: bytes) -> Frame | None:
         stats = self.stats
@@ -257,7 +261,12 @@ class StreamDecoder:
         if expected is not None:
             gap = (seq - expected) & 0xFFFF
             if gap >= _SEQ_HALF:
-                self.stats.duplicates += 1
+                if seq in self._skipped:  # a frame counted lost arrived late (reordered): it was not lost
+                    self._skipped.remove(seq)
+                    self.stats.lost -= 1
+                else:
+                    self.stats.duplicates += 1
                 return
             self.stats.lost += gap
+            self._skipped.extend((expected + i) & 0xFFFF for i in range(max(0, gap - REORDER_WINDOW), gap))
         self._expected_seq = (seq + 1) & 0xFFFF

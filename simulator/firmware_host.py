@@ -155,13 +155,17 @@ class FirmwareAgent:
     """The C on-board program against the Python plant and sensor, one library per process (static state)."""
 
     def __init__(self, plant: PlantParams, rng: np.random.Generator, write: Write, node_id: int, key: bytes | None,
-                 seed: int, wall_link_clock: bool = True, nv_file: Path | None = None, nv: bytes = b"") -> None:
+                 seed: int, wall_link_clock: bool = True, nv_file: Path | None = None, nv: bytes = b"",
+                 log_capacity_bytes: int = HOST_LOG_MAX_BYTES) -> None:
         """The firmware has its own parameter defaults (protocol/parameters.py): learner and mission presets of
         the Python agent do not apply to it (a ground station sets parameters with PARAM_SET, as on the real agent).
 
         wall_link_clock: the link's clock is wall time (an agent faster than real time), else agent time.
         nv_file: where the non-volatile area (the signing mark) survives a restart; `nv` is its content otherwise.
+        log_capacity_bytes: the on-board log's size (the agent's two EEPROMs hold 512 KiB; tests use less).
         """
+        if not 0 < log_capacity_bytes <= HOST_LOG_MAX_BYTES:
+            raise FirmwareBuildError(f"log capacity {log_capacity_bytes} B outside 1..{HOST_LOG_MAX_BYTES}")
         self._write = write
         self._wall_link_clock = wall_link_clock
         self._nv_file = nv_file
@@ -170,7 +174,7 @@ class FirmwareAgent:
         self.hw = SimulatedHardware(plant, rng)
         self._lib = load_library()
         self._io = self._lib.host_io().contents
-        self._io.log_capacity_bytes = HOST_LOG_MAX_BYTES
+        self._io.log_capacity_bytes = log_capacity_bytes
         self._io.entropy_state = (seed & 0xFFFFFFFF) or 1
         # The non-volatile area (the signing mark) as a fresh board has it, or as given; the library is one per
         # process, so an earlier agent's area must not leak into this one.

@@ -1,10 +1,11 @@
 """The C firmware on an emulated Cortex-M4 (QEMU mps2-an386): `dive sim --firmware qemu`.
 
 The whole agent runs inside QEMU: the core, the learner, and the C port of the plant and sensor that
-stand in for the water (firmware/boards/qemu). Its link is the board's UART0, which QEMU itself serves
-on a loopback TCP port (or a pseudo-terminal), so the ground station talks to the emulated MCU directly
-and nothing of Python sits in the loop. Agent time is the emulated plant's time: at speed "max" the
-agent runs as fast as the emulated CPU goes; a speed factor paces it against QEMU's real clock.
+stand in for the water (firmware/boards/qemu). Its link is the board's UART0, which QEMU serves on a
+loopback port; the relay (qemu_relay.py) puts it on the address a ground station connects to and tells
+the board about each new client on UART2. With --pty, QEMU's own pseudo-terminal is the link.
+Agent time is the emulated plant's time: at speed "max" the agent runs as fast as the emulated CPU
+goes; a speed factor paces it against QEMU's real clock.
 
 Boot arguments (speed, seed, node id, bench mode) reach the firmware through QEMU's generic loader,
 written into a RAM block the linker script reserves (firmware/boards/qemu/bootargs.h).
@@ -25,6 +26,7 @@ from pathlib import Path
 from types import TracebackType
 
 from simulator.errors import SimulatorError
+from simulator.qemu_relay import LinkRelay
 
 FIRMWARE_DIR = Path(__file__).resolve().parent.parent / "firmware"
 ELF_ENV = "DIVE_FIRMWARE_ELF"  # a prebuilt QEMU ELF to run instead of building one
@@ -33,6 +35,7 @@ MACHINE = "mps2-an386"
 BOOTARGS_ADDR = 0x20000000 + 4 * 1024 * 1024 - 256  # RAM end - 256 (mps2_an386.ld)
 BOOTARGS_MAGIC = 0x41524753
 KEY_BYTES = 32
+LOOPBACK = "127.0.0.1"  # QEMU's own UART sockets, behind the relay
 START_TIMEOUT_S = 20.0  # QEMU up and its port listening
 _PTY_LINE = re.compile(r"char device redirected to (\S+) \(label serial0\)")
 
@@ -65,10 +68,13 @@ def qemu_binary() -> str:
     return found
 
 
-def build_elf(build_dir: Path | None = None, extra_cflags: str = "") -> Path:
-    """firmware/build/qemu/agent.elf (or under build_dir), made with `make -C firmware qemu` when stale."""
+def build_elf(build_dir: Path | None = None, arenas: str = "") -> Path:
+    """firmware/build/qemu/agent.elf (or under build_dir), made with `make -C firmware qemu` when stale.
+
+    arenas: -D flags sizing the learner and snapshot arenas (default: qemu.mk's, those of the host build).
+    """
     prebuilt = os.environ.get(ELF_ENV)
-    if prebuilt and build_dir is None and not extra_cflags:
+    if prebuilt and build_dir is None and not arenas:
         if not Path(prebuilt).is_file():
             raise QemuError(f"{ELF_ENV}={prebuilt} is not a file")
         return Path(prebuilt)
@@ -78,9 +84,11 @@ def build_elf(build_dir: Path | None = None, extra_cflags: str = "") -> Path:
         raise QemuError("make not found: it builds the firmware")
     out = build_dir if build_dir is not None else FIRMWARE_DIR / "build" / "qemu"
     cmd = ["make", "-s", "-C", str(FIRMWARE_DIR), "qemu", f"QEMU_BUILD_DIR={out}"]
-    if extra_cflags:
-        cmd.append(f"QEMU_EXTRA_CFLAGS={extra_cflags}")
-    done = subprocess.run(cmd, capture_output=True, text=True, check=False)
+    if arenas:
+        cmd.append(f"QEMU_ARENAS={arenas}")
+    # make must be able to wait for its compilers even where our parent ignored SIGCHLD (inherited).
+    done = subprocess.run(cmd, capture_output=True, text=True, check=False,
+                          preexec_fn=lambda: signal.signal(signal.SIGCHLD, signal.SIG_DFL))
     if done.returncode != 0:
         lines = [x for x in (done.stderr or done.stdout).splitlines() if x.strip()]
         raise QemuError(f"the QEMU firmware does not build: {lines[-1] if lines else 'make failed'}")
@@ -118,21 +126,25 @@ class QemuAgent:
         self.address = ""
         self._process: subprocess.Popen[bytes] | None = None
         self._stderr_lines: list[str] = []
+        self._qemu_ports: tuple[int, int] = (0, 0)  # UART0 (link) and UART2 (link events) on loopback
+        self._sockets: list[socket.socket] = []
+        self._relay: LinkRelay | None = None
 
     def start(self) -> str:
         """Build if needed, start QEMU, wait until its link is reachable; returns the address."""
         binary = qemu_binary()
         elf = self.elf if self.elf is not None else build_elf()
         c = self.config
-        if c.pty:
-            serial = "pty"
-        else:
-            port = c.port or free_port(c.host)
-            serial = f"tcp:{c.host}:{port},server=on,wait=off"
-            self.address = f"tcp://{c.host}:{port}"
         diag = f"file:{c.diag_path}" if c.diag_path is not None else "null"
-        cmd = [binary, "-M", MACHINE, "-nographic", "-monitor", "none", "-kernel", str(elf),
-               "-serial", serial, "-serial", diag, *_bootargs(c)]
+        if c.pty:
+            serials = ["pty", diag, "null"]
+        else:
+            self._qemu_ports = (free_port(LOOPBACK), free_port(LOOPBACK))
+            serials = [f"tcp:{LOOPBACK}:{p},server=on,wait=off" for p in self._qemu_ports]
+            serials.insert(1, diag)
+        cmd = [binary, "-M", MACHINE, "-nographic", "-monitor", "none", "-kernel", str(elf), *_bootargs(c)]
+        for serial in serials:
+            cmd += ["-serial", serial]
         if c.icount:
             cmd += ["-icount", "shift=0"]
         try:
@@ -142,6 +154,14 @@ class QemuAgent:
             raise QemuError(f"cannot start {binary}: {e}") from e
         threading.Thread(target=self._read_stderr, daemon=True).start()
         self._wait_ready()
+        if not c.pty:
+            link, events = self._sockets
+            try:
+                self._relay = LinkRelay(c.host, c.port, link, events)
+            except OSError as e:
+                self.stop()
+                raise QemuError(f"cannot listen on {c.host}:{c.port}: {e.strerror or e}") from e
+            self.address = self._relay.address
         return self.address
 
     def _read_stderr(self) -> None:
@@ -163,20 +183,23 @@ class QemuAgent:
             if self.config.pty:
                 if self.address:
                     return
-            elif self._listening():
+            elif self._connect_uarts():
                 return
             time.sleep(0.05)
         self.stop()
         raise QemuError(f"QEMU's link was not up within {START_TIMEOUT_S:.0f} s")
 
-    def _listening(self) -> bool:
-        # A probe connection is harmless: the agent repeats HELLO until the ground answers.
-        host, port = self.address.removeprefix("tcp://").rsplit(":", 1)
-        try:
-            with socket.create_connection((host, int(port)), timeout=0.5):
-                return True
-        except OSError:
-            return False
+    def _connect_uarts(self) -> bool:
+        """Connect to QEMU's UART0 and UART2 sockets (kept for the whole run); False while not listening."""
+        while len(self._sockets) < len(self._qemu_ports):
+            try:
+                s = socket.create_connection((LOOPBACK, self._qemu_ports[len(self._sockets)]), timeout=0.5)
+            except OSError:
+                return False
+            s.settimeout(None)
+            s.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+            self._sockets.append(s)
+        return True
 
     @property
     def running(self) -> bool:
@@ -192,6 +215,12 @@ class QemuAgent:
             return None
 
     def stop(self) -> None:
+        if self._relay is not None:
+            self._relay.close()
+            self._relay = None
+        for s in self._sockets:
+            s.close()
+        self._sockets = []
         process, self._process = self._process, None
         if process is None:
             return

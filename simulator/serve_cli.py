@@ -49,6 +49,19 @@ def parse_speed(text: str) -> float | None:
     return speed
 
 
+def _refuse_for_firmware(learner: str, params: Path | None) -> None:
+    """The C firmware starts from the real agent's parameter defaults: learner presets and agent parameters in a
+    parameter file would be silently ignored, so they are refused (a ground sets them with PARAM_SET)."""
+    if learner != "paper":
+        raise ParamsError("--learner does not apply to --firmware c: set the agent's parameters with PARAM_SET "
+                          "(dive run --param NAME=VALUE)")
+    if params is not None:
+        agent_names = sorted(set(_read_table(params)) & set(BY_NAME))
+        if agent_names:
+            raise ParamsError(f"{params}: agent parameters ({', '.join(agent_names)}) do not apply to --firmware c; "
+                              "set them with PARAM_SET (dive run --param NAME=VALUE)")
+
+
 def parse_firmware(text: str) -> str:
     """One of FIRMWARES."""
     if text not in FIRMWARES:
@@ -164,6 +177,8 @@ def serve(
         serve_on_qemu(tcp, pty, speed, seed, key_file, [name for name, given in refused.items() if given])
         return
     try:
+        if firmware == "c":
+            _refuse_for_firmware(learner, params)
         host, port = parse_tcp(tcp)
         plant = preset(preset_name)
         learner_config = learner_preset(learner)

@@ -8,7 +8,7 @@ const param_def_t param_defs[PARAM_COUNT] = {
     {"zdot_tol_mps", 5u, 1u, 0x06u, 0.03999999910593033f, 0.0010000000474974513f, 0.5f},  /* 2 F32 m/s */
     {"z_cells", 2u, 1u, 0x06u, 10.0f, 1.0f, 50.0f},  /* 3 U8  */
     {"zdot_cells", 2u, 1u, 0x06u, 10.0f, 1.0f, 50.0f},  /* 4 U8  */
-    {"act_bins", 2u, 1u, 0x06u, 1.0f, 1.0f, 9.0f},  /* 5 U8  */
+    {"act_bins", 2u, 1u, 0x06u, 1.0f, 1.0f, 13.0f},  /* 5 U8  */
     {"gamma", 5u, 1u, 0x06u, 0.9900000095367432f, 0.0f, 0.9990000128746033f},  /* 6 F32  */
     {"vi_tol", 5u, 1u, 0x06u, 9.999999747378752e-05f, 1.0000000116860974e-07f, 0.10000000149011612f},  /* 7 F32  */
     {"term_reward", 5u, 1u, 0x06u, -10.0f, -1000.0f, 0.0f},  /* 8 F32  */
@@ -29,4 +29,11 @@ const param_def_t param_defs[PARAM_COUNT] = {
     {"max_episodes", 4u, 0u, 0x00u, 0.0f, 0.0f, 1000000.0f},  /* 23 U32 episodes */
     {"low_batt_v", 5u, 0u, 0x00u, 3.4000000953674316f, 3.0f, 4.199999809265137f},  /* 24 F32 V */
     {"start_at_rest", 1u, 0u, 0x00u, 0.0f, 0.0f, 0.0f},  /* 25 BOOL  */
+    {"shared_model", 1u, 1u, 0x06u, 0.0f, 0.0f, 1.0f},  /* 26 BOOL  */
+    {"dirichlet_w", 5u, 1u, 0x06u, 0.0f, 0.0f, 1000.0f},  /* 27 F32  */
+    {"count_bonus", 5u, 1u, 0x06u, 0.0f, 0.0f, 100.0f},  /* 28 F32  */
+    {"vel_diff_steps", 2u, 1u, 0x06u, 0.0f, 0.0f, 16.0f},  /* 29 U8  */
+    {"ties_per_step", 1u, 1u, 0x06u, 0.0f, 0.0f, 1.0f},  /* 30 BOOL  */
+    {"max_sweeps", 4u, 1u, 0x06u, 100000.0f, 1.0f, 1000000.0f},  /* 31 U32  */
+    {"in_place_sweeps", 1u, 1u, 0x06u, 0.0f, 0.0f, 1.0f},  /* 32 BOOL  */
 };

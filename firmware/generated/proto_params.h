@@ -5,7 +5,7 @@
 
 #include <stdint.h>
 
-#define PARAM_COUNT 26u
+#define PARAM_COUNT 33u
 #define PARAM_NAME_BYTES 24u
 #define PARAM_RAM_BUDGET_BYTES 45056u  /* learner model + snapshot copies */
 #define PARAM_SNAPSHOTS_HELD 4u
@@ -38,6 +38,13 @@ typedef enum {
     PARAM_MAX_EPISODES = 23,
     PARAM_LOW_BATT_V = 24,
     PARAM_START_AT_REST = 25,
+    PARAM_SHARED_MODEL = 26,
+    PARAM_DIRICHLET_W = 27,
+    PARAM_COUNT_BONUS = 28,
+    PARAM_VEL_DIFF_STEPS = 29,
+    PARAM_TIES_PER_STEP = 30,
+    PARAM_MAX_SWEEPS = 31,
+    PARAM_IN_PLACE_SWEEPS = 32,
 } param_index_t;
 
 typedef struct {

@@ -15,9 +15,21 @@ static uint32_t g_head;       /* address of the oldest record */
 static uint32_t g_tail;       /* where the next record goes */
 static uint32_t g_used;
 static uint32_t g_records;
-static uint32_t g_dropped;    /* records dropped since boot (cursors check it) */
+static uint32_t g_appended;   /* records written since boot: record n is held while n >= g_appended - g_records */
 static uint32_t g_first_sample;
 static uint32_t g_next_sample;
+
+/* Where every CHECKPOINT_EVERY-th SAMPLE lies, so a LOG_REQUEST starts reading near its first sample instead of
+   at the oldest record (a full log holds ~9 400 records: a scan over I2C would take seconds). */
+#define CHECKPOINTS 64u
+#define CHECKPOINT_EVERY 256u
+typedef struct {
+    uint32_t sample;
+    uint32_t addr;
+    uint32_t record;  /* its record number */
+    bool used;
+} checkpoint_t;
+static checkpoint_t g_checkpoints[CHECKPOINTS];
 
 static void read_at(uint32_t addr, uint8_t *buf, uint32_t n) {
     uint32_t first = g_capacity - addr;
@@ -67,7 +79,6 @@ static void drop_oldest(void) {
     g_head = advance(g_head, 1u + len);
     g_used -= 1u + len;
     g_records--;
-    g_dropped++;
     if (g_records == 0u) {
         g_first_sample = g_next_sample;
     } else {
@@ -77,20 +88,29 @@ static void drop_oldest(void) {
 
 void logring_init(void) {
     g_capacity = hal_log_capacity_bytes();
-    g_head = g_tail = g_used = g_records = g_dropped = 0;
+    g_head = g_tail = g_used = g_records = g_appended = 0;
     g_first_sample = g_next_sample = 0;
+    memset(g_checkpoints, 0, sizeof g_checkpoints);
 }
 
 void logring_append(const uint8_t *inner, uint8_t len, uint32_t sample, bool is_sample) {
     uint32_t size = 1u + len;
     if (g_capacity < size) { return; }
     while (g_capacity - g_used < size) { drop_oldest(); }
+    if (is_sample && sample % CHECKPOINT_EVERY == 0u) {
+        checkpoint_t *c = &g_checkpoints[(sample / CHECKPOINT_EVERY) % CHECKPOINTS];
+        c->sample = sample;
+        c->addr = g_tail;
+        c->record = g_appended;
+        c->used = true;
+    }
     write_at(g_tail, &len, 1);
     write_at(advance(g_tail, 1), inner, len);
     g_tail = advance(g_tail, size);
     if (g_records == 0u) { g_first_sample = sample; }
     g_used += size;
     g_records++;
+    g_appended++;
     if (is_sample && sample >= g_next_sample) { g_next_sample = sample + 1u; }
 }
 
@@ -101,39 +121,41 @@ void logring_info(logring_info_t *out) {
     out->capacity_bytes = g_capacity;
 }
 
+static bool held(uint32_t record) { return record < g_appended && g_appended - record <= g_records; }
+
 void logring_cursor_start(logring_cursor_t *c, uint32_t first_sample, uint32_t end_sample) {
     memset(c, 0, sizeof *c);
     c->end_sample = end_sample;
     c->active = end_sample > first_sample && g_records > 0u;
     c->addr = g_head;
-    c->seq_at_start = g_dropped;
+    c->record = g_appended - g_records;
+    /* Start at the newest held checkpoint at or before first_sample, not at the oldest record. */
+    uint32_t best = 0;
+    for (unsigned i = 0; i < CHECKPOINTS; i++) {
+        const checkpoint_t *k = &g_checkpoints[i];
+        if (k->used && held(k->record) && k->sample <= first_sample && k->sample >= best && k->record > c->record) {
+            best = k->sample;
+            c->addr = k->addr;
+            c->record = k->record;
+        }
+    }
     /* Skip the records before first_sample (indices never decrease along the ring). */
-    uint32_t left = g_records;
-    while (c->active && left > 0u) {
+    while (c->active && c->record < g_appended) {
         uint32_t sample;
         uint8_t msg_id;
         uint8_t len = peek(c->addr, &sample, &msg_id);
         if (sample >= first_sample) { return; }
         c->addr = advance(c->addr, 1u + len);
-        left--;
+        c->record++;
     }
     c->active = false;
 }
 
 bool logring_cursor_next(logring_cursor_t *c, uint8_t *inner, uint8_t *len) {
-    if (!c->active) { return false; }
-    if (c->addr == g_tail || g_dropped != c->seq_at_start) {
-        /* At the newest record, or the ring overwrote where the cursor stood: the replay ends here. */
-        if (g_dropped != c->seq_at_start) {
-            /* the records after the cursor are still in order; continue only if it was not overwritten */
-            uint32_t from_head = (uint32_t)(((uint64_t)c->addr + g_capacity - g_head) % g_capacity);
-            uint32_t tail_from_head = (uint32_t)(((uint64_t)g_tail + g_capacity - g_head) % g_capacity);
-            if (g_records == 0u || from_head >= tail_from_head) { c->active = false; return false; }
-            c->seq_at_start = g_dropped;
-        } else {
-            c->active = false;
-            return false;
-        }
+    /* Ends at the newest record, or where the ring has overwritten the cursor's place meanwhile. */
+    if (!c->active || c->record >= g_appended || !held(c->record)) {
+        c->active = false;
+        return false;
     }
     uint32_t sample;
     uint8_t msg_id;
@@ -146,6 +168,7 @@ bool logring_cursor_next(logring_cursor_t *c, uint8_t *inner, uint8_t *len) {
     read_at(advance(c->addr, 1), inner, n);
     *len = n;
     c->addr = advance(c->addr, 1u + n);
+    c->record++;
     c->replayed++;
     if (is_sample) { c->samples++; }
     return true;

@@ -25,7 +25,7 @@ void logring_info(logring_info_t *out);
 /* A replay cursor over [first, end): records in production order. */
 typedef struct {
     uint32_t addr;          /* address of the next record to look at */
-    uint32_t seq_at_start;  /* the ring's drop count when the cursor was made: a wrap invalidates it */
+    uint32_t record;        /* its record number (records are numbered from boot) */
     uint32_t end_sample;
     uint32_t replayed;      /* frames re-sent so far */
     uint32_t samples;       /* SAMPLE frames among them */

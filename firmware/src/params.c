@@ -9,6 +9,12 @@
 
 static float g_values[PARAM_COUNT];
 
+/* Learner options of the Python learners the C learner does not have (yet): only their defaults are accepted,
+   so a ground never believes the agent runs something it does not. */
+static const param_index_t NOT_IN_THIS_FIRMWARE[] = {
+    PARAM_SHARED_MODEL, PARAM_DIRICHLET_W, PARAM_COUNT_BONUS, PARAM_VEL_DIFF_STEPS, PARAM_TIES_PER_STEP,
+};
+
 void verdict_ok(verdict_t *v) {
     v->result = ACK_RESULT_ACCEPTED;
     v->reason[0] = '\0';
@@ -69,6 +75,22 @@ void params_learner_config(learner_config_t *c) {
     c->known_count = (uint16_t)g_values[PARAM_KNOWN_COUNT];
     c->depth_only_terminal = g_values[PARAM_DEPTH_ONLY_TERM] != 0.0f;
     c->random_ties = g_values[PARAM_RANDOM_TIES] != 0.0f;
+    c->max_sweeps = (uint32_t)g_values[PARAM_MAX_SWEEPS];
+    c->in_place_sweeps = g_values[PARAM_IN_PLACE_SWEEPS] != 0.0f;
+}
+
+static bool supported(uint16_t index, float stored, verdict_t *v) {
+    for (size_t i = 0; i < sizeof NOT_IN_THIS_FIRMWARE / sizeof NOT_IN_THIS_FIRMWARE[0]; i++) {
+        if (NOT_IN_THIS_FIRMWARE[i] == index && stored != param_defs[index].default_value) {
+            text_buffer_t t;
+            text_start(&t, v->reason, sizeof v->reason);
+            text_add_n(&t, param_defs[index].name, PARAM_NAME_BYTES);
+            text_add(&t, ": not in this firmware (only its default)");
+            v->result = ACK_RESULT_BAD_VALUE;
+            return false;
+        }
+    }
+    return true;
 }
 
 static uint32_t n_states(const learner_config_t *c) {
@@ -107,7 +129,8 @@ static bool check_value(const param_def_t *d, uint64_t bits, float *stored, verd
         text_add(&t, ": not an integer");
         return false;
     }
-    if (n < (int64_t)d->minimum || n > (int64_t)d->maximum) {
+    /* Integer bounds are small (|bound| < 2^24): exact as f32, converted without a 64-bit float conversion. */
+    if (n < (int64_t)(int32_t)d->minimum || n > (int64_t)(int32_t)d->maximum) {
         text_add(&t, ": ");
         text_add_int(&t, (int32_t)(n < -2000000000 ? -2000000000 : n > 2000000000 ? 2000000000 : n));
         text_add(&t, " outside [");
@@ -150,7 +173,7 @@ static bool check_ram(uint16_t index, float stored, verdict_t *v) {
 void params_set(uint16_t index, uint64_t value_bits, uint8_t mode, bool apply, verdict_t *v) {
     const param_def_t *d = &param_defs[index];
     float stored = 0.0f;
-    if (!check_value(d, value_bits, &stored, v)) { return; }
+    if (!check_value(d, value_bits, &stored, v) || !supported(index, stored, v)) { return; }
     if (d->learner && !check_ram(index, stored, v)) { return; }
     if (d->refused_in_modes & (1u << mode)) {
         text_buffer_t t;

@@ -25,7 +25,7 @@ uint64_t f64_bits_from_f32(float v);
 bool     f64_bits_finite(uint64_t bits);
 /* Round-to-nearest-even of a finite binary64 to f32 (inf when it overflows). */
 float    f64_bits_to_f32(uint64_t bits);
-/* A finite binary64 that is an integer in [-2^62, 2^62]: its value in *out. */
+/* A finite binary64 that is an integer of magnitude below 2^63: its value in *out. */
 bool     f64_bits_to_integer(uint64_t bits, int64_t *out);
 /* Exact comparison of a finite binary64 with a float: -1, 0, 1. */
 int      f64_bits_compare_f32(uint64_t bits, float v);

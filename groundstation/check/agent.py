@@ -140,9 +140,10 @@ def reach(probe: Probe, target: Mode) -> None:
             return
         # A real agent recovers first (or gives up and surfaces): the caller judges the mode its command meets.
         _wide_region(probe)
-        since = probe.end
         if probe.current_mode() != Mode.RECOVERING:
             _start(probe)
+        # After the start: the SURFACING/IDLE frames of the go_idle inside _start must not end the wait.
+        since = probe.end
         deadline = time.monotonic() + probe.timeouts.mode_s
         while True:
             left = deadline - time.monotonic()

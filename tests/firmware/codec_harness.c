@@ -4,6 +4,7 @@
                              lost duplicates frames"
      E <flags> <seq> <msg_id> <payload hex>   encode: "W <wire hex>"
      H <key hex> <inner hex> HMAC check of a signed inner frame: "H valid|bad"
+     X <u64 bits>            binary64 conversions: "X f32_bits integral(0/1) integer finite(0/1) widened_bits"
    Values: integers in decimal, f32/f64 as their bit patterns in decimal, char[24] / tails as hex. */
 #include <inttypes.h>
 #include <stdio.h>
@@ -99,6 +100,14 @@ int main(void) {
             printf("W ");
             print_hex(wire, frame_wire(inner, len, wire));
             printf("\n");
+        } else if (line[0] == 'X') {
+            uint64_t bits = 0;
+            if (sscanf(line + 2, "%" SCNu64, &bits) != 1) { continue; }
+            int64_t n = 0;
+            bool integral = f64_bits_to_integer(bits, &n);
+            float f = f64_bits_to_f32(bits);
+            printf("X %" PRIu32 " %d %" PRId64 " %d %" PRIu64 "\n", f32_bits(f), integral ? 1 : 0, integral ? n : 0,
+                   f64_bits_finite(bits) ? 1 : 0, f64_bits_from_f32(f));
         } else if (line[0] == 'H') {
             uint8_t key[HMAC_KEY_BYTES];
             char key_hex[80], inner_hex[LINE_BYTES];

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import shutil
 import subprocess
 from pathlib import Path
@@ -29,3 +30,15 @@ def compile_program(sources: list[Path], out: Path) -> Path:
     result = subprocess.run(command, capture_output=True, text=True, check=False)
     assert result.returncode == 0, result.stderr
     return out
+
+
+def use_firmware_cache(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """One build cache for the host library per test session (every agent after the first loads that build).
+
+    Sets DIVE_FIRMWARE_CACHE for this process and the agents it starts; skips without a C compiler.
+    """
+    require_cc()
+    cache = tmp_path_factory.getbasetemp() / "firmware-cache"
+    cache.mkdir(exist_ok=True)
+    os.environ["DIVE_FIRMWARE_CACHE"] = str(cache)
+    return cache

@@ -4,6 +4,8 @@ the inner frame's fields back to wire_hex; the HMAC of the signed vectors; rejec
 from __future__ import annotations
 
 import json
+import math
+import random
 import struct
 import subprocess
 from pathlib import Path
@@ -128,3 +130,32 @@ def test_rejects_counted_by_cause(harness: Path) -> None:
     assert out[-1].split()[1:8] == ["1", "1", "1", "1", "1", "1", "1"]
     assert out[-1].split()[10] == "1"  # only the unknown command was handed to the program
     assert hello  # the vector the CRC-error chunk was made from
+
+
+def test_binary64_conversions_match_python(harness: Path) -> None:
+    """wire.c's integer-only f64 -> f32 rounding, integer test and f32 -> f64 widening, as PARAM_SET uses them."""
+    rng = random.Random(12)
+    values = [0.0, -0.0, 1.0, -1.5, 0.4, 2.5, 1e-7, 1e-45, 1.4e-45, 7e-46, 3.4028234e38, 3.4028236e38, 1e39, -1e300,
+              5e-324, 2.0**62, -(2.0**62), 2.0**63, 1e6 + 0.5, 16777217.0, float("inf"), float("-inf"), float("nan")]
+    values += [struct.unpack("<d", struct.pack("<Q", rng.getrandbits(64)))[0] for _ in range(3000)]
+    values += [rng.uniform(-1e6, 1e6) for _ in range(1000)] + [float(rng.randint(-10**9, 10**9)) for _ in range(500)]
+    bits = [struct.unpack("<Q", struct.pack("<d", v))[0] for v in values]
+    out = run(harness, [f"X {b}" for b in bits])
+    assert len(out) == len(values)
+    for value, line in zip(values, out, strict=True):
+        f32_bits, integral, integer, finite, widened = (int(x) for x in line.split()[1:])
+        assert finite == int(math.isfinite(value))
+        if math.isnan(value):
+            assert math.isnan(struct.unpack("<f", struct.pack("<I", f32_bits))[0])
+            continue
+        try:
+            expected = struct.unpack("<I", struct.pack("<f", value))[0]
+        except OverflowError:  # beyond the f32 range: rounds to infinity
+            expected = struct.unpack("<I", struct.pack("<f", math.copysign(math.inf, value)))[0]
+        assert f32_bits == expected, value
+        as_f32 = struct.unpack("<f", struct.pack("<I", f32_bits))[0]
+        assert widened == struct.unpack("<Q", struct.pack("<d", as_f32))[0]
+        is_integer = math.isfinite(value) and value == math.floor(value) and abs(value) < 2.0**63
+        assert integral == int(is_integer), value
+        if is_integer:
+            assert integer == int(value)

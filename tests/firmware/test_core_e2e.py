@@ -17,24 +17,15 @@ from groundstation.loginfo import summarize
 from groundstation.recorder import RecorderConfig
 from groundstation.runner import RunConfig, run
 from protocol.parameters import PARAM_COUNT
-from tests.firmware.core_build import require_cc
+from tests.firmware.core_build import use_firmware_cache
 
 pytestmark = pytest.mark.slow
 FAST = {"success_time_s": "5"}  # short episodes keep the suite quick
 
 
 @pytest.fixture(scope="module")
-def firmware_cache(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Path]:
-    """A private build cache: the first agent builds the library, the others load it."""
-    require_cc()
-    cache = tmp_path_factory.mktemp("firmware-cache")
-    previous = os.environ.get("DIVE_FIRMWARE_CACHE")
-    os.environ["DIVE_FIRMWARE_CACHE"] = str(cache)
-    yield cache
-    if previous is None:
-        del os.environ["DIVE_FIRMWARE_CACHE"]
-    else:
-        os.environ["DIVE_FIRMWARE_CACHE"] = previous
+def firmware_cache(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return use_firmware_cache(tmp_path_factory)
 
 
 def start_agent(*transport: str) -> tuple[subprocess.Popen[str], str]:
@@ -48,8 +39,9 @@ def start_agent(*transport: str) -> tuple[subprocess.Popen[str], str]:
     return child, first
 
 
-@pytest.fixture
+@pytest.fixture(scope="module")
 def tcp_agent(firmware_cache: Path) -> Iterator[str]:
+    """One agent for the TCP tests (status and params first, then a run on the same agent)."""
     child, address = start_agent("--tcp", "127.0.0.1:0")
     try:
         assert address.startswith("tcp://127.0.0.1:"), address
@@ -97,15 +89,6 @@ def test_dive_run_over_a_pty(pty_agent: str, tmp_path: Path) -> None:
     assert summary.complete and len(summary.episodes) >= 2 and summary.samples_missing == 0
 
 
-def test_sim_url_selects_the_c_firmware(firmware_cache: Path, tmp_path: Path) -> None:
-    result = run(RunConfig(url="sim://?speed=max&seed=3&firmware=c", episodes=2, params=FAST,
-                           recorder=RecorderConfig(directory=tmp_path)))
-    summary = summarize(result.paths[0])
-    assert summary.complete and len(summary.episodes) >= 2
-    # The C firmware introduces itself as the real agent does (the Python agent says "sim-agent").
-    assert summary.agent["name"] == "diving-agent" and summary.agent["firmware_major"] == "1", summary.agent
-
-
 # dive check groups that finish quickly at full speed; the command x mode matrix and link loss need an agent slower
 # than full speed to meet LEARNING (`dive check "sim://?speed=5&firmware=c" --key-file K` runs everything).
 QUICK_CHECKS = ("handshake", "seq", "junk", "timesync", "ack", "counters", "signing", "dump", "log", "params.list",
@@ -121,3 +104,13 @@ def test_dive_check_passes_against_the_host_build(firmware_cache: Path, tmp_path
     result = CliRunner().invoke(app, ["check", url, "--key-file", str(key_file), *only], env={"COLUMNS": "200"})
     assert result.exit_code == 0, result.output
     assert "conforms" in result.stdout and " 0 failed" in result.stdout
+
+
+def test_missing_compiler_is_one_clear_line(tmp_path: Path) -> None:
+    env = {**os.environ, "CC": "no-such-cc", "DIVE_FIRMWARE_CACHE": str(tmp_path)}
+    env.pop("DIVE_FIRMWARE_LIB", None)
+    result = subprocess.run([sys.executable, "-m", "simulator", "serve", "--firmware", "c", "--tcp", "127.0.0.1:0"],
+                            capture_output=True, text=True, env=env, timeout=120, check=False)
+    assert result.returncode == 2
+    assert result.stderr.strip().splitlines() == [
+        "error: cannot build the C firmware: 'no-such-cc' not found (install make and a C compiler)"]

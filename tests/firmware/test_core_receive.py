@@ -4,7 +4,6 @@ sends for given bytes (SPEC.md 1.1 sections 1, 4, 5), then the ACK memory and co
 from __future__ import annotations
 
 import json
-import os
 import struct
 from collections.abc import Iterator
 from typing import Any
@@ -16,7 +15,7 @@ from protocol import AckResult, FrameFlag, Mode, StreamDecoder, messages
 from protocol.cobs import cobs_encode
 from protocol.frame import build_inner
 from simulator.parameters import preset
-from tests.firmware.core_build import ROOT, require_cc
+from tests.firmware.core_build import ROOT, use_firmware_cache
 
 VECTORS = ROOT / "tests" / "vectors" / "receive.jsonl"
 
@@ -64,8 +63,7 @@ class Agent:
 
 @pytest.fixture(scope="module")
 def agent(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Agent]:
-    require_cc()
-    os.environ.setdefault("DIVE_FIRMWARE_CACHE", str(tmp_path_factory.mktemp("firmware-cache")))
+    use_firmware_cache(tmp_path_factory)
     yield Agent()
 
 
@@ -170,3 +168,26 @@ def test_dump_values_in_224_byte_chunks(agent: Agent) -> None:
     assert [(c.offset, len(c.data)) for c in resent] == [(224, 10)]
     at_end = agent.command(messages.DumpRequest(kind=3, dump_id=chunks[0].dump_id, offset=total))
     assert [f.message.result for f in at_end if isinstance(f.message, messages.Ack)] == [AckResult.ACCEPTED]
+
+
+def test_stop_in_learning_acks_then_aborts_the_episode(agent: Agent) -> None:
+    """The LEARNING cell of CMD_STOP and CMD_PAUSE: ACK first, then EPISODE_END aborted, then the new mode."""
+    for command, mode in ((messages.Stop(), Mode.SURFACING), (messages.Pause(), Mode.PAUSED)):
+        while agent.mode() != Mode.IDLE:
+            pass
+        agent.command(messages.StartLearning(max_episodes=0))
+        started = False
+        for _ in range(20_000):  # recovery to the start depth, then the settle time: ~40 s of agent time
+            agent.agent.step()
+            if any(isinstance(f.message, messages.EpisodeStart) for f in agent.take()):
+                started = True
+                break
+        assert started, "no episode began"
+        frames = agent.command(command)
+        kinds = [type(f.message).__name__ for f in frames if not isinstance(f.message, messages.Text)]
+        assert kinds[:2] == ["Ack", "EpisodeEnd"], kinds
+        assert frames[0].message.result == AckResult.ACCEPTED
+        end = next(f.message for f in frames if isinstance(f.message, messages.EpisodeEnd))
+        assert end.reason == 3  # aborted
+        assert agent.mode() == mode
+        agent.command(messages.Surface())

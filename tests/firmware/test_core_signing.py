@@ -3,7 +3,6 @@ the mark persisted through hal_nv_* refuses what was accepted before a reboot.""
 
 from __future__ import annotations
 
-import os
 import time
 from collections.abc import Iterator
 from typing import Any
@@ -14,7 +13,7 @@ import pytest
 from protocol import AckResult, FrameEncoder, FrameFlag, StreamDecoder, messages
 from protocol.signing import Signer
 from simulator.parameters import preset
-from tests.firmware.core_build import require_cc
+from tests.firmware.core_build import use_firmware_cache
 
 KEY = bytes(range(32))
 ACK = int(FrameFlag.ACK_REQUESTED)
@@ -53,8 +52,7 @@ class KeyedAgent:
 
 @pytest.fixture
 def keyed(tmp_path_factory: pytest.TempPathFactory) -> Iterator[KeyedAgent]:
-    require_cc()
-    os.environ.setdefault("DIVE_FIRMWARE_CACHE", str(tmp_path_factory.mktemp("firmware-cache")))
+    use_firmware_cache(tmp_path_factory)
     yield KeyedAgent()
 
 

@@ -136,6 +136,13 @@ class FakeAgent:
         """Send any frame now (tests inject hostile ones)."""
         self._send(message, flags)
 
+    def send_reordered(self, messages: list[Message], order: list[int]) -> None:
+        """Encode `messages` with consecutive seqs, then send them in `order` (indices into `messages`)."""
+        with self._lock:
+            wires = [self.encoder.encode(message).wire for message in messages]
+            if self._conn is not None:
+                self._conn.sendall(b"".join(wires[i] for i in order))
+
     def _send_hello(self) -> None:
         self._send(m.Hello(protocol_version=self.protocol_version, node_kind=1, definitions_hash=self.defs_hash,
                            firmware_major=9, firmware_minor=8, firmware_patch=7, node_id=self.node_id,

@@ -20,7 +20,7 @@ from groundstation.mcap_io import iter_messages
 from groundstation.recorder import Recorder, RecorderConfig
 from groundstation.runner import RunConfig, run
 from groundstation.session import Session, SessionConfig
-from protocol import DumpKind, Mode
+from protocol import DumpKind, Message, Mode
 from protocol import messages as m
 from tests.groundstation.fake_agent import FakeAgent
 
@@ -172,3 +172,15 @@ def test_another_agent_at_the_same_address_stops_the_run(fake_agent: FakeAgent, 
     assert summary.complete and summary.agent["name"] == "fake"
     hellos = [json.loads(x.data) for x in iter_messages(summary_path, {"/agent/HELLO"})]
     assert hellos and {h["node_id"] for h in hellos} == {0xA6E47}  # nothing of the stranger recorded
+
+
+def test_reordered_frames_are_not_counted_as_lost(fake_agent: FakeAgent) -> None:
+    """Item 5: a frame overtaken by the next one was counted lost (and the late one a duplicate)."""
+    with Session(make_link(fake_agent.url), QUICK) as s:
+        before = s.decoder.stats.lost
+        texts: list[Message] = [m.Text(t_us=fake_agent.now_us(), severity=1, text=f"t{i}") for i in range(6)]
+        fake_agent.send_reordered(texts, [0, 2, 1, 4, 5, 3])
+        assert wait_for(lambda: s.decoder.stats.frames >= 6)
+        time.sleep(0.2)
+        assert s.decoder.stats.lost == before
+        assert s.decoder.stats.duplicates == 0

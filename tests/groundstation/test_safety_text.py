@@ -82,3 +82,13 @@ def test_a_key_file_others_can_read_is_refused_with_the_chmod_to_run(tmp_path: P
     result = dive("status", "tcp://127.0.0.1:9", "--key-file", str(key))
     assert result.returncode == 1 and f"run: chmod 600 {key}" in result.stderr, result.stderr
     assert key.read_text().strip() not in result.stderr + result.stdout
+
+
+def test_no_repr_holds_the_key_bytes(tmp_path: Path) -> None:
+    from groundstation.keys import read_key_file
+    from groundstation.runner import RunConfig
+    from groundstation.session import SessionConfig
+
+    key = read_key_file(write_key_file(tmp_path / "k.key"))
+    shown = repr(RunConfig(session=SessionConfig(key=key)))
+    assert key.hex() not in shown and repr(key) not in shown

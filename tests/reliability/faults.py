@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import subprocess
+from bisect import bisect_right
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -14,6 +15,8 @@ from mcap.reader import make_reader
 from tests.reliability.recordings import Recording, dive, read
 from tests.simulator.agent_client import running
 
+HELLO_ID = 0x01
+
 
 @dataclass
 class FaultRun:
@@ -22,6 +25,7 @@ class FaultRun:
     recording: Recording
     path: Path
     connections: list[list[int]]  # per ground connection: the agent seqs received, in order
+    hellos: list[int]  # where in connections[0] the agent's HELLOs are (each resets sequence tracking, SPEC s. 1)
 
     @property
     def final_link(self) -> dict[str, Any]:
@@ -39,16 +43,21 @@ def run_against_faults(tmp_path: Path, faults: list[str], speed: str = "max", ep
     files = sorted(out.glob("*.mcap"))
     assert done.returncode == 0 and len(files) == 1, done.stderr
     assert "Traceback" not in done.stderr
-    return FaultRun(done, json.loads(report.read_text()), read(files[0]), files[0], _rx_by_connection(files[0]))
+    connections, hellos = _rx_by_connection(files[0])
+    return FaultRun(done, json.loads(report.read_text()), read(files[0]), files[0], connections, hellos)
 
 
-def _rx_by_connection(path: Path) -> list[list[int]]:
-    """The seqs of /raw/rx frames in file order (one list: the agent's connections are told apart by seq)."""
+def _rx_by_connection(path: Path) -> tuple[list[list[int]], list[int]]:
+    """The seqs of /raw/rx frames in file order (one list: the agent's connections are told apart by seq), and
+    the positions of the HELLOs among them."""
     seqs: list[int] = []
+    hellos: list[int] = []
     with path.open("rb") as f:
         for _, _, message in make_reader(f).iter_messages(topics=["/raw/rx"], log_time_order=False):
             seqs.append(message.data[2] | message.data[3] << 8)
-    return [seqs]
+            if message.data[4] == HELLO_ID:
+                hellos.append(len(seqs) - 1)
+    return [seqs], hellos
 
 
 def _unwrap(seqs: list[int], base: int) -> list[int]:
@@ -64,7 +73,8 @@ def _unwrap(seqs: list[int], base: int) -> list[int]:
 
 def visible_losses(run: FaultRun) -> int:
     """Frames the agent lost to faults that the ground could see as a seq gap: between two frames it received
-    within the same connection (the ground starts counting afresh on every reconnect)."""
+    within the same connection (the ground starts counting afresh on every reconnect), the later one not a HELLO
+    (any HELLO resets sequence tracking before it is counted, SPEC.md section 1)."""
     out = run.report["out"]
     bases = [c[0] for c in out["lost_by_connection"]]
     origin = bases[0]
@@ -72,9 +82,12 @@ def visible_losses(run: FaultRun) -> int:
     ends = [start + ((end - base) & 0xFFFF) for start, base, end in zip(starts, bases, out["connection_end_seqs"],
                                                                          strict=True)]
     received = _unwrap(run.connections[0], origin)
+    hello_at = {received[i] for i in run.hellos}
     total = 0
     for start, end, (_, *lost) in zip(starts, ends, out["lost_by_connection"], strict=True):
-        mine = [p for p in received if start <= p < end]
-        if mine:
-            total += sum(min(mine) < p < max(mine) for p in _unwrap(lost, origin))
+        mine = sorted(p for p in received if start <= p < end)
+        for p in _unwrap(lost, origin):
+            index = bisect_right(mine, p)
+            if 0 < index < len(mine) and mine[index] not in hello_at:
+                total += 1
     return total

@@ -37,7 +37,10 @@ def test_kill_9_while_recording_leaves_a_readable_file_that_recover_indexes(agen
     proc = subprocess.Popen([sys.executable, "-c", DIVE_MAIN, "run", agent_url, "--out", str(tmp_path)],
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, cwd=ROOT)
     try:
-        time.sleep(6)
+        deadline = time.monotonic() + 60  # a loaded machine can take seconds to start dive and connect
+        while not any(p.stat().st_size > 20_000 for p in tmp_path.glob("*.mcap")) and time.monotonic() < deadline:
+            time.sleep(0.2)
+        time.sleep(2)
         killed_ns = time.time_ns()
         os.kill(proc.pid, signal.SIGKILL)
     finally:

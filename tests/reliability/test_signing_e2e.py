@@ -154,6 +154,15 @@ def test_dive_without_the_key_gets_one_clear_line_and_with_it_works(agent: str, 
     assert done.returncode == 0, done.stderr
 
 
+def test_every_commanding_subcommand_signs_with_key_file(agent: str, key_file: Path) -> None:
+    """Issue 13 item 7: status, params, dump, hover and surface could not sign (no --key-file); now each can."""
+    env = {k: v for k, v in os.environ.items() if k != "DIVE_KEY_FILE"}
+    for args in (["status", agent], ["params", agent, "get", "target_depth_m"], ["dump", agent],
+                 ["hover", agent, "0.4"], ["surface", agent]):
+        done = _dive(*args, "--key-file", str(key_file), env=env)
+        assert done.returncode == 0 and "UNAUTHORIZED" not in done.stderr, (args, done.stderr)
+
+
 def test_the_agent_refuses_to_start_with_a_bad_key_file(tmp_path: Path) -> None:
     bad = tmp_path / "bad.key"
     bad.write_text("not hex\n")

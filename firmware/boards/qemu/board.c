@@ -186,11 +186,15 @@ int main(void)
     agent_init(args->node_id != 0u ? args->node_id : NODE_ID_DEFAULT, args->has_key ? args->key : NULL);
     uint64_t due_real_us = timer_real_us();
     for (;;) {
+        if (uart2_link_up()) {
+            agent_link_up();  /* SPEC 1.1: a new TCP connection resets sequence tracking and gets a HELLO */
+        }
         agent_poll_link();
         if (args->speed_milli != 0u) {
             /* Paced: the next step waits for its real time, reading the link meanwhile. */
             while (timer_real_us() < due_real_us) {
                 agent_poll_link();
+                timer_idle();
             }
         }
         uint8_t mode = modes_mode();

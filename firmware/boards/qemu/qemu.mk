@@ -18,8 +18,11 @@ QEMU_SRCS := $(QEMU_CORE_SRCS) $(CTL_SIM_SRCS) $(wildcard $(QEMU_BOARD_DIR)/*.c)
 QEMU_OBJS := $(patsubst %.c,$(QEMU_BUILD_DIR)/%.o,$(QEMU_SRCS))
 
 QEMU_ARCH := -mcpu=cortex-m4 -mthumb -mfloat-abi=soft
+# The emulated board has 4 MB of RAM: the host build's arenas, so every learner within SPEC.md's RAM budget
+# is accepted. The resource benchmark sizes them as the Teensy variants instead.
+QEMU_ARENAS ?= -DLEARNER_ARENA_BYTES=65536u -DDUMPS_ARENA_BYTES=65536u
 QEMU_CFLAGS := -std=c99 $(QEMU_ARCH) -O2 -g -MMD -MP -Wall -Wextra -Werror -Wdouble-promotion -Wshadow -ffunction-sections -fdata-sections \
-	-Isrc -Iinclude -Igenerated -I$(QEMU_BOARD_DIR) $(QEMU_EXTRA_CFLAGS)
+	-Isrc -Iinclude -Igenerated -I$(QEMU_BOARD_DIR) $(QEMU_ARENAS) $(QEMU_EXTRA_CFLAGS)
 QEMU_LDFLAGS := $(QEMU_ARCH) -T $(QEMU_BOARD_DIR)/mps2_an386.ld -nostartfiles --specs=nano.specs \
 	--specs=nosys.specs -Wl,--gc-sections -Wl,-Map=$(QEMU_BUILD_DIR)/agent.map
 
@@ -29,7 +32,7 @@ QEMU_LDFLAGS := $(QEMU_ARCH) -T $(QEMU_BOARD_DIR)/mps2_an386.ld -nostartfiles --
 
 qemu: $(QEMU_ELF)
 
-$(QEMU_BUILD_DIR)/%.o: %.c
+$(QEMU_BUILD_DIR)/%.o: %.c $(QEMU_BOARD_DIR)/qemu.mk
 	@mkdir -p $(dir $@)
 	$(ARM_CC) $(QEMU_CFLAGS) -c $< -o $@
 

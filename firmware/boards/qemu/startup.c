@@ -1,6 +1,7 @@
 /* Vector table and reset handler of the QEMU mps2-an386 board: copy .data, zero .bss, run main. */
 #include <stdint.h>
 
+#include "timer.h"
 #include "uart.h"
 
 extern uint32_t _data_load, _data_start, _data_end, _bss_start, _bss_end, _stack_top;
@@ -55,6 +56,6 @@ static void (*const vectors[CORE_VECTORS + IRQ_VECTORS])(void) = {
     default_handler,  /* DebugMon */
     0,
     default_handler,  /* PendSV */
-    default_handler,  /* SysTick */
+    timer_systick_irq,  /* SysTick: wakes timer_idle */
     uart0_rx_irq,     /* IRQ 0: UART0 RX */
 };

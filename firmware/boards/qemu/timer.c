@@ -8,6 +8,12 @@
 #define CTRL_ENABLE 0x1u
 #define FULL_RANGE 0xFFFFFFFFu
 
+#define SYST_CSR 0xE000E010u
+#define SYST_RVR 0xE000E014u
+#define SYST_CVR 0xE000E018u
+#define SYST_ENABLE_TICKINT_CPUCLK 0x7u
+#define TICKS_PER_WAKE (TIMER_TICKS_PER_US * 1000u)  /* SysTick wakes a waiting CPU every 1 ms */
+
 static uint32_t last_raw;
 static uint64_t ticks_high;  /* ticks before the last wrap seen */
 
@@ -23,6 +29,21 @@ void timer_init(void)
     *reg(TIMER_CTRL) = CTRL_ENABLE;
     last_raw = timer_raw();
     ticks_high = 0u;
+    *(volatile uint32_t *)(uintptr_t)SYST_RVR = TICKS_PER_WAKE - 1u;
+    *(volatile uint32_t *)(uintptr_t)SYST_CVR = 0u;
+    *(volatile uint32_t *)(uintptr_t)SYST_CSR = SYST_ENABLE_TICKINT_CPUCLK;
+}
+
+void timer_systick_irq(void)
+{
+    /* Nothing to do: the interrupt only ends a WFI (timer_idle). */
+}
+
+void timer_idle(void)
+{
+    /* Sleep until an interrupt (UART0 receive, or the 1 ms SysTick). A CPU spinning on the timer and UART
+       registers instead would keep QEMU's I/O thread from delivering received bytes for tens of ms. */
+    __asm volatile("wfi" ::: "memory");
 }
 
 uint32_t timer_raw(void)

@@ -9,5 +9,7 @@
 void     timer_init(void);
 uint32_t timer_raw(void);      /* counts up, wraps every 171 s */
 uint64_t timer_real_us(void);  /* since boot; must be read at least once per wrap (the main loop does) */
+void     timer_idle(void);      /* wait for the next interrupt (at most 1 ms) */
+void     timer_systick_irq(void);
 
 #endif

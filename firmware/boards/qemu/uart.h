@@ -1,8 +1,10 @@
 /* CMSDK APB UART of the mps2 boards: UART0 carries the link (interrupt-driven receive ring), UART1 the
-   board's own diagnostics (instruction counts for the resource benchmark). */
+   board's own diagnostics (instruction counts for the resource benchmark), UART2 the link events of
+   simulator/firmware_qemu.py's relay (a byte per new TCP client: a UART has no carrier line). */
 #ifndef QEMU_UART_H
 #define QEMU_UART_H
 
+#include <stdbool.h>
 #include <stddef.h>
 #include <stdint.h>
 
@@ -10,6 +12,8 @@ void   uart_init(void);
 size_t uart0_read(uint8_t *buf, size_t cap);
 void   uart0_write(const uint8_t *buf, size_t n);
 void   uart1_write_text(const char *text);
+/* True when the relay reported a new link (TCP client) since the last call. */
+bool   uart2_link_up(void);
 void   uart0_rx_irq(void);
 void   uart_fault_message(const char *text);
 

@@ -54,7 +54,7 @@ teensy-variant:
 
 teensy-sketch:
 	rm -rf $(SKETCH_CORE) && mkdir -p $(SKETCH_CORE)
-	[ -f $(SKETCH_DIR)/diving_agent.ino ] || cp $(TEENSY_DIR)/diving_agent/diving_agent.ino $(SKETCH_DIR)/
+	[ $(abspath $(SKETCH_DIR)) = $(TEENSY_DIR)/diving_agent ] || cp $(TEENSY_DIR)/diving_agent/diving_agent.ino $(SKETCH_DIR)/
 	cp $(filter-out %/plant.c %/sensor.c,$(wildcard $(FIRMWARE)/src/*.[ch])) $(FIRMWARE)/include/hal.h \
 	    $(wildcard $(FIRMWARE)/generated/*.[ch]) $(SKETCH_CORE)/
 	@echo "core copied to $(SKETCH_CORE): open boards/teensy/diving_agent in the Arduino IDE, or run pio run in boards/teensy"

@@ -45,6 +45,7 @@ public:
 class HardwareSerial : public Stream {
 public:
     void begin(uint32_t baud);
+    void addMemoryForWrite(void *buffer, size_t n);
     int available(void) override;
     int read(void) override;
     size_t write(const uint8_t *buf, size_t n) override;

@@ -24,6 +24,7 @@ int usb_serial_class::available(void) { return 0; }
 int usb_serial_class::read(void) { return -1; }
 size_t usb_serial_class::write(const uint8_t *, size_t n) { return n; }
 void HardwareSerial::begin(uint32_t) {}
+void HardwareSerial::addMemoryForWrite(void *, size_t) {}
 int HardwareSerial::available(void) { return 0; }
 int HardwareSerial::read(void) { return -1; }
 size_t HardwareSerial::write(const uint8_t *, size_t n) { return n; }

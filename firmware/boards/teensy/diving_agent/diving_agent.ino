@@ -38,6 +38,10 @@ static const uint32_t EEPROM_PAGE_BYTES = 256u;
 static const uint8_t WIRE_CHUNK_BYTES = 30;         // Wire's 32-byte buffer minus the two address bytes
 static const uint32_t NV_ADDRESS = 0;               // signing mark in the MCU's own 2 KB EEPROM
 static const uint32_t TEMPERATURE_EVERY = 40;       // D2 (temperature) once per 40 pressure readings
+// Serial1's own transmit buffer is 64 bytes: a burst of frames (a reply stream, 16 frames per poll) would block
+// the loop until the UART sent it. 2 KB more is 0.18 s of 115200 baud.
+static const size_t LINK_TX_EXTRA_BYTES = 2048;
+static uint8_t g_link_tx_extra[LINK_TX_EXTRA_BYTES];
 
 // ---------------------------------------------------------------- clock
 static uint32_t g_last_micros;
@@ -236,6 +240,7 @@ static uint32_t chip_id(void) { return *(volatile uint32_t *)0x40048060u; }  // 
 void setup(void) {
     Serial.begin(115200);
     Serial1.begin(LINK_BAUD);
+    Serial1.addMemoryForWrite(g_link_tx_extra, sizeof g_link_tx_extra);
     Wire.begin();
     Wire.setClock(400000);
     pinMode(PIN_STEP, OUTPUT);

@@ -1,0 +1,121 @@
+"""The TCP front of the emulated agent: clients connect here, bytes pass unchanged to QEMU's UART0.
+
+QEMU serves the board's UART on a loopback port of its own, but a UART has no carrier line: the firmware
+cannot see a TCP client come or go, and SPEC.md 1.1 wants a HELLO on every new TCP connection. The relay
+keeps one connection to QEMU's UART0 for the whole run and, for every new client, writes one byte to the
+board's UART2 (its link-event line), on which the firmware calls agent_link_up(). As the virtual agent's
+server does, a second client replaces the first.
+"""
+
+from __future__ import annotations
+
+import select
+import socket
+import threading
+
+_CHUNK = 4096
+# QEMU writes the UART's bytes to its socket one by one as the firmware sends them. Bytes that follow
+# within this time are forwarded together, so a burst (an ACK and the reply behind it) reaches the client
+# in one segment, as from the Python agent's server, instead of being cut wherever a recv() happened to wake.
+_BURST_S = 0.002
+_BURST_MAX_BYTES = 16384
+LINK_UP = b"\x01"
+
+
+class LinkRelay:
+    """Listens on (host, port); forwards between the current client and QEMU's link socket."""
+
+    def __init__(self, host: str, port: int, qemu_link: socket.socket, qemu_events: socket.socket) -> None:
+        self._listener = socket.create_server((host, port))
+        bound_host, bound_port = self._listener.getsockname()[:2]
+        self.address = f"tcp://{bound_host}:{bound_port}"
+        self._link = qemu_link
+        self._events = qemu_events
+        self._client: socket.socket | None = None
+        self._aligned = False  # the current client has been sent a frame delimiter (0x00) already
+        self._lock = threading.Lock()
+        self._closed = threading.Event()
+        threading.Thread(target=self._accept_loop, name="relay-accept", daemon=True).start()
+        threading.Thread(target=self._from_qemu, name="relay-from-qemu", daemon=True).start()
+
+    def _accept_loop(self) -> None:
+        while not self._closed.is_set():
+            try:
+                client, _ = self._listener.accept()
+            except OSError:
+                return
+            client.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+            with self._lock:
+                old, self._client = self._client, client
+                self._aligned = False
+            if old is not None:
+                _close(old)
+            try:
+                self._events.sendall(LINK_UP)
+            except OSError:
+                return
+            threading.Thread(target=self._from_client, args=(client,), name="relay-from-client", daemon=True).start()
+
+    def _from_client(self, client: socket.socket) -> None:
+        while True:
+            try:
+                data = client.recv(_CHUNK)
+            except OSError:
+                data = b""
+            if not data:
+                break
+            try:
+                self._link.sendall(data)
+            except OSError:
+                break
+        with self._lock:
+            if self._client is client:
+                self._client = None
+        _close(client)
+
+    def _from_qemu(self) -> None:
+        while not self._closed.is_set():
+            try:
+                data = self._link.recv(_CHUNK)
+                while data and len(data) < _BURST_MAX_BYTES and select.select([self._link], [], [], _BURST_S)[0]:
+                    more = self._link.recv(_CHUNK)
+                    if not more:
+                        break
+                    data += more
+            except (OSError, ValueError):
+                return
+            if not data:
+                return  # QEMU ended
+            with self._lock:
+                client = self._client
+                if client is not None and not self._aligned:
+                    # A new client starts at a frame boundary, never inside a frame another client got the
+                    # start of (the 0x00 is kept: an empty chunk is ignored by any decoder).
+                    boundary = data.find(b"\x00")
+                    data = data[boundary:] if boundary >= 0 else b""
+                    self._aligned = boundary >= 0
+            if client is None or not data:
+                continue  # nobody listening: the bytes are lost, as on a radio link without a ground station
+            try:
+                client.sendall(data)
+            except OSError:
+                with self._lock:
+                    if self._client is client:
+                        self._client = None
+                _close(client)
+
+    def close(self) -> None:
+        self._closed.set()
+        _close(self._listener)
+        with self._lock:
+            client, self._client = self._client, None
+        if client is not None:
+            _close(client)
+
+
+def _close(s: socket.socket) -> None:
+    try:
+        s.shutdown(socket.SHUT_RDWR)
+    except OSError:
+        pass
+    s.close()
