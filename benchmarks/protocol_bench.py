@@ -2,7 +2,7 @@
 
 Run: `.venv/bin/pip install -e '.[bench]' && .venv/bin/python benchmarks/protocol_bench.py [--frames N]`.
 Not a test: it prints figures and ratios.
-Goals (issue 2): decode >= 3x pymavlink, encode >= 2x.
+Goals (issues 2 and 16): decode >= 3x pymavlink (with fastcrc), encode >= 2x.
 """
 
 from __future__ import annotations
@@ -18,22 +18,27 @@ except ImportError:  # the anchor lives in the `bench` extra, not in the test in
     sys.exit("protocol_bench needs pymavlink, the anchor it measures against: pip install -e '.[bench]'")
 
 from groundstation.columns import message_array
-from protocol import FrameEncoder, StreamDecoder
+from protocol import FrameEncoder, StreamDecoder, compiled
 from protocol.columns import columns, payload_records
 from protocol.messages import Sample
 
 CHUNK = 4096  # bytes per read, as a serial or TCP link delivers them
-REPEATS = 3  # best of three: the machine is shared
+REPEATS = 5  # best of five, the tasks taking turns: the machine is shared, and load drifts alike for all
 
 
-def _best_rate(count: int, run: Callable[[], object]) -> float:
-    """Frames per second of the fastest of REPEATS runs of `run`, which handles `count` frames."""
-    best = float("inf")
+def _best_rates(count: int, runs: dict[str, Callable[[], object]]) -> dict[str, float]:
+    """Frames per second of the fastest of REPEATS runs of each task (each handles `count` frames).
+
+    The tasks run in turn, round after round, so that a change of load on a shared machine falls on
+    every task alike instead of on whichever ran during it.
+    """
+    best = dict.fromkeys(runs, float("inf"))
     for _ in range(REPEATS):
-        start = time.perf_counter()
-        run()
-        best = min(best, time.perf_counter() - start)
-    return count / best
+        for name, run in runs.items():
+            start = time.perf_counter()
+            run()
+            best[name] = min(best[name], time.perf_counter() - start)
+    return {name: count / seconds for name, seconds in best.items()}
 
 
 def _chunks(stream: bytes) -> list[bytes]:
@@ -63,15 +68,15 @@ def main() -> None:
 
     samples = _samples(n)
 
-    def encode_ours() -> list[bytes]:
-        encoder = FrameEncoder()
+    def encode_ours(compiled: bool = True) -> list[bytes]:
+        encoder = FrameEncoder(compiled=compiled)
         return [encoder.encode(s).wire for s in samples]
 
     ours_stream = b"".join(encode_ours())
     ours_chunks = _chunks(ours_stream)
 
-    def decode_ours() -> int:
-        decoder = StreamDecoder()
+    def decode_ours(compiled: bool = True) -> int:
+        decoder = StreamDecoder(compiled=compiled)
         count = sum(len(decoder.feed(c)) for c in ours_chunks)
         assert count == n and decoder.stats.rejects == 0, (count, decoder.stats)
         return count
@@ -104,23 +109,33 @@ def main() -> None:
         array = message_array(inners, definition)
         assert array["depth_m"].shape == (n,)
 
-    rates = {
-        "encode ours": _best_rate(n, encode_ours),
-        "encode pymavlink": _best_rate(n, encode_mav),
-        "decode ours": _best_rate(n, decode_ours),
-        "decode pymavlink": _best_rate(n, decode_mav),
-        "columns stdlib": _best_rate(n, columns_stdlib),
-        "columns numpy": _best_rate(n, columns_numpy),
-    }
-    # Second anchor: pymavlink as it runs without its optional `fastcrc` (Rust) CRC, i.e. pure Python.
     fast_crc = mavlink2.x25crc
-    mavlink2.x25crc = mavlink2._x25crc_slow
-    try:
-        rates["encode pymavlink-purepy"] = _best_rate(n, encode_mav)
-        rates["decode pymavlink-purepy"] = _best_rate(n, decode_mav)
-    finally:
-        mavlink2.x25crc = fast_crc
-    print(f"protocol benchmark: {n} frames, best of {REPEATS}; "
+
+    def without_fastcrc(run: Callable[[], object]) -> Callable[[], object]:
+        """Second anchor: pymavlink as it runs without its optional `fastcrc` (Rust) CRC, i.e. pure Python."""
+        def slow() -> object:
+            mavlink2.x25crc = mavlink2._x25crc_slow
+            try:
+                return run()
+            finally:
+                mavlink2.x25crc = fast_crc
+        return slow
+
+    compiled.wait()  # the compiled path loads in the background: measure it loaded
+    encode_ours(), decode_ours()
+    rates = _best_rates(n, {
+        "encode ours": encode_ours,
+        "encode pymavlink": encode_mav,
+        "encode ours-stdlib": lambda: encode_ours(compiled=False),
+        "encode pymavlink-purepy": without_fastcrc(encode_mav),
+        "decode ours": decode_ours,
+        "decode pymavlink": decode_mav,
+        "decode ours-stdlib": lambda: decode_ours(compiled=False),
+        "decode pymavlink-purepy": without_fastcrc(decode_mav),
+        "columns stdlib": columns_stdlib,
+        "columns numpy": columns_numpy,
+    })
+    print(f"protocol benchmark: {n} frames, best of {REPEATS} (tasks in turn); "
           f"SAMPLE {len(ours_stream) // n} B/frame on the wire, ATTITUDE {len(mav_stream) // n} B/frame")
     print(f"{'task':<44} {'ours frames/s':>14} {'pymavlink frames/s':>19} {'ratio':>7} {'goal':>6}")
     for task, goal in (("encode", 2.0), ("decode", 3.0)):
@@ -130,6 +145,9 @@ def main() -> None:
             verdict = "met" if ratio >= goal else "MISSED"
             label = f"{task} SAMPLE vs ATTITUDE ({note})"
             print(f"{label:<44} {ours:>14,.0f} {theirs:>19,.0f} {ratio:>6.2f}x {goal:>4.0f}x {verdict}")
+        ours, theirs = rates[f"{task} ours-stdlib"], rates[f"{task} pymavlink"]
+        label = f"{task}, stdlib codec only (no numba)"
+        print(f"{label:<44} {ours:>14,.0f} {theirs:>19,.0f} {ours / theirs:>6.2f}x")
     for label, key in (("columnar decode, inner frames -> stdlib tuples", "columns stdlib"),
                        ("columnar decode, inner frames -> numpy array", "columns numpy")):
         ratio = rates[key] / rates["decode pymavlink"]

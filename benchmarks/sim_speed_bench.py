@@ -124,7 +124,7 @@ def main() -> None:
     print(f"client busy decoding          : {client_busy:10.0%} of the wall time (near 100%: the client sets the pace)")
     if per_cpu_s is not None:
         print(f"agent per server CPU second   : {per_cpu_s:10.0f} x (its speed with a core to itself)")
-    print(f"target 2000x                  : {'met' if factor >= 2000 else 'NOT met'}")
+    print(f"target 5000x (issue 16)       : {'met' if factor >= 5000 else 'NOT met'}")
 
 
 if __name__ == "__main__":

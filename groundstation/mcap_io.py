@@ -8,8 +8,10 @@ import os
 import struct
 import time
 import zlib
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
+from io import BytesIO
+from itertools import chain
 from pathlib import Path
 from types import TracebackType
 from typing import IO, Any, Self
@@ -17,7 +19,8 @@ from typing import IO, Any, Self
 import zstandard
 from mcap.data_stream import ReadDataStream
 from mcap.exceptions import McapError
-from mcap.records import Attachment, Channel, Chunk, Message, Metadata, Schema
+from mcap.opcode import Opcode
+from mcap.records import Attachment, Channel, Chunk, Message, MessageIndex, Metadata, Schema
 from mcap.stream_reader import StreamReader, breakup_chunk
 from mcap.writer import CompressionType, Writer
 
@@ -56,6 +59,7 @@ class McapFileWriter:
         self._writer = Writer(self._file, chunk_size=256 * 1024, compression=CompressionType.ZSTD)
         self._writer.start(profile=PROFILE, library=f"dive (mcap {mcap_library_version()})")
         self._file.flush()  # the magic and header on disk at once: a kill in the first second leaves no 0-byte file
+        self._add = _message_adder(self._writer)
         self._schemas: dict[str, int] = {}
         self._channels: dict[str, int] = {}
         self._flush_period_s = flush_period_s
@@ -82,11 +86,19 @@ class McapFileWriter:
         return topic in self._channels
 
     def write(self, channel_id: int, data: bytes, log_time_ns: int, publish_time_ns: int | None = None) -> None:
-        self._writer.add_message(channel_id, log_time=log_time_ns, data=data,
-                                 publish_time=log_time_ns if publish_time_ns is None else publish_time_ns)
-        self.bytes_written += len(data) + 40
-        self.messages += 1
-        self.maybe_flush()
+        self.write_many(((channel_id, data),), log_time_ns, publish_time_ns)
+
+    def write_many(self, messages: tuple[tuple[int, bytes], ...], log_time_ns: int,
+                   publish_time_ns: int | None = None) -> None:
+        """Several messages of the same times (a frame's JSON body and its raw bytes): one call, one flush check."""
+        self._add(messages, log_time_ns, log_time_ns if publish_time_ns is None else publish_time_ns)
+        written = 0
+        for _, data in messages:
+            written += len(data) + 40
+        self.bytes_written += written
+        self.messages += len(messages)
+        if time.monotonic() - self._last_flush_s >= self._flush_period_s:  # maybe_flush, inlined: once per frame
+            self.flush()
 
     def metadata(self, name: str, values: dict[str, Any]) -> None:
         self._writer.add_metadata(name, {k: v if isinstance(v, str) else json.dumps(v) for k, v in values.items()})
@@ -122,6 +134,79 @@ class McapFileWriter:
     def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
                  tb: TracebackType | None) -> None:
         self.close()
+
+
+_MESSAGE_HEAD = struct.Struct("<BQHIQQ")  # opcode, record length, channel id, sequence, log time, publish time
+_MESSAGE_FIELDS = _MESSAGE_HEAD.size - 9  # the record length counts what follows the opcode and the length
+
+
+class _MessageIndex(MessageIndex):
+    """A chunk's message index written in one piece (MessageIndex.write makes two small writes per message)."""
+
+    def write(self, stream: Any) -> None:
+        records = self.records
+        stream.write(struct.pack(f"<BQHI{2 * len(records)}Q", Opcode.MESSAGE_INDEX, 6 + 16 * len(records),
+                                 self.channel_id, 16 * len(records), *chain.from_iterable(records)))
+
+
+_Adder = Callable[[tuple[tuple[int, bytes], ...], int, int], None]
+
+
+def _message_adder(writer: Writer) -> _Adder:
+    """`add(((channel_id, data), ...), log_time, publish_time)`: what Writer.add_message does for each message.
+
+    Writer.add_message builds a Message record object and writes it field by field (eight small writes
+    and two seeks), more than a frame costs us to decode and encode as JSON; a recorder writes two per
+    frame. This does the same bookkeeping (statistics, the chunk's message index and times) on the
+    Writer's own chunk builder and writes each record (and the chunk's message index) in one piece;
+    a test checks the file is byte for
+    byte the one add_message writes. Falls back to add_message if this mcap version's Writer is laid out
+    differently (chunking off, or renamed internals).
+    """
+    statistics = getattr(writer, "_Writer__statistics", None)
+    builder = getattr(writer, "_Writer__chunk_builder", None)
+    finalize = getattr(writer, "_Writer__finalize_chunk", None)
+    chunk_size = getattr(writer, "_Writer__chunk_size", None)
+    records = getattr(builder, "record_writer", None)
+    if (statistics is None or finalize is None or not isinstance(chunk_size, int)
+            or not isinstance(getattr(records, "_buffer", None), BytesIO)):
+        def add_messages(messages: tuple[tuple[int, bytes], ...], log_time: int, publish_time: int) -> None:
+            for channel_id, data in messages:
+                writer.add_message(channel_id, log_time=log_time, data=data, publish_time=publish_time)
+        return add_messages
+    assert builder is not None and records is not None
+    channel_counts = statistics.channel_message_counts
+    indices = builder.message_indices
+    pack = _MESSAGE_HEAD.pack
+
+    def add(messages: tuple[tuple[int, bytes], ...], log_time: int, publish_time: int) -> None:
+        stats = statistics
+        chunk = builder
+        buffer = records._buffer  # a new BytesIO after every chunk
+        for channel_id, data in messages:
+            if log_time < stats.message_start_time or stats.message_count == 0:
+                stats.message_start_time = log_time
+            if log_time > stats.message_end_time:
+                stats.message_end_time = log_time
+            channel_counts[channel_id] += 1
+            stats.message_count += 1
+            if log_time < chunk.message_start_time or chunk.num_messages == 0:
+                chunk.message_start_time = log_time
+            if log_time > chunk.message_end_time:
+                chunk.message_end_time = log_time
+            index = indices.get(channel_id)
+            if index is None:
+                index = indices[channel_id] = _MessageIndex(channel_id=channel_id, records=[])
+            position = buffer.tell()
+            index.records.append((log_time, position))
+            chunk.num_messages += 1
+            buffer.write(pack(Opcode.MESSAGE, _MESSAGE_FIELDS + len(data), channel_id, 0, log_time, publish_time))
+            buffer.write(data)
+            if position + _MESSAGE_HEAD.size + len(data) > chunk_size:  # Writer.__maybe_finalize_chunk
+                finalize()
+                buffer = records._buffer
+
+    return add
 
 
 @dataclass(frozen=True, slots=True)
@@ -168,8 +253,8 @@ class _BoundedFile:
         return self._stream.read(left if n < 0 else min(n, left))
 
 
-def _chunk_records(chunk: Chunk, budget: list[int], path: Path) -> list[Any]:
-    """A chunk's records, decompressed within its declared size and the file's budget; [] if it is damaged."""
+def _chunk_data(chunk: Chunk, budget: list[int], path: Path) -> bytes | None:
+    """A chunk's data, decompressed within its declared size and the file's budget; None if it is damaged."""
     if chunk.uncompressed_size > budget[0]:
         raise RecordingTooLargeError(
             f"{path}: its chunks claim more than {DECODED_PER_DISK_BYTE} times the file's size when decompressed "
@@ -180,20 +265,44 @@ def _chunk_records(chunk: Chunk, budget: list[int], path: Path) -> list[Any]:
     elif chunk.compression == "":
         data = chunk.data
     else:
-        return []
+        return None
     budget[0] -= len(data)
     if len(data) != chunk.uncompressed_size or (chunk.uncompressed_crc and zlib.crc32(data) != chunk.uncompressed_crc):
+        return None
+    return bytes(data)
+
+
+def _chunk_records(chunk: Chunk, budget: list[int], path: Path) -> list[Any]:
+    """A chunk's records, decompressed within its declared size and the file's budget; [] if it is damaged."""
+    data = _chunk_data(chunk, budget, path)
+    if data is None:
         return []
     return breakup_chunk(Chunk(compression="", data=data, message_end_time=chunk.message_end_time,
                                message_start_time=chunk.message_start_time, uncompressed_crc=0,
                                uncompressed_size=len(data)))
 
 
-def _records(path: Path, damaged: list[int] | None = None) -> Iterator[Any]:
+class _ChunkData(bytes):
+    """A chunk's decompressed, checked data, not broken up into records (for iter_topic_data)."""
+
+
+class _Reader(StreamReader):
+    """The mcap stream reader without the message indexes: no reader of ours uses them, and parsing one
+    costs two calls per message it indexes (half of reading a long recording)."""
+
+    def _read_record(self, opcode: int, length: int) -> Any:
+        if opcode == Opcode.MESSAGE_INDEX:
+            self._stream.read(length)
+            return None
+        return super()._read_record(opcode, length)
+
+
+def _records(path: Path, damaged: list[int] | None = None, chunk_data: bool = False) -> Iterator[Any]:
     """Every record in file order; stops quietly at a truncated or corrupt tail (raises _Truncated after).
 
     A chunk whose data is damaged (CRC, decompression) is skipped and counted in damaged[0]; the records after it
-    are read on (issue 13 item 5: one flipped bit loses one chunk, not the rest of the file).
+    are read on (issue 13 item 5: one flipped bit loses one chunk, not the rest of the file). With chunk_data, a
+    chunk comes as its data (_ChunkData) instead of its records.
     """
     try:
         stream = open(path, "rb")  # noqa: SIM115
@@ -205,14 +314,18 @@ def _records(path: Path, damaged: list[int] | None = None) -> Iterator[Any]:
     budget = [max(DECODED_FLOOR_BYTES, DECODED_PER_DISK_BYTE * size)]
     with stream:
         try:
-            reader = StreamReader(_BoundedFile(stream, size), skip_magic=False, emit_chunks=True,  # type: ignore[arg-type]
-                                  record_size_limit=size)
+            reader = _Reader(_BoundedFile(stream, size), skip_magic=False, emit_chunks=True,  # type: ignore[arg-type]
+                             record_size_limit=size)
             for record in reader.records:
                 if not isinstance(record, Chunk):
                     yield record
                     continue
                 try:
-                    inner = _chunk_records(record, budget, path)
+                    if chunk_data:
+                        data = _chunk_data(record, budget, path)
+                        inner: list[Any] = [] if data is None else [_ChunkData(data)]
+                    else:
+                        inner = _chunk_records(record, budget, path)
                 except (zstandard.ZstdError, McapError, EOFError, ValueError, KeyError, IndexError, struct.error):
                     inner = []
                 if not inner and record.uncompressed_size:
@@ -312,6 +425,81 @@ def _summary_channels(path: Path) -> list[Schema | Channel]:
         return found
     except Exception:  # noqa: BLE001 a damaged summary only means the stream's own channel records are used
         return []
+
+
+_RECORD_HEAD = struct.Struct("<BQ")  # opcode, length
+_MESSAGE_FIXED = struct.Struct("<HIQQ")  # channel id, sequence, log time, publish time
+
+
+def iter_topic_data(path: Path, topics: set[str],
+                    info: RecordingContents | None = None) -> Iterator[tuple[str, int, bytes]]:
+    """(topic, log time, data) of the messages of `topics`, in file order: iter_messages for bulk reads.
+
+    The mcap reader builds a record object for every message of the file, the hundreds of thousands of
+    an hour's JSON copies too; this walks each chunk's data with one struct call per record and builds
+    nothing for messages of other topics. The same tolerance of truncated and damaged files, the same `info`.
+    """
+    info = info if info is not None else RecordingContents()
+    schemas: dict[int, Schema] = {}
+    channels: dict[int, Channel] = {}
+    wanted: dict[int, str] = {}
+
+    def known(record: Any) -> None:
+        if isinstance(record, Schema):
+            schemas[record.id] = record
+        elif isinstance(record, Channel):
+            channels[record.id] = record
+            if record.topic in topics:
+                wanted[record.id] = record.topic
+            schema = schemas.get(record.schema_id)
+            if schema is not None and schema.encoding == JSONSCHEMA:
+                try:
+                    info.schemas[record.topic] = json.loads(schema.data)
+                except ValueError:
+                    pass  # a schema that is not JSON: the messages are still readable
+
+    for record in _summary_channels(path):  # a damaged chunk may have held a channel later chunks use
+        known(record)
+    seen = 0
+    damaged = [0]
+    try:
+        for record in _records(path, damaged, chunk_data=True):
+            seen += 1
+            if isinstance(record, _ChunkData):
+                size = len(record)
+                at = 0
+                try:
+                    while at < size:
+                        opcode, length = _RECORD_HEAD.unpack_from(record, at)
+                        start = at + 9
+                        at = start + length
+                        if opcode == Opcode.MESSAGE:
+                            channel_id, _, log_time, _ = _MESSAGE_FIXED.unpack_from(record, start)
+                            topic = wanted.get(channel_id)
+                            if topic is not None:
+                                yield topic, log_time, record[start + 22 : at]
+                        elif opcode == Opcode.SCHEMA:
+                            known(Schema.read(ReadDataStream(BytesIO(record[start:at]))))
+                        elif opcode == Opcode.CHANNEL:
+                            known(Channel.read(ReadDataStream(BytesIO(record[start:at]))))
+                except (struct.error, McapError, ValueError, EOFError, KeyError, IndexError):
+                    damaged[0] += 1  # a chunk that passed its CRC yet does not parse: its messages so far stand
+            elif isinstance(record, Message):
+                topic = wanted.get(record.channel_id)
+                if topic is not None:
+                    yield topic, record.log_time, bytes(record.data)
+            elif isinstance(record, Metadata):
+                info.metadata.setdefault(record.name, []).append(dict(record.metadata))
+            elif isinstance(record, Attachment):
+                info.attachments.append((record.name, bytes(record.data)))
+            else:
+                known(record)
+    except _Truncated:
+        info.truncated = True
+        if seen == 0:
+            raise RecordingError(f"{path} is not an MCAP recording") from None
+    finally:
+        info.damaged_chunks = damaged[0]
 
 
 def read_recording(path: Path, topics: set[str] | None = None) -> RecordingContents:

@@ -5,15 +5,22 @@ from __future__ import annotations
 import json
 import re
 import time
+from binascii import crc_hqx
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
-from groundstation.mcap_io import RecordingContents, iter_messages
+import numpy as np
+
+from groundstation.columns import record_dtype
+from groundstation.mcap_io import RecordingContents, iter_messages, iter_topic_data
 from groundstation.view_errors import ReplayError
 from groundstation.view_model import Batch, ViewModel
-from protocol import FrameError, Message, PayloadError, UnknownMessageError, message_class
-from protocol.frame import parse_inner
+from protocol import PROTOCOL_VERSION, FrameError, FrameFlag, Message, PayloadError, UnknownMessageError, message_class
+from protocol import messages as m
+from protocol.crc import CRC_INIT
+from protocol.enums import INCOMPATIBLE_FLAGS_MASK
+from protocol.frame import MIN_INNER, parse_inner
 
 RAW_RX_TOPIC = "/raw/rx"
 _TIME = re.compile(r"^(\d+(?:\.\d*)?)(s|m|h|min)$")
@@ -49,14 +56,21 @@ class Item:
     feed: Callable[[ViewModel], None]
 
 
-def _frame_item(log_time_ns: int, inner: bytes) -> Item | None:
+def _decode(inner: bytes) -> tuple[Message, int] | None:
+    """A recorded frame's message and flags; None for a damaged frame (skipped as the live decoder would)."""
     try:
         raw = parse_inner(inner)
-        message: Message = message_class(raw.msg_id).unpack(raw.payload)
+        return message_class(raw.msg_id).unpack(raw.payload), raw.flags
     except (FrameError, PayloadError, UnknownMessageError, KeyError, ValueError):
-        return None  # a damaged frame in the file: skip it as the live decoder would have
+        return None
+
+
+def _frame_item(log_time_ns: int, inner: bytes) -> Item | None:
+    decoded = _decode(inner)
+    if decoded is None:
+        return None
+    message, flags = decoded
     t_us = getattr(message, "t_us", None)
-    flags = raw.flags
 
     def feed(model: ViewModel) -> None:
         model.feed(message, log_time_ns, flags=flags)
@@ -143,6 +157,63 @@ def convert(items: Iterator[Item], progress: Callable[[int], None] | None = None
         if progress is not None and count % 4096 == 0:
             progress(count)
     return model.take(), count
+
+
+def convert_recording(path: Path, info: RecordingContents | None = None,
+                      progress: Callable[[int], None] | None = None) -> tuple[Batch, int]:
+    """convert(read_items(path)) with runs of SAMPLEs decoded and turned into rows as columns.
+
+    A recorded hour holds some 133,000 SAMPLEs: decoding and feeding them one by one is most of a
+    conversion. Consecutive intact SAMPLE frames (the exact size this build knows, unsigned, good CRC)
+    become one structured array and ViewModel.samples; frames the view ignores (HEARTBEAT, ACK...) are
+    counted and do not end a run; every other record takes the per-item path, so episodes, dumps,
+    events and damaged frames are shown exactly as convert() shows them (a test compares the two).
+    """
+    model = ViewModel()
+    count = 0
+    inners: list[bytes] = []
+    times: list[int] = []
+
+    def flush() -> None:
+        if inners:
+            records = np.frombuffer(b"".join([inner[5:-2] for inner in inners]), _SAMPLE_DTYPE)
+            model.samples(records, times.copy(), [bool(inner[1] & _REPLAYED) for inner in inners])
+            inners.clear()
+            times.clear()
+
+    for topic, log_time_ns, data in iter_topic_data(path, _TOPICS, info):
+        if topic == RAW_RX_TOPIC:
+            if (len(data) == _SAMPLE_SIZE and data[4] == _SAMPLE_ID and data[0] == PROTOCOL_VERSION
+                    and not data[1] & _UNCOMMON_FLAGS and not crc_hqx(data, CRC_INIT)):
+                inners.append(data)
+                times.append(log_time_ns)
+                count += 1
+                continue
+            decoded = _decode(data)
+            if decoded is None:
+                continue
+            count += 1
+            if not isinstance(decoded[0], ViewModel.SHOWN):  # HEARTBEAT, ACK...: no rows, no state; the run goes on
+                continue
+            flush()
+            model.feed(decoded[0], log_time_ns, flags=decoded[1])
+        else:
+            flush()
+            item = _json_item(topic, log_time_ns, data)
+            if item is not None:
+                item.feed(model)
+                count += 1
+        if progress is not None and count % 4096 == 0:
+            progress(count)
+    flush()
+    return model.take(), count
+
+
+_SAMPLE_ID = m.Sample.MSG_ID
+_SAMPLE_SIZE = MIN_INNER + m.Sample.DEFINITION.fixed_size
+_SAMPLE_DTYPE = record_dtype(m.Sample.DEFINITION)
+_REPLAYED = int(FrameFlag.REPLAYED)
+_UNCOMMON_FLAGS = INCOMPATIBLE_FLAGS_MASK | int(FrameFlag.SIGNED)  # such a frame takes the per-item path
 
 
 def play(items: Iterator[Item], sink: Callable[[Callable[[ViewModel], None]], None], speed: float,

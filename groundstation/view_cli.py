@@ -152,7 +152,11 @@ def replay(
                 with Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.completed} frames"),
                               TimeElapsedColumn(), transient=True, disable=not sys.stderr.isatty()) as progress:
                     task = progress.add_task(f"reading {in_markup(file.name)}", total=None)
-                    batch, count = rp.convert(_progress_items(items, progress, task))
+                    if bounds == (None, None):  # the whole file: SAMPLEs in columns
+                        batch, count = rp.convert_recording(
+                            file, status, lambda done: progress.update(task, completed=done))  # type: ignore[arg-type]
+                    else:
+                        batch, count = rp.convert(_progress_items(items, progress, task))
                 view.send(batch)
             else:
                 count = rp.play(items, view.feed_model, factor)

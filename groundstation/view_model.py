@@ -126,6 +126,9 @@ class ViewModel:
     The live view calls it per frame, the replay for a whole file: both then log the same rows the same way.
     """
 
+    # The messages feed() makes rows of or keeps state from; it ignores every other one.
+    SHOWN: tuple[type[Message], ...] = (m.Sample, m.EpisodeStart, m.EpisodeEnd, m.DumpChunk, m.Text, m.ParamValue)
+
     def __init__(self) -> None:
         self._batch: Batch = {}
         self._agent_time_s = 0.0
@@ -220,6 +223,77 @@ class ViewModel:
         if replayed:
             self._backfilled += 1
             self._row("link/backfilled_samples", float(self._backfilled), host_time_ns)
+
+    def samples(self, records: NDArray[np.void], host_time_ns: list[int], replayed: list[bool]) -> None:
+        """Many SAMPLEs in a row (a replay's run between other messages), as columns: the rows feed() makes.
+
+        `records` is the structured array of their payloads (groundstation.columns.message_array); the rows,
+        values and timelines are those of feeding each SAMPLE in turn (a test compares them).
+        """
+        count = len(records)
+        if count == 0:
+            return
+        agent_s = (records["t_us"] / 1e6).tolist()
+        episodes = records["episode"].tolist()
+        steps = records["step"].tolist()
+
+        def rows(path: str, values: list[Any], keep: list[int] | None = None) -> None:
+            target = self._batch.get(path)
+            if target is None:
+                target = self._batch[path] = Rows()
+            if keep is None:
+                target.agent_time_s += agent_s
+                target.host_time_ns += host_time_ns
+                target.episode += episodes
+                target.step += steps
+            else:
+                target.agent_time_s += [agent_s[i] for i in keep]
+                target.host_time_ns += [host_time_ns[i] for i in keep]
+                target.episode += [episodes[i] for i in keep]
+                target.step += [steps[i] for i in keep]
+            target.values += values
+
+        depth = records["depth_m"].tolist()
+        rows("depth/depth_m", depth)
+        rows("velocity/velocity_mps", records["velocity_mps"].tolist())
+        rows("actuator/actuator_deg", records["actuator_deg"].tolist())
+        rows("actuator/actuator_cmd_deg", records["actuator_cmd_deg"].tolist())
+        rows("reward/reward", records["reward"].tolist())
+        actions = records["action"]
+        acted = np.flatnonzero(actions != Action.NONE).tolist()
+        if acted:
+            rows("action/action", actions[acted].astype(np.float64).tolist(), acted)
+        region = self._region
+        if region is not None:
+            for path, value in (("depth/target_depth_m", region.target_depth_m),
+                                ("depth/region_min_m", region.target_depth_m - region.z_tol_m),
+                                ("depth/region_max_m", region.target_depth_m + region.z_tol_m),
+                                ("velocity/bound_min_mps", -region.zdot_tol_mps),
+                                ("velocity/bound_max_mps", region.zdot_tol_mps)):
+                rows(path, [value] * count)
+        cells = self._cells(records["state"])
+        rows("value_function/current_cell", cells)
+        rows("policy/current_cell", list(cells))
+        again = [i for i, flag in enumerate(replayed) if flag]
+        if again:
+            first = self._backfilled + 1
+            self._backfilled += len(again)
+            rows("link/backfilled_samples", [float(n) for n in range(first, self._backfilled + 1)], again)
+        self._agent_time_s, self._episode, self._step, self._depth_m = agent_s[-1], episodes[-1], steps[-1], depth[-1]
+
+    def _cells(self, states: NDArray[np.integer[Any]]) -> list[tuple[float, float, str]]:
+        """_cell of many states."""
+        zdot = self._zdot_cells
+        cells = self._grid_cells
+        state = states.astype(np.int64)
+        x = (state % zdot + 0.5).tolist()
+        y = (state // zdot + 0.5).tolist()
+        labels = ["agent"] * len(x)
+        if cells is not None:
+            outside = np.flatnonzero(state >= cells).tolist()
+            for i in outside:
+                x[i], y[i], labels[i] = zdot / 2, cells // zdot + 1.0, "outside"
+        return list(zip(x, y, labels, strict=True))
 
     def _cell(self, state: int) -> tuple[float, float, str]:
         """Centre of the state's cell in heatmap pixels; the terminal state sits under the grid."""

@@ -4,11 +4,12 @@ from __future__ import annotations
 
 from binascii import crc_hqx
 from collections import deque
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, fields
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 from protocol.cobs import cobs_decode
+from protocol.compiled import fast_frames
 from protocol.crc import CRC_INIT
 from protocol.enums import INCOMPATIBLE_FLAGS_MASK, PROTOCOL_VERSION, FrameFlag
 from protocol.errors import CobsError
@@ -24,6 +25,11 @@ _SIGNED = int(FrameFlag.SIGNED)
 REORDER_WINDOW = 64  # skipped seqs remembered: a late one among them was reordered, not lost
 _SEQ_HALF = 0x8000  # a seq this far or more behind the expected one is late/duplicate, not a gap
 _new_frame = tuple.__new__  # Frame(...) without the named tuple's Python-level __new__
+# The compiled decoder's verdict on a chunk (protocol.fast_frames) and the DecoderStats counter of each reject.
+CHUNK_OK, CHUNK_OVERSIZE, CHUNK_COBS_ERROR, CHUNK_RUNT, CHUNK_CRC_ERROR, CHUNK_INCOMPATIBLE = range(6)
+REJECTED_AS = ("", "oversize", "cobs_errors", "runts", "crc_errors", "incompatible")
+COMPILED_FROM_BYTES = 256  # shorter reads take the stdlib path
+_CompiledDecoder = Callable[[bytes, int, int, int, int], tuple[int, list[list[int]], bytes]]
 
 
 @dataclass(slots=True)
@@ -83,6 +89,16 @@ class Frame(NamedTuple):
         return bool(self.flags & _SIGNED)
 
 
+def _compiled_decoder() -> _CompiledDecoder | None:
+    """protocol.fast_frames.decode_buffer once it is loaded in the background; None before and without numba."""
+    module = fast_frames()
+    return None if module is None else module.decode_buffer  # type: ignore[no-any-return]
+
+
+_PLAIN = {msg_id: (cls._struct.unpack_from, cls._build, MIN_INNER + cls.DEFINITION.fixed_size)
+          for msg_id, cls in message_classes().items() if not (cls._text_indices or cls.DEFINITION.has_tail)}
+
+
 @dataclass
 class StreamDecoder:
     """Feed it whatever the link delivers; it returns the frames completed so far.
@@ -97,6 +113,9 @@ class StreamDecoder:
     _buffer: bytes = b""
     _discarding: bool = False  # inside a chunk already over MAX_CHUNK: drop bytes until the next 0x00
     _expected_seq: int | None = None
+    compiled: bool = True  # COBS and CRC of a whole read in one compiled call where numba is installed
+    # msg_id -> (struct unpack_from, builder, shortest inner frame) of messages of fixed fields only
+    _plain: dict[int, tuple[Any, Any, int]] = field(default_factory=lambda: _PLAIN, repr=False)
     _skipped: deque[int] = field(default_factory=lambda: deque(maxlen=REORDER_WINDOW), repr=False)
     _classes: Mapping[int, type[Message]] = field(default_factory=message_classes, repr=False)
     agent: bool = False
@@ -110,19 +129,27 @@ class StreamDecoder:
                 return []
             data = data[end + 1 :]
             self._discarding = False
-        chunks = (self._buffer + data).split(b"\x00") if self._buffer else bytes(data).split(b"\x00")
-        rest = chunks.pop()
+        buffer = self._buffer + data if self._buffer else bytes(data)
+        # A read of a frame or two (commands and their ACKs) is decoded faster without the compiled call's set-up.
+        decode = _compiled_decoder() if self.compiled and len(buffer) >= COMPILED_FROM_BYTES else None
+        frames: list[Frame] = []
+        if decode is None:
+            chunks = buffer.split(b"\x00")
+            rest = chunks.pop()
+            for chunk in chunks:
+                if chunk:
+                    frame = self._decode_chunk(chunk)
+                    if frame is not None:
+                        frames.append(frame)
+        else:
+            rest_at, table, inner = decode(buffer, MAX_CHUNK, MIN_INNER, PROTOCOL_VERSION, INCOMPATIBLE_FLAGS_MASK)
+            rest = buffer[rest_at:]
+            frames = self._frames(table, inner)
         if len(rest) > MAX_CHUNK:
             stats.oversize += 1
             self._discarding = True
             rest = b""
         self._buffer = rest
-        frames: list[Frame] = []
-        for chunk in chunks:
-            if chunk:
-                frame = self._decode_chunk(chunk)
-                if frame is not None:
-                    frames.append(frame)
         return frames
 
     @property
@@ -151,6 +178,47 @@ class StreamDecoder:
         if crc_hqx(inner, CRC_INIT):  # over the frame and its big-endian CRC, a good frame's CRC is 0
             stats.crc_errors += 1
             return None
+        return self._decode_inner(inner)
+
+    def _frames(self, table: list[list[int]], inner: bytes) -> list[Frame]:
+        """The frames of chunks the compiled decoder checked.
+
+        The common frame (in sequence, unsigned, a message of fixed fields only, e.g. SAMPLE) is built
+        here, inline: one call per read instead of one per frame. Every other one takes _decode_inner.
+        """
+        plain = self._plain
+        frames: list[Frame] = []
+        append = frames.append
+        expected = self._expected_seq
+        inline = 0
+        for start, length, verdict, flags, seq, msg_id in table:
+            if verdict:
+                self._reject(verdict)
+                continue
+            frame = inner[start : start + length]
+            decoder = plain.get(msg_id)
+            if seq == expected and decoder is not None and not flags & _SIGNED and length >= decoder[2]:
+                expected = (seq + 1) & 0xFFFF
+                append(_new_frame(Frame, (flags, seq, msg_id, decoder[1](decoder[0](frame, HEADER_SIZE)), frame)))
+                inline += 1
+                continue
+            self._expected_seq = expected
+            decoded = self._decode_inner(frame)
+            expected = self._expected_seq
+            if decoded is not None:
+                append(decoded)
+        self._expected_seq = expected
+        self.stats.frames += inline
+        return frames
+
+    def _reject(self, verdict: int) -> None:
+        """Count a chunk the compiled decoder refused."""
+        name = REJECTED_AS[verdict]
+        setattr(self.stats, name, getattr(self.stats, name) + 1)
+
+    def _decode_inner(self, inner: bytes) -> Frame | None:
+        """The rest of the checks and the message, for an inner frame whose COBS, length and CRC are good."""
+        stats = self.stats
         version, flags, seq, msg_id = unpack_header(inner)
         if version != PROTOCOL_VERSION or flags & INCOMPATIBLE_FLAGS_MASK:
             stats.incompatible += 1

@@ -6,7 +6,8 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING, NamedTuple
 
 from protocol.cobs import CobsFrameEncoder, cobs_decode
-from protocol.enums import FrameFlag
+from protocol.compiled import fast_frames
+from protocol.enums import PROTOCOL_VERSION, FrameFlag
 from protocol.frame import HEADER, build_inner, payload_end
 from protocol.registry import Message
 
@@ -23,16 +24,22 @@ _ACK_REQUESTED = int(FrameFlag.ACK_REQUESTED)  # a plain int: IntFlag arithmetic
 _new_encoded = tuple.__new__  # EncodedFrame(...) without the named tuple's Python-level __new__
 
 
+_COMPILED_MAX_PAYLOAD = 246  # protocol.fast_frames.COMPILED_MAX_PAYLOAD (a test checks they agree)
+
+
 class FrameEncoder:
     """Keeps the per-sender sequence counter (+1 per frame, wraps at 65536).
 
     With a `signer`, every frame gets flag bit 4 (SIGNED) and a signature trailer (SPEC.md section 12).
     """
 
-    def __init__(self, first_seq: int = 0, signer: Signer | None = None) -> None:
+    def __init__(self, first_seq: int = 0, signer: Signer | None = None, compiled: bool = True) -> None:
         self._seq = first_seq & 0xFFFF
         self.signer = signer
         self._cobs = CobsFrameEncoder()  # senders repeat a few zero patterns (SAMPLEs): cached COBS codes
+        # Header, CRC and COBS of an unsigned frame in one compiled call, where numba is installed, once loaded.
+        self._use_compiled = compiled
+        self._compiled: Callable[[bytes, int, int, int], bytes] | None = None
 
     @property
     def next_seq(self) -> int:
@@ -42,12 +49,31 @@ class FrameEncoder:
         """Encode a message; commands get the ACK-requested flag set."""
         if message.DEFINITION.needs_ack:
             flags |= _ACK_REQUESTED
-        return self.encode_payload(message.MSG_ID, message.pack(), flags)
+        payload = message.pack()
+        compiled = self._compiled or self._compiled_writer()
+        if compiled is not None and self.signer is None and len(payload) <= _COMPILED_MAX_PAYLOAD:
+            # encode_payload's compiled path, inlined: a sender of SAMPLEs saves a call per frame.
+            seq = self._seq
+            self._seq = (seq + 1) & 0xFFFF
+            return _new_encoded(EncodedFrame, (seq, compiled(payload, flags, seq, message.MSG_ID)))
+        return self.encode_payload(message.MSG_ID, payload, flags)
 
     def encode_payload(self, msg_id: int, payload: bytes, flags: int = 0) -> EncodedFrame:
         """Frame an already packed payload (raises FrameError if it exceeds 247 bytes, 234 when signed)."""
         seq = self._seq
+        compiled = self._compiled or self._compiled_writer()
+        if compiled is not None and self.signer is None and len(payload) <= _COMPILED_MAX_PAYLOAD:
+            self._seq = (seq + 1) & 0xFFFF
+            return _new_encoded(EncodedFrame, (seq, compiled(payload, flags, seq, msg_id)))
         return _new_encoded(EncodedFrame, (seq, self.wire(self.next_inner(msg_id, payload, flags))))
+
+    def _compiled_writer(self) -> Callable[[bytes, int, int, int], bytes] | None:
+        """The compiled writer once protocol.compiled has loaded it (None until then, and without numba)."""
+        if self._use_compiled:
+            module = fast_frames()
+            if module is not None:
+                self._compiled = module.frame_writer(PROTOCOL_VERSION)
+        return self._compiled
 
     def next_inner(self, msg_id: int, payload: bytes, flags: int = 0) -> bytes:
         """The inner frame of a payload with the next seq, for senders that keep it (the agent's on-board log)."""

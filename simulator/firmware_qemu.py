@@ -86,7 +86,9 @@ def build_elf(build_dir: Path | None = None, arenas: str = "") -> Path:
     cmd = ["make", "-s", "-C", str(FIRMWARE_DIR), "qemu", f"QEMU_BUILD_DIR={out}"]
     if arenas:
         cmd.append(f"QEMU_ARENAS={arenas}")
-    done = subprocess.run(cmd, capture_output=True, text=True, check=False)
+    # make must be able to wait for its compilers even where our parent ignored SIGCHLD (inherited).
+    done = subprocess.run(cmd, capture_output=True, text=True, check=False,
+                          preexec_fn=lambda: signal.signal(signal.SIGCHLD, signal.SIG_DFL))
     if done.returncode != 0:
         lines = [x for x in (done.stderr or done.stdout).splitlines() if x.strip()]
         raise QemuError(f"the QEMU firmware does not build: {lines[-1] if lines else 'make failed'}")

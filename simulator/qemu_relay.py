@@ -32,6 +32,7 @@ class LinkRelay:
         self._link = qemu_link
         self._events = qemu_events
         self._client: socket.socket | None = None
+        self._aligned = False  # the current client has been sent a frame delimiter (0x00) already
         self._lock = threading.Lock()
         self._closed = threading.Event()
         threading.Thread(target=self._accept_loop, name="relay-accept", daemon=True).start()
@@ -46,6 +47,7 @@ class LinkRelay:
             client.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
             with self._lock:
                 old, self._client = self._client, client
+                self._aligned = False
             if old is not None:
                 _close(old)
             try:
@@ -86,7 +88,13 @@ class LinkRelay:
                 return  # QEMU ended
             with self._lock:
                 client = self._client
-            if client is None:
+                if client is not None and not self._aligned:
+                    # A new client starts at a frame boundary, never inside a frame another client got the
+                    # start of (the 0x00 is kept: an empty chunk is ignored by any decoder).
+                    boundary = data.find(b"\x00")
+                    data = data[boundary:] if boundary >= 0 else b""
+                    self._aligned = boundary >= 0
+            if client is None or not data:
                 continue  # nobody listening: the bytes are lost, as on a radio link without a ground station
             try:
                 client.sendall(data)

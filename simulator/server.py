@@ -186,7 +186,9 @@ class AgentServer:
             now = time.monotonic()
             if speed is None:
                 due_us = 2**63
-                blocked = len(transport.outbuf) > MAX_SPEED_QUEUE_BYTES
+                # "As fast as the client reads" includes no client: agent time stands still until one connects,
+                # so a reconnect does not cost thousands of agent seconds nobody received (benchmarks/soak.py).
+                blocked = len(transport.outbuf) > MAX_SPEED_QUEUE_BYTES or not transport.connected
             else:
                 due_us = agent0_us + int((now - wall0) * speed * 1e6)
                 blocked = False
@@ -211,7 +213,8 @@ class AgentServer:
 
     def _wait_s(self, speed: float | None, due_us: int) -> float:
         if speed is None:
-            wait = MAX_WAIT_S if len(self.transport.outbuf) > MAX_SPEED_QUEUE_BYTES else 0.0
+            held = len(self.transport.outbuf) > MAX_SPEED_QUEUE_BYTES or not self.transport.connected
+            wait = MAX_WAIT_S if held else 0.0
         else:
             # Sleep until the next control step is due in agent time.
             wait = min(MAX_WAIT_S, max(0.0, (self.agent.t_us + 1 - due_us) / 1e6 / speed))

@@ -43,10 +43,24 @@ def test_package_imports_only_what_the_layout_allows(package: str) -> None:
         assert not forbidden, f"{path.relative_to(ROOT)} imports {sorted(forbidden)}"
 
 
+# The compiled fast path beside the stdlib codec: imported only where a decoder or encoder first runs, and
+# only if numba is installed (the protocol works without it).
+PROTOCOL_COMPILED = {"fast_frames.py": {"numba", "numpy"}}
+
+
 def test_protocol_uses_the_standard_library_only() -> None:
     for path in _modules("protocol"):
-        foreign = {n for n in _imports(path) if n not in sys.stdlib_module_names and n != "protocol"}
+        allowed = PROTOCOL_COMPILED.get(path.name, set())
+        foreign = {n for n in _imports(path) if n not in sys.stdlib_module_names and n != "protocol"} - allowed
         assert not foreign, f"{path.relative_to(ROOT)} imports {sorted(foreign)}"
+
+
+def test_the_compiled_protocol_path_is_imported_lazily() -> None:
+    """No protocol module imports fast_frames at its top level: `import protocol` never loads numba."""
+    for path in _modules("protocol"):
+        tree = ast.parse(path.read_text(), filename=str(path))
+        top = {node.module for node in tree.body if isinstance(node, ast.ImportFrom)}
+        assert "protocol.fast_frames" not in top, f"{path.relative_to(ROOT)} imports fast_frames at import time"
 
 
 @pytest.mark.parametrize("library", SINGLE_OWNER)

@@ -265,8 +265,9 @@ void modes_init(void) {
     rng_seed(&g.rng, ((uint64_t)hal_entropy() << 32) | hal_entropy());
     learner_config_t c;
     params_learner_config(&c);
-    (void)learner_configure(&c);
+    /* Seeded first: configuring resets the learner, whose first policy breaks ties from this stream. */
     learner_seed(((uint64_t)hal_entropy() << 32) | hal_entropy());
+    (void)learner_configure(&c);
     recovery_init(&g.recovery, CFG_NEUTRAL_DEG);
     g.mode = MODE_IDLE;
     g.surface_pa = hal_pressure_pa();  /* P0: the agent boots at the surface */
