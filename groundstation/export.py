@@ -8,33 +8,27 @@ from pathlib import Path
 import numpy as np
 
 from groundstation.errors import RecordingError
-from groundstation.mcap_io import iter_messages
-from groundstation.recorded import Boots, json_fields
+from groundstation.recording import open_recording
 from protocol import Action, EndReason, Mode
+
+_REASONS = {reason.name.lower(): int(reason) for reason in EndReason}
 
 
 def _samples_and_ends(path: Path) -> tuple[list[dict[str, object]], dict[tuple[int, int], int]]:
     """Samples by (boot, index), each once, in order; episode end reasons by (boot, episode).
 
-    Sample and episode numbers restart at an agent reboot, so each row carries its `boot` (1, 2, ... in file
-    order) and two boots are never spliced. Messages whose JSON has the wrong shape are skipped.
+    Read through open_recording (the notebook API), so the CLI and a notebook see the same rows: sample and
+    episode numbers restart at an agent reboot, each row carries its `boot` (1, 2, ... in file order), two
+    boots are never spliced, and messages whose JSON has the wrong shape are left out.
     """
-    samples: dict[tuple[int, int], dict[str, object]] = {}
-    ends: dict[tuple[int, int], int] = {}
-    boots = Boots()
-    for msg in iter_messages(path, {"/agent/SAMPLE", "/agent/EPISODE_END", "/agent/HELLO"}):
-        if msg.topic == "/agent/HELLO":
-            boots.hello(msg)
-        elif msg.topic == "/agent/SAMPLE":
-            body = json_fields(msg, integers=("sample", "episode", "mode", "action", "state"))
-            if body is not None:
-                body = {"boot": boots.current, **body, "log_time_ns": msg.log_time_ns}
-                samples.setdefault((boots.current, body["sample"]), body)
-        else:
-            end = json_fields(msg, integers=("episode", "reason"))
-            if end is not None:
-                ends[(boots.current, end["episode"])] = end["reason"]
-    return [samples[k] for k in sorted(samples)], ends
+    recording = open_recording(path)
+    table = recording.samples()
+    names = [name for name in table.dtype.names or () if name not in ("_seq", "_flags", "boot")]
+    columns = ["boot", *names]
+    rows = [dict(zip(columns, values, strict=True)) for values in table[columns].tolist()]
+    ends = {(int(e["boot"]), int(e["episode"])): _REASONS[str(e["outcome"])]
+            for e in recording.episodes() if str(e["outcome"]) in _REASONS}
+    return rows, ends
 
 
 def export_csv(path: Path, target: Path) -> int:
