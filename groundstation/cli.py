@@ -6,6 +6,7 @@ import functools
 import json
 import os
 import sys
+import threading
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -15,17 +16,20 @@ from typing import Annotated, Any, TypeVar
 from urllib.parse import urlencode
 
 import typer
-from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
+from rich.text import Text
 
 from groundstation import view_cli
 from groundstation.errors import GroundStationError
-from groundstation.keys import KEY_FILE_ENV, keygen, resolve_key
+from groundstation.keys import KEY_FILE_ENV, KeyFileOption, keygen, resolve_key
 from groundstation.links import default_url, make_link
 from groundstation.recorder import RecorderConfig
 from groundstation.rerun_view import Viewer
 from groundstation.runner import RunConfig, RunStatus, add_marker, load_params_file, run
+from groundstation.safe_files import replaced_atomically, unused_name
+from groundstation.safe_output import SafeConsole, in_markup, one_line, printable, styled
 from groundstation.session import Session, SessionConfig
+from groundstation.signals import stop_on_signals
 from groundstation.simulator_process import run_simulator_command
 from protocol import DumpKind, Mode
 from protocol import messages as m
@@ -43,8 +47,8 @@ app.add_typer(log_app, name="log")
 
 _FORWARD = {"allow_extra_args": True, "ignore_unknown_options": True, "help_option_names": []}
 F = TypeVar("F", bound=Callable[..., Any])
-err = Console(stderr=True, highlight=False)
-out = Console(highlight=False)
+err = SafeConsole(stderr=True)  # agent text and file names are data: no markup, control characters escaped
+out = SafeConsole()
 
 
 def _one_line_errors(func: F) -> F:
@@ -56,7 +60,7 @@ def _one_line_errors(func: F) -> F:
             return func(*args, **kwargs)
         except (GroundStationError, OSError) as e:
             message = str(e).replace("\n", " ") or type(e).__name__
-            err.print(f"[bold red]dive:[/] {message}", markup=True, soft_wrap=True)
+            err.print(Text.assemble(("dive:", "bold red"), " ", one_line(message)), soft_wrap=True)
             raise typer.Exit(1) from None
         except KeyboardInterrupt:
             raise typer.Exit(130) from None
@@ -65,8 +69,8 @@ def _one_line_errors(func: F) -> F:
 
 
 @contextmanager
-def _session(url: str | None) -> Iterator[Session]:
-    session = Session(make_link(url), SessionConfig(reconnect=False, backfill=False, key=resolve_key()))
+def _session(url: str | None, key_file: Path | None = None) -> Iterator[Session]:
+    session = Session(make_link(url), SessionConfig(reconnect=False, backfill=False, key=resolve_key(key_file)))
     with session:
         yield session
 
@@ -100,7 +104,7 @@ def run_command(
     split_mb: Annotated[float, typer.Option(help="start a new file after this many MB (0 = never)")] = 0.0,
     split_minutes: Annotated[float, typer.Option(help="start a new file after this many minutes (0 = never)")] = 0.0,
     reconnect: Annotated[bool, typer.Option(help="reconnect after a link loss and backfill the gap")] = True,
-    key_file: Annotated[Path | None, typer.Option(help="sign commands with this key (default: $DIVE_KEY_FILE)")] = None,
+    key_file: KeyFileOption = None,
 ) -> None:
     """Connect, set parameters, start learning and record everything to MCAP until N episodes or Ctrl-C."""
     url = _with_sim_options(url, speed=speed, seed=seed, preset=preset, learner=learner)
@@ -124,29 +128,33 @@ def run_command(
     view = view_cli.open_live_view(viewer, rrd, web_port, name=url, headless_default=Viewer.NONE)
     columns = (SpinnerColumn(), TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
                TimeElapsedColumn())
-    with view_cli.closing_view(view), Progress(*columns, console=err, transient=False) as bar:
-        task = bar.add_task(f"connecting to {url}", total=episodes or None)
+    stop, signalled = threading.Event(), list[str]()
+    with stop_on_signals(stop, signalled), view_cli.closing_view(view), \
+            Progress(*columns, console=err, transient=False) as bar:
+        task = bar.add_task(f"connecting to {in_markup(url)}", total=episodes or None)
         shown = 0
 
         def show(status: RunStatus) -> None:
             nonlocal shown
             for line in status.messages[shown:]:
-                bar.console.print(f"[yellow]{line}[/]")
+                bar.console.print(styled(line, "yellow"))
             shown = len(status.messages)
             bar.update(task, completed=status.episodes, description=_describe(status))
 
-        result = run(config, show, listeners=[view] if view is not None else [])
-    for path in result.paths:
-        typer.echo(str(path))
+        result = run(config, show, stop=stop, listeners=[view] if view is not None else [])
+        for path in result.paths:  # before a served web viewer waits: the path is printed however the run ends
+            typer.echo(printable(path))
     if result.paths:
         err.print(f"next: dive log info {result.paths[-1]}\n      dive replay {result.paths[-1]}"
                   + ("" if view is not None else "\n      (dive run --viewer web shows the run live in a browser)"),
                   style="dim")
-    if result.interrupted:
-        err.print("stopped by Ctrl-C; the recording is complete", style="dim")
-    if result.still_missing:
-        err.print(f"{result.still_missing} samples could not be backfilled (no longer in the agent's log)",
-                  style="yellow")
+    if result.interrupted or signalled:
+        err.print(f"stopped by {signalled[0] if signalled else 'Ctrl-C'}; the recording is complete", style="dim")
+    if result.lost:
+        err.print(f"{result.lost} samples lost: the agent's log no longer held them", style="yellow")
+    if result.still_missing - result.lost:
+        err.print(f"{result.still_missing - result.lost} samples not backfilled though the agent's log still "
+                  "holds them (the link did not bring them in time)", style="yellow")
 
 
 def _describe(s: RunStatus) -> str:
@@ -174,15 +182,15 @@ def _with_sim_options(url: str | None, **sim_options: object) -> str:
 # ---------------------------------------------------------------------- commanding
 @app.command()
 @_one_line_errors
-def status(url: UrlArg = None) -> None:
+def status(url: UrlArg = None, key_file: KeyFileOption = None) -> None:
     """Show the agent's identity, mode, battery, on-board log and link quality."""
-    with _session(url) as s:
+    with _session(url, key_file) as s:
         deadline = time.monotonic() + 2.5
         while s.last_heartbeat is None and time.monotonic() < deadline:
             time.sleep(0.05)
         hello, hb = s.agent_hello, s.last_heartbeat
         assert hello is not None
-        out.print(f"agent {hello.name!r} id {hello.node_id:08x} firmware "
+        out.print(f"agent {one_line(repr(hello.name))} id {hello.node_id:08x} firmware "
                   f"{hello.firmware_major}.{hello.firmware_minor}.{hello.firmware_patch} boot {hello.boot_id:08x}")
         if hb is not None:
             mode = Mode(hb.mode).name if hb.mode in Mode._value2member_map_ else str(hb.mode)
@@ -206,12 +214,14 @@ def params_command(
     action: Annotated[ParamAction | None, typer.Argument(help="get NAME | set NAME VALUE")] = None,
     name: Annotated[str | None, typer.Argument(show_default=False)] = None,
     value: Annotated[str | None, typer.Argument(show_default=False)] = None,
+    key_file: KeyFileOption = None,
 ) -> None:
     """List the agent's parameters, or get / set one."""
-    with _session(url) as s:
+    with _session(url, key_file) as s:
         if action is None:
             for p in s.params:
-                out.print(f"{p.index:3d} {p.name:24s} {p.display_value:>12s}   [{p.minimum:g} .. {p.maximum:g}]")
+                name_shown = one_line(p.name)
+                out.print(f"{p.index:3d} {name_shown:24s} {p.display_value:>12s}   [{p.minimum:g} .. {p.maximum:g}]")
             return
         if name is None:
             raise typer.BadParameter("give a parameter NAME", param_hint="NAME")
@@ -226,9 +236,9 @@ def params_command(
 
 @app.command()
 @_one_line_errors
-def surface(url: UrlArg = None) -> None:
+def surface(url: UrlArg = None, key_file: KeyFileOption = None) -> None:
     """Emergency surface: maximum volume now, in any mode."""
-    with _session(url) as s:
+    with _session(url, key_file) as s:
         s.command(m.Surface())
     out.print("surfacing")
 
@@ -236,9 +246,9 @@ def surface(url: UrlArg = None) -> None:
 @app.command()
 @_one_line_errors
 def hover(url: Annotated[str, typer.Argument(help="the agent's URL")],
-          depth: Annotated[float, typer.Argument(help="depth to hold [m]")]) -> None:
+          depth: Annotated[float, typer.Argument(help="depth to hold [m]")], key_file: KeyFileOption = None) -> None:
     """Hold a depth with the recovery controller (no learning)."""
-    with _session(url) as s:
+    with _session(url, key_file) as s:
         s.command(m.Hover(depth_m=depth))
     out.print(f"hovering at {depth:g} m")
 
@@ -256,10 +266,10 @@ _DUMP_KINDS = {DumpChoice.values: DumpKind.VALUES, DumpChoice.policy: DumpKind.P
 
 @app.command()
 @_one_line_errors
-def dump(url: UrlArg = None, kind: Annotated[DumpChoice, typer.Option(help="what to dump")] = DumpChoice.values
-         ) -> None:
+def dump(url: UrlArg = None, kind: Annotated[DumpChoice, typer.Option(help="what to dump")] = DumpChoice.values,
+         key_file: KeyFileOption = None) -> None:
     """Fetch the value function, policy, Q values or model counts and print them as JSON."""
-    with _session(url) as s:
+    with _session(url, key_file) as s:
         snapshot = s.dump(_DUMP_KINDS[kind], timeout_s=10.0)
     out.print_json(json.dumps(snapshot.as_dict()))
 
@@ -330,7 +340,7 @@ def check_command(
                            timeouts=Timeouts(reply_s=timeout, heartbeat_s=max(3.0, timeout), mode_s=mode_timeout))
     with Progress(SpinnerColumn(), TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
                   TimeElapsedColumn(), console=err, transient=True, disable=as_json) as bar:
-        task = bar.add_task(f"checking {url}", total=len(checks))
+        task = bar.add_task(f"checking {in_markup(url)}", total=len(checks))
         report = run_checks(options, lambda o: bar.update(task, advance=1, description=o.check.id))
     if as_json:
         out.print_json(json.dumps(report.as_dict()))
@@ -380,7 +390,8 @@ def log_export(file: Path, format: Annotated[ExportFormat, typer.Option(
         _export_minari(file, out_path)
         return
     target = out_path or _existing(file).with_suffix(f".{format.value}")
-    rows = (export_csv if format == ExportFormat.csv else export_npz)(_existing(file), target)
+    with replaced_atomically(target, source=_existing(file)) as temporary:
+        rows = (export_csv if format == ExportFormat.csv else export_npz)(file, temporary)
     out.print(f"{target} ({rows} rows)")
 
 
@@ -406,8 +417,9 @@ def log_recover(file: Path, out_path: Annotated[Path | None, typer.Option("--out
     """Rewrite a truncated recording (after a crash or kill) into a finished, indexed one."""
     from groundstation.mcap_io import recover
 
-    target = out_path or _existing(file).with_name(file.stem + "-recovered.mcap")
-    count, truncated = recover(_existing(file), target)
+    target = out_path or unused_name(_existing(file).with_name(file.stem + "-recovered.mcap"))
+    with replaced_atomically(target, source=_existing(file)) as temporary:
+        count, truncated = recover(file, temporary)
     note = "was truncated" if truncated else "was already complete"
     out.print(f"{target} ({count} messages; the original {note})")
 

@@ -18,6 +18,7 @@ class PendingCommand:
     first_sent_s: float
     deadline_s: float
     attempts: int = 1
+    give_up_s: float | None = None  # retried (same seq) until then, however many tries; None: `retries` tries
     ack: m.Ack | None = None
     done: threading.Event = field(default_factory=threading.Event)
 

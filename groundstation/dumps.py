@@ -39,6 +39,16 @@ class _Partial:
     buffer: bytearray
     have: list[tuple[int, int]] = field(default_factory=list)
 
+    def add(self, start: int, end: int) -> None:
+        """Note [start, end) as received, merging ranges (a chunk sent again must not grow the list)."""
+        merged: list[tuple[int, int]] = []
+        for a, b in sorted([*self.have, (start, end)]):
+            if merged and a <= merged[-1][1]:
+                merged[-1] = (merged[-1][0], max(b, merged[-1][1]))
+            else:
+                merged.append((a, b))
+        self.have = merged
+
     def missing(self) -> list[tuple[int, int]]:
         gaps, cursor = [], 0
         for start, end in sorted(self.have):
@@ -50,19 +60,57 @@ class _Partial:
         return gaps
 
 
-class DumpAssembler:
-    """Feed DUMP_CHUNKs of any number of snapshots; each completes once every byte has arrived."""
+# Untrusted sizes (issue 13 item 1): a chunk's total_bytes is checked against what the agent can hold before a
+# byte is allocated. S = z_cells * zdot_cells * act_bins + 1 comes from the agent's parameters (PARAM_VALUE) when
+# they have been seen; until then S is taken as at most UNKNOWN_GRID_STATES.
+HELD_SNAPSHOTS = 4  # the agent keeps the newest 4 snapshots (SPEC.md 1.1); an older one can never be completed
+UNKNOWN_GRID_STATES = 1024
+_GRID_PARAMETERS = ("z_cells", "zdot_cells", "act_bins")
 
-    def __init__(self, keep: int = 8) -> None:
+
+def snapshot_bytes(kind: int, states: int) -> int:
+    """The size of a snapshot of `kind` for S = `states` (SPEC.md section 10); 0 for an unknown kind."""
+    return {DumpKind.VALUES: 4 * states, DumpKind.POLICY: states, DumpKind.Q_VALUES: 8 * states,
+            DumpKind.COUNTS: 4 * states * states}.get(kind, 0)  # type: ignore[call-overload]
+
+
+class DumpAssembler:
+    """Feed DUMP_CHUNKs of any number of snapshots; each completes once every byte has arrived.
+
+    At most `keep` incomplete snapshots are held (the oldest is dropped), each no larger than the agent's grid
+    allows; a chunk announcing more is counted in `refused` and dropped.
+    """
+
+    def __init__(self, keep: int = HELD_SNAPSHOTS) -> None:
         self._partials: dict[int, _Partial] = {}
         self._done: list[int] = []
         self._keep = keep
+        self._grid: dict[str, int] = {}
+        self.refused = 0
+
+    def saw_parameter(self, name: str, value: float) -> None:
+        """Learn the grid size from the agent's PARAM_VALUEs (any other name is ignored)."""
+        if name in _GRID_PARAMETERS and 1 <= value <= 255:
+            self._grid[name] = int(value)
+
+    @property
+    def states(self) -> int:
+        """S as the agent's parameters give it, else the bound assumed for an agent not yet asked."""
+        if len(self._grid) == len(_GRID_PARAMETERS):
+            return self._grid["z_cells"] * self._grid["zdot_cells"] * self._grid["act_bins"] + 1
+        return UNKNOWN_GRID_STATES
+
+    def limit(self, kind: int) -> int:
+        return snapshot_bytes(kind, self.states)
 
     def feed(self, chunk: DumpChunk) -> Dump | None:
         if chunk.dump_id in self._done:
             return None
         part = self._partials.get(chunk.dump_id)
         if part is None:
+            if not 0 < chunk.total_bytes <= self.limit(chunk.kind):
+                self.refused += 1
+                return None
             part = _Partial(chunk.kind, chunk.episode, chunk.total_bytes, bytearray(chunk.total_bytes))
             self._partials[chunk.dump_id] = part
             while len(self._partials) > self._keep:
@@ -70,7 +118,7 @@ class DumpAssembler:
         end = min(part.total, chunk.offset + len(chunk.data))
         if end > chunk.offset:
             part.buffer[chunk.offset:end] = chunk.data[: end - chunk.offset]
-            part.have.append((chunk.offset, end))
+            part.add(chunk.offset, end)
         if part.missing():
             return None
         del self._partials[chunk.dump_id]
@@ -80,6 +128,10 @@ class DumpAssembler:
         except ValueError:
             return None
         return Dump(chunk.dump_id, kind, part.episode, bytes(part.buffer))
+
+    def holds(self, dump_id: int) -> bool:
+        """True while `dump_id` is being assembled."""
+        return dump_id in self._partials
 
     def missing(self, dump_id: int) -> list[tuple[int, int]]:
         part = self._partials.get(dump_id)
@@ -122,8 +174,10 @@ class DumpTracker:
 
     def feed(self, chunk: DumpChunk, now_s: float) -> Dump | None:
         """Place a chunk; the snapshot when it is complete."""
-        self._first_seen.setdefault(chunk.dump_id, (chunk.kind, now_s))
         done = self.assembler.feed(chunk)
+        if done is None and not self.assembler.holds(chunk.dump_id):
+            return None  # refused (too large) or long finished: no bookkeeping for it, however many ids come
+        self._first_seen.setdefault(chunk.dump_id, (chunk.kind, now_s))
         if done is not None:
             self._completed[done.dump_id] = done
             while len(self._completed) > self._keep:

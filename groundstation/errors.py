@@ -37,3 +37,15 @@ class ParameterError(GroundStationError, ValueError):
 
 class RecordingError(GroundStationError, OSError):
     """A recording that cannot be written, read or recovered."""
+
+
+class RecordingExistsError(RecordingError, FileExistsError):
+    """A recording would replace an existing file (never done: a new name is chosen or the user gives one)."""
+
+
+class RecordingTooLargeError(RecordingError):
+    """A recording whose records claim more data than its size on disk can hold (a damaged or hostile file)."""
+
+
+class AgentChangedError(LinkError):
+    """After a reconnect another agent (another node id) answered at the same address."""

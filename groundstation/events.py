@@ -30,6 +30,7 @@ class Received:
     host_time_ns: int  # host clock when the frame arrived
     agent_time_ns: int | None  # the message's agent time mapped to host time, when it has one
     backfilled: bool  # re-sent from the on-board log after a link outage
+    after_end: bool = False  # came during the final backfill, from after the run's end: recorded raw only
 
     @property
     def message(self) -> Message:

@@ -10,6 +10,7 @@ from typing import Annotated
 import typer
 
 from groundstation.errors import GroundStationError
+from groundstation.safe_output import one_line
 from protocol import SigningError
 from protocol.signing import KEY_SIZE, format_key, parse_key
 
@@ -38,7 +39,12 @@ def write_key_file(path: Path, force: bool = False) -> Path:
 
 
 def read_key_file(path: Path) -> bytes:
+    """The key in `path`; a file that others (group or world) may read is refused: the key is no secret then."""
     try:
+        mode = path.stat().st_mode
+        if mode & 0o077:
+            raise KeyFileError(f"key file {one_line(path)} is readable by others (mode {mode & 0o777:03o}); "
+                               f"run: chmod 600 {one_line(path)}")
         return parse_key(path.read_text(encoding="ascii"))
     except (OSError, UnicodeDecodeError) as e:
         raise KeyFileError(f"cannot read key file {path}: {getattr(e, 'strerror', None) or e}") from e
@@ -54,6 +60,10 @@ def resolve_key(key_file: Path | None = None) -> bytes | None:
     return read_key_file(key_file) if key_file is not None else None
 
 
+KeyFileOption = Annotated[Path | None, typer.Option(
+    "--key-file", help=f"sign commands with the key in this file (default: ${KEY_FILE_ENV})", show_default=False)]
+
+
 def keygen(
     out: Annotated[Path, typer.Option("--out", help="key file to write (64 hex digits, mode 0600)")] = DEFAULT_KEY_FILE,
     force: Annotated[bool, typer.Option(help="replace an existing key file")] = False,
@@ -62,7 +72,8 @@ def keygen(
     try:
         path = write_key_file(out, force)
     except KeyFileError as e:
-        typer.echo(f"dive: {e}", err=True)
+        typer.echo(f"dive: {one_line(e)}", err=True)
         raise typer.Exit(1) from None
-    typer.echo(str(path))
-    typer.echo(f"agent: python -m simulator serve --key-file {path}; ground: export {KEY_FILE_ENV}={path}", err=True)
+    typer.echo(one_line(path))
+    shown = one_line(path)
+    typer.echo(f"agent: python -m simulator serve --key-file {shown}; ground: export {KEY_FILE_ENV}={shown}", err=True)

@@ -6,8 +6,10 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
+from groundstation.exactness import SampleIndexCheck
 from groundstation.gaps import SampleRanges
 from groundstation.mcap_io import RecordingContents, iter_messages
+from groundstation.recorded import Boots, json_fields
 from protocol import EndReason
 
 
@@ -22,6 +24,19 @@ class EpisodeSummary:
 
 
 @dataclass
+class BootSummary:
+    """One boot of the agent in the recording: its sample indices start at 0 again, so they are counted apart."""
+
+    boot: int
+    samples: int = 0
+    samples_backfilled: int = 0
+    samples_missing: int = 0
+    samples_impossible: int = 0  # indices the agent cannot have reached (ignored; see exactness.py)
+    first_sample: int | None = None
+    end_sample: int | None = None
+
+
+@dataclass
 class RecordingSummary:
     path: str
     complete: bool  # finished with a footer (not cut short)
@@ -32,7 +47,7 @@ class RecordingSummary:
     messages: int = 0
     samples: int = 0
     samples_backfilled: int = 0
-    samples_missing: int = 0  # holes in the agent's sample indices that were never filled
+    samples_missing: int = 0  # holes in the agent's sample indices that were never filled (all boots)
     frames_lost: int = 0  # by sequence number, from the last link statistics
     rejects: int = 0
     episodes: list[EpisodeSummary] = field(default_factory=list)
@@ -40,15 +55,33 @@ class RecordingSummary:
     topics: dict[str, int] = field(default_factory=dict)
     agent: dict[str, str] = field(default_factory=dict)
     parameters: dict[str, str] = field(default_factory=dict)
+    boots: list[BootSummary] = field(default_factory=list)
+    malformed: int = 0  # messages whose JSON had the wrong shape (skipped)
+    damaged_chunks: int = 0  # chunks skipped because their data was damaged
 
     def as_dict(self) -> dict[str, Any]:
         return asdict(self)
 
 
+class _Boot:
+    def __init__(self, number: int) -> None:
+        self.summary = BootSummary(number)
+        self.held = SampleRanges()
+        self.check = SampleIndexCheck()
+
+    def finish(self) -> BootSummary:
+        s = self.summary
+        s.samples_missing = sum(b - a for a, b in self.held.missing())
+        s.first_sample, s.end_sample = self.held.first, self.held.end
+        return s
+
+
 def summarize(path: Path) -> RecordingSummary:
     info = RecordingContents()
     summary = RecordingSummary(str(path), complete=True)
-    held = SampleRanges()
+    boots = Boots()
+    boot = _Boot(1)
+    finished: list[BootSummary] = []
     first_ns = last_ns = None
     first_us = last_us = None
     for msg in iter_messages(path, None, info):
@@ -56,31 +89,56 @@ def summarize(path: Path) -> RecordingSummary:
         summary.topics[msg.topic] = summary.topics.get(msg.topic, 0) + 1
         first_ns = msg.log_time_ns if first_ns is None else min(first_ns, msg.log_time_ns)
         last_ns = msg.log_time_ns if last_ns is None else max(last_ns, msg.log_time_ns)
+        body: dict[str, Any] | None = {}
         if msg.topic == "/agent/SAMPLE":
-            body = msg.json()
-            first_us = body["t_us"] if first_us is None else min(first_us, body["t_us"])
-            last_us = body["t_us"] if last_us is None else max(last_us, body["t_us"])
-            if held.add(body["sample"]):
-                summary.samples += 1
-                summary.samples_backfilled += bool(body.get("_backfilled"))
+            body = json_fields(msg, integers=("sample", "t_us"))
+            if body is not None:
+                if not boot.check.possible(body["sample"], body["t_us"]):
+                    boot.summary.samples_impossible += 1
+                    continue
+                first_us = body["t_us"] if first_us is None else min(first_us, body["t_us"])
+                last_us = body["t_us"] if last_us is None else max(last_us, body["t_us"])
+                if boot.held.add(body["sample"]):
+                    boot.summary.samples += 1
+                    boot.summary.samples_backfilled += bool(body.get("_backfilled"))
+        elif msg.topic == "/agent/HEARTBEAT":
+            body = json_fields(msg, integers=("log_next_sample", "uptime_ms"))
+            if body is not None:
+                boot.check.heartbeat(body["log_next_sample"], body["uptime_ms"])
         elif msg.topic == "/agent/EPISODE_END":
-            body = msg.json()
-            reason = body["reason"]
-            outcome = EndReason(reason).name.lower() if reason in (1, 2, 3) else str(reason)
-            summary.episodes.append(EpisodeSummary(body["episode"], outcome, body["steps"], body["duration_s"],
-                                                   body["episode_return"], bool(body.get("_backfilled"))))
+            body = json_fields(msg, integers=("episode", "reason", "steps"), numbers=("duration_s", "episode_return"))
+            if body is not None:
+                reason = body["reason"]
+                outcome = EndReason(reason).name.lower() if reason in (1, 2, 3) else str(reason)
+                summary.episodes.append(EpisodeSummary(body["episode"], outcome, body["steps"],
+                                                       body["duration_s"] or 0.0, body["episode_return"] or 0.0,
+                                                       bool(body.get("_backfilled"))))
         elif msg.topic == "/agent/HELLO":
             summary.sessions += 1
-        elif msg.topic == "/event" and msg.json().get("kind") == "link_lost":
-            summary.link_losses += 1
+            if boots.hello(msg):
+                finished.append(boot.finish())
+                boot = _Boot(boots.current)
+        elif msg.topic == "/event":
+            body = json_fields(msg)
+            if body is not None and body.get("kind") == "link_lost":
+                summary.link_losses += 1
         elif msg.topic == "/link":
-            link = msg.json().get("link", {})
-            summary.frames_lost = int(link.get("rx_lost", 0))
-            summary.rejects = int(link.get("rx_rejects", 0))
+            body = json_fields(msg)
+            link = body.get("link") if body is not None else None
+            if isinstance(link, dict):
+                summary.frames_lost = _count(link.get("rx_lost"))
+                summary.rejects = _count(link.get("rx_rejects"))
+        if body is None:
+            summary.malformed += 1
+    finished.append(boot.finish())
+    summary.boots = [b for b in finished if b.samples or b.samples_impossible or len(finished) == 1]
     summary.complete = not info.truncated
+    summary.damaged_chunks = info.damaged_chunks
     summary.episodes.sort(key=lambda e: e.episode)
     summary.successes = sum(e.outcome == "success" for e in summary.episodes)
-    summary.samples_missing = sum(b - a for a, b in held.missing())
+    summary.samples = sum(b.samples for b in finished)
+    summary.samples_backfilled = sum(b.samples_backfilled for b in finished)
+    summary.samples_missing = sum(b.samples_missing for b in finished)
     summary.duration_s = (last_ns - first_ns) / 1e9 if first_ns is not None and last_ns is not None else 0.0
     if first_us is not None and last_us is not None:
         summary.agent_duration_s = (last_us - first_us) / 1e6
@@ -88,6 +146,10 @@ def summarize(path: Path) -> RecordingSummary:
         if info.metadata.get(name):
             setattr(summary, key, info.metadata[name][-1])
     return summary
+
+
+def _count(value: object) -> int:
+    return value if isinstance(value, int) and not isinstance(value, bool) else 0
 
 
 def format_summary(s: RecordingSummary) -> str:
@@ -100,6 +162,16 @@ def format_summary(s: RecordingSummary) -> str:
         f"frames lost {s.frames_lost}, rejects {s.rejects}",
         f"  episodes {len(s.episodes)} ({s.successes} successes)",
     ]
+    if len(s.boots) > 1:  # sample indices restart at a reboot: each boot's holes are its own
+        for b in s.boots:
+            lines.append(f"    boot {b.boot}: samples {b.samples} [{b.first_sample}, {b.end_sample}) "
+                         f"({b.samples_backfilled} backfilled, {b.samples_missing} still missing)")
+    impossible = sum(b.samples_impossible for b in s.boots)
+    for count, what in ((impossible, "SAMPLE indices the agent cannot have reached (ignored)"),
+                        (s.malformed, "messages of the wrong shape (skipped)"),
+                        (s.damaged_chunks, "damaged chunks (skipped; the rest was read)")):
+        if count:
+            lines.append(f"  {count} {what}")
     for e in s.episodes:
         lines.append(f"    {e.episode:5d}  {e.outcome:8s} {e.steps:6d} steps  {e.duration_s:8.1f} s  "
                      f"return {e.episode_return:9.1f}{'  (backfilled)' if e.backfilled else ''}")

@@ -2,26 +2,32 @@
 
 from __future__ import annotations
 
+import io
 import json
 import os
+import struct
 import time
+import zlib
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import TracebackType
 from typing import IO, Any, Self
 
+import zstandard
+from mcap.data_stream import ReadDataStream
 from mcap.exceptions import McapError
-from mcap.records import Attachment, Channel, Message, Metadata, Schema
-from mcap.stream_reader import StreamReader
+from mcap.records import Attachment, Channel, Chunk, Message, Metadata, Schema
+from mcap.stream_reader import StreamReader, breakup_chunk
 from mcap.writer import CompressionType, Writer
 
-from groundstation.errors import RecordingError
+from groundstation.errors import RecordingError, RecordingExistsError, RecordingTooLargeError
 
 PROFILE = "diving-agent"
 JSON = "json"
 JSONSCHEMA = "jsonschema"
 RAW_ENCODING = "diving-agent-frame-v1"
+MAGIC = b"\x89MCAP0\r\n"
 
 
 def mcap_library_version() -> str:
@@ -41,11 +47,15 @@ class McapFileWriter:
         self.path = path
         try:
             path.parent.mkdir(parents=True, exist_ok=True)
-            self._file: IO[bytes] = open(path, "wb")  # noqa: SIM115 closed in close()
+            # "x": never replaces a file (issue 13: no command destroys a recording); callers pick a free name
+            self._file: IO[bytes] = open(path, "xb")  # noqa: SIM115 closed in close()
+        except FileExistsError as e:
+            raise RecordingExistsError(f"{path} exists; a recording is never overwritten: give another name") from e
         except OSError as e:
             raise RecordingError(f"cannot write {path}: {e.strerror or e}") from e
         self._writer = Writer(self._file, chunk_size=256 * 1024, compression=CompressionType.ZSTD)
         self._writer.start(profile=PROFILE, library=f"dive (mcap {mcap_library_version()})")
+        self._file.flush()  # the magic and header on disk at once: a kill in the first second leaves no 0-byte file
         self._schemas: dict[str, int] = {}
         self._channels: dict[str, int] = {}
         self._flush_period_s = flush_period_s
@@ -136,19 +146,82 @@ class RecordingContents:
     schemas: dict[str, dict[str, Any]] = field(default_factory=dict)  # topic -> JSON schema
     attachments: list[tuple[str, bytes]] = field(default_factory=list)
     truncated: bool = False
+    damaged_chunks: int = 0  # chunks skipped because their data was damaged (the rest of the file was read)
 
 
-def _records(path: Path) -> Iterator[Any]:
-    """Every record in file order; stops quietly at a truncated or corrupt tail (raises _Truncated after)."""
+# Untrusted sizes (issue 13 item 1): a file's records can claim any length. No record is read past the end of the
+# file, no chunk decompresses to more than it declares, and a file's chunks together decompress to at most
+# DECODED_PER_DISK_BYTE times its size on disk (our recordings: 5-10x; see docs/reliability.md) or
+# DECODED_FLOOR_BYTES, whichever is larger; past that the read stops with RecordingTooLargeError.
+DECODED_PER_DISK_BYTE = 64
+DECODED_FLOOR_BYTES = 64 * 1024 * 1024
+
+
+class _BoundedFile:
+    """A binary file whose read(n) never asks for more than is left: a huge length allocates nothing."""
+
+    def __init__(self, stream: IO[bytes], size: int) -> None:
+        self._stream, self._size = stream, size
+
+    def read(self, n: int = -1) -> bytes:
+        left = max(0, self._size - self._stream.tell())
+        return self._stream.read(left if n < 0 else min(n, left))
+
+
+def _chunk_records(chunk: Chunk, budget: list[int], path: Path) -> list[Any]:
+    """A chunk's records, decompressed within its declared size and the file's budget; [] if it is damaged."""
+    if chunk.uncompressed_size > budget[0]:
+        raise RecordingTooLargeError(
+            f"{path}: its chunks claim more than {DECODED_PER_DISK_BYTE} times the file's size when decompressed "
+            "(a damaged or hostile file); not read further")
+    if chunk.compression == "zstd":
+        with zstandard.ZstdDecompressor().stream_reader(chunk.data) as reader:
+            data = reader.read(chunk.uncompressed_size + 1)
+    elif chunk.compression == "":
+        data = chunk.data
+    else:
+        return []
+    budget[0] -= len(data)
+    if len(data) != chunk.uncompressed_size or (chunk.uncompressed_crc and zlib.crc32(data) != chunk.uncompressed_crc):
+        return []
+    return breakup_chunk(Chunk(compression="", data=data, message_end_time=chunk.message_end_time,
+                               message_start_time=chunk.message_start_time, uncompressed_crc=0,
+                               uncompressed_size=len(data)))
+
+
+def _records(path: Path, damaged: list[int] | None = None) -> Iterator[Any]:
+    """Every record in file order; stops quietly at a truncated or corrupt tail (raises _Truncated after).
+
+    A chunk whose data is damaged (CRC, decompression) is skipped and counted in damaged[0]; the records after it
+    are read on (issue 13 item 5: one flipped bit loses one chunk, not the rest of the file).
+    """
     try:
         stream = open(path, "rb")  # noqa: SIM115
+        size = os.fstat(stream.fileno()).st_size
     except FileNotFoundError as e:
         raise RecordingError(f"no such recording: {path}") from e
     except OSError as e:
         raise RecordingError(f"cannot read {path}: {e.strerror or e}") from e
+    budget = [max(DECODED_FLOOR_BYTES, DECODED_PER_DISK_BYTE * size)]
     with stream:
         try:
-            yield from StreamReader(stream, skip_magic=False, validate_crcs=True).records
+            reader = StreamReader(_BoundedFile(stream, size), skip_magic=False, emit_chunks=True,  # type: ignore[arg-type]
+                                  record_size_limit=size)
+            for record in reader.records:
+                if not isinstance(record, Chunk):
+                    yield record
+                    continue
+                try:
+                    inner = _chunk_records(record, budget, path)
+                except (zstandard.ZstdError, McapError, EOFError, ValueError, KeyError, IndexError, struct.error):
+                    inner = []
+                if not inner and record.uncompressed_size:
+                    if damaged is not None:
+                        damaged[0] += 1
+                    continue
+                yield from inner
+        except RecordingTooLargeError:
+            raise
         except (McapError, EOFError, ValueError, KeyError, IndexError, OSError) as e:
             if isinstance(e, OSError):
                 raise RecordingError(f"cannot read {path}: {e}") from e
@@ -168,8 +241,14 @@ def iter_messages(path: Path, topics: set[str] | None = None,
     schemas: dict[int, Schema] = {}
     channels: dict[int, Channel] = {}
     seen = 0
+    damaged = [0]
+    for record in _summary_channels(path):  # a damaged chunk may have held a channel later chunks use
+        if isinstance(record, Schema):
+            schemas[record.id] = record
+        else:
+            channels[record.id] = record
     try:
-        for record in _records(path):
+        for record in _records(path, damaged):
             seen += 1
             if isinstance(record, Schema):
                 schemas[record.id] = record
@@ -177,7 +256,10 @@ def iter_messages(path: Path, topics: set[str] | None = None,
                 channels[record.id] = record
                 schema = schemas.get(record.schema_id)
                 if schema is not None and schema.encoding == JSONSCHEMA:
-                    info.schemas[record.topic] = json.loads(schema.data)
+                    try:
+                        info.schemas[record.topic] = json.loads(schema.data)
+                    except ValueError:
+                        pass  # a schema that is not JSON: the messages are still readable
             elif isinstance(record, Message):
                 channel = channels.get(record.channel_id)
                 if channel is None or (topics is not None and channel.topic not in topics):
@@ -193,6 +275,43 @@ def iter_messages(path: Path, topics: set[str] | None = None,
         info.truncated = True
         if seen == 0:
             raise RecordingError(f"{path} is not an MCAP recording") from None
+    finally:
+        info.damaged_chunks = damaged[0]
+
+
+_FOOTER_BYTES = 1 + 8 + 8 + 8 + 4  # opcode, length, summary_start, summary_offset_start, summary_crc
+
+
+def _summary_channels(path: Path) -> list[Schema | Channel]:
+    """The schemas and channels of a finished file's summary section (after its footer's pointer); [] if none."""
+    try:
+        with open(path, "rb") as stream:
+            size = os.fstat(stream.fileno()).st_size
+            if size < len(MAGIC) * 2 + _FOOTER_BYTES:
+                return []
+            stream.seek(size - len(MAGIC) - _FOOTER_BYTES)
+            footer = stream.read(_FOOTER_BYTES)
+            if footer[0] != 0x02 or stream.read(len(MAGIC)) != MAGIC:
+                return []
+            summary_start = struct.unpack_from("<Q", footer, 9)[0]
+            end = size - len(MAGIC) - _FOOTER_BYTES
+            if not len(MAGIC) <= summary_start < end:
+                return []
+            stream.seek(summary_start)
+            section = stream.read(end - summary_start)
+        found: list[Schema | Channel] = []
+        view = memoryview(section)
+        offset = 0
+        while offset + 9 <= len(view):
+            opcode, length = view[offset], struct.unpack_from("<Q", view, offset + 1)[0]
+            body = bytes(view[offset + 9: offset + 9 + length])
+            offset += 9 + length
+            if opcode in (0x03, 0x04) and len(body) == length:
+                record = (Schema if opcode == 0x03 else Channel).read(ReadDataStream(io.BytesIO(body)))
+                found.append(record)
+        return found
+    except Exception:  # noqa: BLE001 a damaged summary only means the stream's own channel records are used
+        return []
 
 
 def read_recording(path: Path, topics: set[str] | None = None) -> RecordingContents:

@@ -16,10 +16,11 @@ from pathlib import Path
 from typing import Any, TypeVar
 
 from groundstation.dumps import DumpAssembler
-from groundstation.errors import RecordingError
+from groundstation.errors import RecordingError, RecordingExistsError
 from groundstation.events import EventKind, LinkEvent, Received, Sent
 from groundstation.hello import tool_version
 from groundstation.mcap_io import RAW_ENCODING, McapFileWriter, mcap_library_version
+from groundstation.safe_files import unused_name
 from protocol import Message, messages
 from protocol.cobs import cobs_decode
 from protocol.jsonschema import message_json_schema
@@ -174,9 +175,20 @@ class Recorder:
             self.config.directory / f"{self._stamp}-agent{self._agent_id:08x}"
         return base.parent / (f"{base.name}-part{len(self.paths) + 1}.mcap" if self.paths else f"{base.name}.mcap")
 
-    def _open(self) -> None:
+    def _create(self) -> McapFileWriter:
+        """The next file: the name the user gave (refused if it exists), else a made-up name no file has yet."""
         path = self._file_name()
-        self._writer = McapFileWriter(path, self.config.flush_period_s)
+        if self.config.path is not None and not self.paths:
+            return McapFileWriter(path, self.config.flush_period_s)
+        while True:  # two recorders of one agent in the same second: the second takes name-2.mcap
+            try:
+                return McapFileWriter(unused_name(path), self.config.flush_period_s)
+            except RecordingExistsError:
+                continue  # taken between the look and the exclusive create
+
+    def _open(self) -> None:
+        self._writer = self._create()
+        path = self._writer.path
         self.paths.append(path)
         self._opened_s = time.monotonic()
         w = self._writer
@@ -196,6 +208,7 @@ class Recorder:
                 self._write_sent(item)
             else:
                 self._write_event(item)
+        w.flush()  # header, metadata and the first frames on disk now, not after the first second
 
     def _rotate_if_due(self) -> None:
         w = self._writer
@@ -210,13 +223,18 @@ class Recorder:
         w = self._writer
         assert w is not None
         frame, msg = received.frame, received.message
+        if received.after_end:  # from after the run's end: the raw frame only (Session.request_backfill)
+            w.write(w.channel("/raw/rx", RAW_ENCODING), frame.inner, received.host_time_ns, received.agent_time_ns)
+            return
         name = msg.DEFINITION.name
         topic = f"/agent/{name}"
         channel = w.channel(topic, "json", f"diving_agent.{name}", message_schema(type(msg)))
         data = message_json(msg, frame.seq, frame.flags, received.backfilled)
         w.write(channel, data, received.host_time_ns, received.agent_time_ns)
         w.write(w.channel("/raw/rx", RAW_ENCODING), frame.inner, received.host_time_ns, received.agent_time_ns)
-        if isinstance(msg, messages.DumpChunk):
+        if isinstance(msg, messages.ParamValue):
+            self._dumps.saw_parameter(msg.name, msg.value)
+        elif isinstance(msg, messages.DumpChunk):
             dump = self._dumps.feed(msg)
             if dump is not None:
                 topic = f"/dump/{dump.kind.name}"

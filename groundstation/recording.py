@@ -9,14 +9,14 @@
     for msg in rec.messages({"/agent/TEXT"}, start_s=10, end_s=20): ...   # a window of agent time
 
 Every row carries `host_time_ns` (when the ground station received it) and, for agent messages, the
-agent's own `t_us`. A recording that spans an agent reboot is told apart by `boot` (the HELLO's
-`boot_id` in force when the message was recorded): sample and episode numbers restart with a boot.
-Samples received twice (live and backfilled) appear once.
+agent's own `t_us`. A recording that spans an agent reboot is told apart by `boot` (1, 2, ... in file
+order, from the agents' HELLOs as `dive log info` counts them; `boot_ids` gives each one's boot id):
+sample and episode numbers restart with a boot. Samples received twice (live and backfilled) appear
+once; messages whose JSON has the wrong shape are counted in `malformed` and left out.
 """
 
 from __future__ import annotations
 
-import json
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -27,6 +27,7 @@ from numpy.typing import NDArray
 
 from groundstation.errors import RecordingError
 from groundstation.mcap_io import RecordedMessage, RecordingContents, iter_messages
+from groundstation.recorded import Boots, json_fields
 from protocol import EndReason
 
 SAMPLE_TOPIC = "/agent/SAMPLE"
@@ -35,6 +36,12 @@ EPISODE_START_TOPIC = "/agent/EPISODE_START"
 EPISODE_END_TOPIC = "/agent/EPISODE_END"
 _TIME_FIELDS = ("boot", "host_time_ns")
 _OUTCOMES = {int(r): r.name.lower() for r in EndReason}
+# Fields the tables index by: a message without them as integers is malformed (recordings are untrusted input).
+_REQUIRED_INTEGERS: dict[str, tuple[str, ...]] = {
+    SAMPLE_TOPIC: ("t_us", "sample", "episode", "step", "state", "action", "mode"),
+    EPISODE_START_TOPIC: ("t_us", "episode", "sample"),
+    EPISODE_END_TOPIC: ("t_us", "episode", "sample", "reason", "steps"),
+}
 
 
 def recording_files(paths: Iterable[str | Path]) -> list[Path]:
@@ -69,24 +76,28 @@ class Recording:
         self.contents: list[RecordingContents] = []
         self._topics: dict[str, _Rows] = {}
         self._raw: list[tuple[str, int, int, int, RecordedMessage]] = []  # topic, boot, host ns, agent us, msg
-        self._boots: list[int] = []
+        self.boot_ids: dict[int, int] = {}  # boot number -> the agent's boot_id
+        self.malformed = 0  # JSON messages of the wrong shape, left out of the tables
         self._read()
 
     # ------------------------------------------------------------------ reading
     def _read(self) -> None:
-        boot = 0
+        boots = Boots()
         seen_samples: set[tuple[int, int]] = set()
         for path in self.files:
             info = RecordingContents()
             for msg in iter_messages(path, None, info):
-                body = self._json(msg)
-                if msg.topic == HELLO_TOPIC and isinstance(body, dict):
-                    boot = int(body.get("boot_id", 0))
-                    if boot not in self._boots:
-                        self._boots.append(boot)
-                t_us = int(body.get("t_us", -1)) if isinstance(body, dict) else -1
+                body = json_fields(msg, _REQUIRED_INTEGERS.get(msg.topic, ())) if msg.encoding == "json" else None
+                if msg.topic == HELLO_TOPIC:
+                    boots.hello(msg)
+                    if body is not None and isinstance(body.get("boot_id"), int):
+                        self.boot_ids.setdefault(boots.current, body["boot_id"])
+                boot = boots.current
+                t_us = body.get("t_us", -1) if body is not None else -1
+                t_us = t_us if isinstance(t_us, int) and not isinstance(t_us, bool) else -1
                 self._raw.append((msg.topic, boot, msg.log_time_ns, t_us, msg))
-                if not isinstance(body, dict):
+                if body is None:
+                    self.malformed += msg.encoding == "json"
                     continue
                 if msg.topic == SAMPLE_TOPIC:
                     key = (boot, int(body.get("sample", -1)))
@@ -96,15 +107,6 @@ class Recording:
                 body["boot"], body["host_time_ns"] = boot, msg.log_time_ns
                 self._topics.setdefault(msg.topic, _Rows()).rows.append(body)
             self.contents.append(info)
-
-    @staticmethod
-    def _json(msg: RecordedMessage) -> Any:
-        if msg.encoding != "json":
-            return None
-        try:
-            return json.loads(msg.data)
-        except ValueError:
-            return None  # a damaged or foreign body: kept in messages(), left out of the tables
 
     # ------------------------------------------------------------------ what it holds
     @property
@@ -122,8 +124,8 @@ class Recording:
 
     @property
     def boots(self) -> list[int]:
-        """The agent's boot ids in the order they appear (one per reboot seen)."""
-        return list(self._boots)
+        """The boot numbers that hold messages, in file order (1, 2, ...: one more per agent reboot)."""
+        return sorted({boot for _, boot, _, _, _ in self._raw})
 
     @property
     def metadata(self) -> dict[str, list[dict[str, str]]]:
@@ -160,9 +162,7 @@ class Recording:
         table = self.table(SAMPLE_TOPIC)
         if len(table) == 0:
             return table
-        boot_rank = {boot: i for i, boot in enumerate(self._boots)}
-        rank = np.array([boot_rank.get(int(b), -1) for b in table["boot"]])
-        return table[np.lexsort((table["sample"], rank))]
+        return table[np.lexsort((table["sample"], table["boot"]))]
 
     def episodes(self) -> NDArray[np.void]:
         """One row per episode: boot, episode, outcome, start/end sample and agent time, steps, return."""
@@ -171,8 +171,7 @@ class Recording:
         dtype = [("boot", "<i8"), ("episode", "<i8"), ("outcome", "<U8"), ("first_sample", "<i8"),
                  ("last_sample", "<i8"), ("start_t_us", "<i8"), ("end_t_us", "<i8"), ("steps", "<i8"),
                  ("duration_s", "<f8"), ("episode_return", "<f8"), ("backfilled", "?")]
-        boot_rank = {boot: i for i, boot in enumerate(self._boots)}
-        keys = sorted(set(starts) | set(ends), key=lambda k: (boot_rank.get(k[0], -1), k[1]))
+        keys = sorted(set(starts) | set(ends))
         out = np.zeros(len(keys), dtype=dtype)
         for i, key in enumerate(keys):
             start, end = starts.get(key, {}), ends.get(key, {})

@@ -11,11 +11,12 @@ from pathlib import Path
 from typing import Any
 from urllib.parse import parse_qsl, urlsplit
 
-from groundstation.errors import CommandError, GroundStationError, LinkError, ParameterError
+from groundstation.errors import CommandError, GroundStationError, LinkError, ParameterError, RecordingExistsError
 from groundstation.events import EventKind, LinkEvent, Received, Sent, SessionListener
 from groundstation.links import make_link
 from groundstation.params import cache_dir
 from groundstation.recorder import Recorder, RecorderConfig
+from groundstation.safe_output import one_line
 from groundstation.session import Session, SessionConfig
 from protocol import EndReason, Mode
 from protocol import messages as m
@@ -37,6 +38,9 @@ def add_marker(text: str) -> Path:
     return path
 
 
+MARKER_READ_BYTES = 1 << 20  # read at most this much of the marker file per look
+
+
 class MarkerWatcher:
     """Reads markers appended to the marker file since this run started."""
 
@@ -45,19 +49,24 @@ class MarkerWatcher:
         self._offset = path.stat().st_size if path.exists() else 0
 
     def poll(self) -> list[str]:
+        """Whole new lines only (one being written is read next time); a line that is not a JSON object with a
+        text, or not UTF-8, is skipped: the file is anyone's to write, and must never stop a running session."""
         try:
-            with self.path.open() as f:
+            with self.path.open("rb") as f:
                 f.seek(self._offset)
-                lines = f.readlines()
-                self._offset = f.tell()
+                data = f.read(MARKER_READ_BYTES)
         except OSError:
             return []
+        complete = data[: data.rfind(b"\n") + 1] if len(data) < MARKER_READ_BYTES else data
+        self._offset += len(complete)
         texts = []
-        for line in lines:
+        for line in complete.splitlines():
             try:
-                texts.append(str(json.loads(line)["text"]))
-            except (ValueError, KeyError, TypeError):
+                body = json.loads(line.decode("utf-8", errors="replace"))
+            except ValueError:
                 continue
+            if isinstance(body, dict) and isinstance(body.get("text"), str):
+                texts.append(body["text"])
         return texts
 
 
@@ -156,6 +165,7 @@ class _AgentWatch:
     MAX_RESTARTS = 10
     SURFACING_WAIT_S = 60.0
     FIRST_HEARTBEAT_WAIT_S = 2.0  # heartbeats come at 1 Hz of agent time
+    START_WAIT_S = 60.0
 
     def __init__(self, session: Session, episodes: int, status: RunStatus) -> None:
         self.session, self.episodes, self.status = session, episodes, status
@@ -170,7 +180,9 @@ class _AgentWatch:
             self.status.messages.append(f"the agent is already learning (episode {beat.episode}): recording it")
             self.left_idle = True
             return
-        self.session.command(m.StartLearning(max_episodes=self.episodes))
+        # retried with the same seq (across reconnects) for up to START_WAIT_S: on a link that drops every second
+        # four tries are not enough, and the agent's ACK memory makes a repeat harmless
+        self.session.command(m.StartLearning(max_episodes=self.episodes), timeout_s=self.START_WAIT_S)
 
     def finished(self) -> bool:
         beat = self.session.last_heartbeat
@@ -217,6 +229,7 @@ class RunResult:
     status: RunStatus
     interrupted: bool
     still_missing: int
+    lost: int = 0  # of still_missing: samples the agent's log no longer held (proved by its LOG_RANGE / HEARTBEAT)
 
 
 def session_info(url: str) -> dict[str, str]:
@@ -233,6 +246,10 @@ def run(config: RunConfig, on_progress: Callable[[RunStatus], None] | None = Non
     `listeners` get the session's traffic too (the live Rerun view is one).
     """
     stop = stop or threading.Event()
+    target = config.recorder.path
+    if target is not None and target.exists():  # before connecting: the agent is not started for nothing
+        raise RecordingExistsError(f"{one_line(target)} exists; a recording is never overwritten: give another name "
+                                   "or a directory")
     link = make_link(config.url)
     status = RunStatus()
     progress = _Progress(status)
@@ -241,6 +258,7 @@ def run(config: RunConfig, on_progress: Callable[[RunStatus], None] | None = Non
     markers = MarkerWatcher(marker_file())
     interrupted = False
     missing = 0
+    backfilled = False
     try:
         session.connect()
         status.link_up = True
@@ -257,21 +275,30 @@ def run(config: RunConfig, on_progress: Callable[[RunStatus], None] | None = Non
                     session.mark(text)
                 if on_progress is not None:
                     on_progress(status)
-                if watch.finished() or recorder.failure is not None:
+                if watch.finished() or recorder.failure is not None or session.failure is not None:
                     break
         except KeyboardInterrupt:
             interrupted = True
-        if interrupted or stop.is_set():
+        if (interrupted or stop.is_set()) and session.failure is None:
             try:
                 session.command(m.Stop())
             except (CommandError, LinkError):
                 pass  # the recording is what matters now; the agent surfaces on link loss anyway
-        missing = session.request_backfill(config.backfill_wait_s)
+        missing = session.request_backfill(config.backfill_wait_s, final=True)
+        backfilled = True
+    except GroundStationError:
+        # A run that ends on an error (CMD_START refused or unanswered, a parameter refused) still fetches what
+        # the agent holds of what was lost before it closes: the recording is what matters.
+        if session.agent_hello is not None and session.failure is None and not backfilled:
+            missing = session.request_backfill(config.backfill_wait_s, final=True)
+        raise
     finally:
         session.close()
         recorder.close()
     if recorder.failure is not None:
         raise recorder.failure  # after the link was closed cleanly; what was written stays readable
+    if session.failure is not None:
+        raise session.failure  # another agent answered: nothing of it was recorded
     if on_progress is not None:
         on_progress(status)
-    return RunResult(list(recorder.paths), status, interrupted, missing)
+    return RunResult(list(recorder.paths), status, interrupted, missing, session.backfill_status()[0])

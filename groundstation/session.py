@@ -18,6 +18,7 @@ from groundstation.clock import ClockModel
 from groundstation.commands import PendingCommand, PendingCommands, refusal
 from groundstation.dumps import Dump, DumpTracker
 from groundstation.errors import (
+    AgentChangedError,
     CommandError,
     CommandTimeout,
     IncompatibleAgentError,
@@ -26,10 +27,12 @@ from groundstation.errors import (
     ParameterError,
 )
 from groundstation.events import EventKind, LinkEvent, Listeners, Received, ReceivedCallback, Sent, SessionListener
+from groundstation.exactness import RecentFrames, SampleIndexCheck
 from groundstation.gaps import BackfillPlanner
 from groundstation.hello import ground_hello, incompatibility
 from groundstation.links import Link
 from groundstation.params import Parameter, ParamTable, load_cached, parse_value, save_cached
+from groundstation.safe_output import one_line
 from groundstation.stats import LinkStats
 from protocol import (
     DumpKind,
@@ -54,12 +57,14 @@ class SessionConfig:
     reconnect: bool = True
     backoff_s: tuple[float, float] = (0.2, 5.0)  # first and longest wait between reconnect attempts
     backfill: bool = True
+    backfill_retry_s: tuple[float, float] = (1.0, 4.0)  # first and longest wait before a LOG_REQUEST is sent again
     fetch_params: bool = True
     node_id: int = field(default_factory=lambda: int.from_bytes(os.urandom(4), "little"))
     key: bytes | None = field(default=None, repr=False)  # signing key: every frame sent is signed (SPEC s. 12)
 
 
 _SEQUENCED = (m.EpisodeStart, m.EpisodeEnd)
+HELLO_RESEND_S = 1.0  # an unanswered HELLO is sent again after this long (the agent answers every HELLO)
 
 
 class Session:
@@ -77,7 +82,7 @@ class Session:
         self.stats = LinkStats()
         self.clock = ClockModel()
         self.params = ParamTable()
-        self.backfill = BackfillPlanner()
+        self.backfill = BackfillPlanner(*self.config.backfill_retry_s)
         self.dumps = DumpTracker()
         self.agent_hello: m.Hello | None = None
         self.last_heartbeat: m.Heartbeat | None = None
@@ -94,8 +99,17 @@ class Session:
         self._last_rx_s = 0.0
         self._next_tick_s = 0.0
         self._next_backfill_s = 0.0
+        self._next_backfill_view_s = 0.0
+        self._retry_backfill_now = False
+        self._finish_requested = False
+        self._finished_at: int | None = None  # set on the reader thread: the sample index the run ended at
+        self._backfill_view: tuple[bool, int, int] = (False, 0, 0)  # (pending, samples held, missing)
         self._restoring = False
         self._hello_problem: str | None = None
+        self._hello_resend_s: float | None = None  # while our HELLO is unanswered: when to send it again
+        self._recent = RecentFrames()
+        self.sample_check = SampleIndexCheck()
+        self.failure: LinkError | None = None  # why the session stopped by itself (another agent answered)
         self._expected_params = 0
         self._param_updates = 0
 
@@ -162,6 +176,8 @@ class Session:
             pending = None
             if message.DEFINITION.needs_ack:
                 pending = PendingCommand(message, encoded.seq, encoded.wire, now, now + self._ack_timeout_s())
+                if wait and timeout_s is not None:  # an explicit wait: keep trying (across reconnects) until then
+                    pending.give_up_s = now + timeout_s
                 self._pending.add(pending)
             try:
                 self._write(message, encoded.seq, encoded.wire)
@@ -245,15 +261,41 @@ class Session:
                 self._cond.wait(0.05)
         raise CommandTimeout(f"CMD_DUMP {kind.name}: snapshot incomplete after {timeout_s:g} s")
 
-    def request_backfill(self, timeout_s: float = 5.0) -> int:
-        """Ask for every missing sample now and wait until none is missing; returns how many still are."""
-        self._next_backfill_s = 0.0
-        deadline = time.monotonic() + timeout_s
+    def request_backfill(self, timeout_s: float = 5.0, limit_s: float | None = None, final: bool = False) -> int:
+        """Ask for every missing sample now and wait until none the agent holds is missing; returns how many are.
+
+        `final`: the run is over. The recording then ends where the agent is now: live frames are no longer
+        handed to listeners and only the samples below that point are fetched (the agent goes on sampling in
+        IDLE; a tail that grows faster than a lossy link can backfill it would otherwise never be complete).
+
+        The wait ends `timeout_s` after the last progress (a sample or episode frame filled in), or after `limit_s`
+        in all (default: 6 x timeout_s), or when the link is down with no reconnect to wait for. The planner
+        belongs to the reader thread; this thread sees only what it publishes (`_backfill_view`).
+        """
+        self._retry_backfill_now = True
+        self._finish_requested = self._finish_requested or final
+        now = time.monotonic()
+        hard_deadline = now + (limit_s if limit_s is not None else 6 * timeout_s)
+        deadline, held = now + timeout_s, -1
         with self._cond:
-            self._cond.wait_for(lambda: not self.backfill.pending() or not self.link_up, timeout_s)
-            while self.backfill.pending() and time.monotonic() < deadline:
+            self._cond.wait_for(lambda: not self._retry_backfill_now or self._stop.is_set(), 2.0)
+            while self._backfill_view[0] and time.monotonic() < min(deadline, hard_deadline):
+                if not self.link_up and (not self.config.reconnect or self._stop.is_set()):
+                    break
                 self._cond.wait(0.1)
-        return sum(b - a for a, b in self.backfill.missing())
+                if self._backfill_view[1] != held:
+                    deadline, held = time.monotonic() + timeout_s, self._backfill_view[1]
+            return self._backfill_view[2]
+
+    @property
+    def samples_held(self) -> int:
+        """Distinct SAMPLE indices received (as last published by the reader thread, at most 0.1 s old)."""
+        return self._backfill_view[1]
+
+    def backfill_status(self) -> tuple[int, int]:
+        """(lost, still held): missing samples the agent's log no longer holds, and those it still does."""
+        lost = self.backfill.lost()
+        return lost, sum(b - a for a, b in self.backfill.missing()) - lost
 
     # ------------------------------------------------------------------ the reader thread
     def _run(self) -> None:
@@ -302,12 +344,15 @@ class Session:
         self.decoder = StreamDecoder(stats=self.decoder.stats)
         self._last_rx_s = time.monotonic()
         self._restoring = True
+        self._recent.clear()
         self.stats.reconnects += 1
         self._send_hello()
 
     def _tick(self, now_s: float) -> None:
         if self.agent_hello is not None and now_s - self._last_rx_s > self.config.link_timeout_s:
             raise LinkError(f"no frame from the agent for {self.config.link_timeout_s:g} s")
+        if self._hello_resend_s is not None and now_s >= self._hello_resend_s:
+            self._send_hello()  # ours or its answer was lost: without it the session stays half up
         if now_s >= self._next_tick_s and self.link_up:
             self._next_tick_s = now_s + self.config.period_s
             uptime_ms = int((now_s - self._start_s) * 1000) & 0xFFFFFFFF
@@ -318,6 +363,16 @@ class Session:
             self.send(m.Timesync(origin_us=time.time_ns() // 1000, receive_us=0, transmit_us=0))
             self._emit_stats()
         self._retransmit(now_s)
+        if self._finish_requested and self._finished_at is None:
+            self._finished_at = self.backfill.finish_at()
+        if self._retry_backfill_now:  # the run's final backfill: every range again, now
+            self._retry_backfill_now = False
+            self.backfill.retry_now()
+            self._next_backfill_s = 0.0
+            self._publish_backfill()
+        if now_s >= self._next_backfill_view_s:
+            self._next_backfill_view_s = now_s + 0.1
+            self._publish_backfill()
         if self.link_up and now_s >= self._next_backfill_s:
             self._next_backfill_s = now_s + 0.5
             if self.config.backfill:
@@ -327,7 +382,7 @@ class Session:
 
     def _retransmit(self, now_s: float) -> None:
         for pending in self._pending.late(now_s):
-            if pending.attempts > self.config.retries:
+            if pending.attempts > self.config.retries and (pending.give_up_s is None or now_s >= pending.give_up_s):
                 self._pending.discard(pending.seq)
                 pending.done.set()
                 continue
@@ -337,19 +392,31 @@ class Session:
                 pending.wire = self.encoder.retry(pending.wire)
                 self._write(pending.message, pending.seq, pending.wire, retry=True)
 
+    def _publish_backfill(self) -> None:
+        """What request_backfill() waits on, computed here on the reader thread that owns the planner."""
+        with self._cond:
+            self._backfill_view = (self.backfill.pending(), len(self.backfill.held),
+                                   sum(b - a for a, b in self.backfill.missing()))
+            self._cond.notify_all()
+
     def _rerequest_dump_chunks(self, now_s: float) -> None:
         for kind, dump_id, start, end in self.dumps.due_rerequests(now_s):
             self.send(m.DumpRequest(kind=kind, dump_id=dump_id, offset=start, length=end - start), wait=False)
 
     # ------------------------------------------------------------------ frames in
     def _handle(self, frame: Frame, host_ns: int) -> None:
+        if self._recent.seen(frame.inner):
+            return  # the same frame twice (same seq, same bytes): handled and recorded once
         msg = frame.message
         backfilled = bool(frame.flags & FrameFlag.REPLAYED)
         deliver = True
         if isinstance(msg, m.Sample):
+            if not self.sample_check.possible(msg.sample, msg.t_us):
+                self._impossible_sample(msg)
+                return
             self.backfill.episodes.saw_sample(msg.sample, msg.episode, msg.mode == Mode.LEARNING)
             new = self.backfill.held.add(msg.sample)
-            deliver = new or not backfilled
+            deliver = new  # a sample already held (live and replayed both came) is recorded once
             if backfilled and new:
                 self.stats.backfilled += 1
         elif isinstance(msg, _SEQUENCED):
@@ -364,15 +431,19 @@ class Session:
             self._on_ack(msg)
         elif isinstance(msg, m.Hello):
             self._on_hello(msg)
+            if self.failure is not None:
+                return  # another agent: nothing of it reaches the recording
         elif isinstance(msg, m.Heartbeat):
             self.last_heartbeat = msg
             self.backfill.saw_log_window(msg.log_first_sample, msg.log_next_sample)
+            self.sample_check.heartbeat(msg.log_next_sample, msg.uptime_ms)
         elif isinstance(msg, m.Timesync):
             self._on_timesync(msg, host_ns)
         elif isinstance(msg, m.ParamValue):
             with self._cond:
                 self._expected_params = msg.count
                 self.params.update(Parameter.from_message(msg))
+                self.dumps.assembler.saw_parameter(msg.name, msg.value)  # the grid bounds a dump's size
                 self._param_updates += 1
                 self._cond.notify_all()
         elif isinstance(msg, m.DumpChunk):
@@ -387,10 +458,13 @@ class Session:
         if isinstance(msg, m.Sample | m.LogRange | m.EpisodeStart | m.EpisodeEnd):
             with self._cond:
                 self._cond.notify_all()
+        # The run is over: what the agent sends from after its end is recorded raw only (the decoded recording ends
+        # with the run and the final backfill completes it; the raw frames keep the link's record exact).
+        after_end = self._finished_at is not None and getattr(msg, "sample", self._finished_at) >= self._finished_at
         if deliver and self.agent_hello is not None:  # nothing reaches listeners from an incompatible peer
             t_us = getattr(msg, "t_us", None)
             agent_ns = self.clock.to_host_ns(t_us) if isinstance(t_us, int) and t_us else None
-            received = Received(frame, host_ns, agent_ns, backfilled)
+            received = Received(frame, host_ns, agent_ns, backfilled, after_end)
             self.listeners.received(received)
 
     def _on_ack(self, ack: m.Ack) -> None:
@@ -403,8 +477,12 @@ class Session:
             self._cond.notify_all()
 
     def _on_hello(self, hello: m.Hello) -> None:
+        self._hello_resend_s = None
         problem = incompatibility(hello)
         previous = self.agent_hello
+        if problem is None and previous is not None and previous.node_id != hello.node_id:
+            self._another_agent(previous, hello)
+            return
         with self._cond:
             if problem is not None:
                 self._hello_problem = problem
@@ -418,6 +496,7 @@ class Session:
             self.decoder.reset_sequence()
             self.clock.reset()
             self.backfill.reset()
+            self.sample_check.reset()
             self._episodes_seen.clear()
             self._emit(LinkEvent(EventKind.RESYNCED, time.time_ns(), "the agent rebooted", self._hello_data()))
         if self._restoring:
@@ -425,6 +504,28 @@ class Session:
             self.link_up = True
             self._next_backfill_s = time.monotonic() + 0.3  # let a heartbeat announce the log window first
             self._emit(LinkEvent(EventKind.LINK_RESTORED, time.time_ns(), self.link.url, self._hello_data()))
+
+    def _impossible_sample(self, msg: m.Sample) -> None:
+        count = self.sample_check.impossible
+        if count == 1 or count % 1000 == 0:  # said, not repeated for every one of a stream of them
+            beat = self.last_heartbeat
+            why = (f"SAMPLE index {msg.sample} cannot be true (the agent's log ends at "
+                   f"{beat.log_next_sample if beat else '?'}); ignored ({count} so far)")
+            self._emit(LinkEvent(EventKind.ERROR, time.time_ns(), why, {"sample": msg.sample, "ignored": count}))
+
+    def _another_agent(self, previous: m.Hello, hello: m.Hello) -> None:
+        """Another node id answered after a reconnect (every ESP8266 access point is 192.168.4.1): not a reboot
+        of our agent. Nothing from it is recorded or commanded; the session stops and says why."""
+        why = (f"{self.link.url}: another agent answered after the reconnect (id {hello.node_id:08x} "
+               f"{one_line(hello.name)!r}, was {previous.node_id:08x} {one_line(previous.name)!r}); stopping")
+        self.failure = AgentChangedError(why)
+        self._emit(LinkEvent(EventKind.ERROR, time.time_ns(), why, hello.to_dict()))
+        self._stop.set()
+        self.link_up = False
+        self._pending.release_all()
+        self.link.drop()
+        with self._cond:
+            self._cond.notify_all()
 
     def _on_timesync(self, msg: m.Timesync, host_ns: int) -> None:
         if msg.receive_us == 0 and msg.transmit_us == 0:  # a request from the agent: answer at once
@@ -440,6 +541,7 @@ class Session:
         return max(self.config.ack_timeout_s, 3 * rtt) if rtt is not None else self.config.ack_timeout_s
 
     def _send_hello(self) -> None:
+        self._hello_resend_s = time.monotonic() + HELLO_RESEND_S
         self.send(ground_hello(self.config.node_id, self._boot_id))
 
     def _write(self, message: Message, seq: int, wire: bytes, retry: bool = False) -> None:

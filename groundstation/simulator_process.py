@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import ctypes
 import os
 import signal
 import subprocess
 import sys
 from collections.abc import Sequence
+from typing import Any
 
 PROG_NAME_VARIABLE = "DIVE_SIMULATOR_PROG_NAME"  # read by simulator/cli.py (the two packages share no import)
 
@@ -16,18 +18,42 @@ def simulator_command(args: Sequence[str]) -> list[str]:
     return [sys.executable, "-m", "simulator", *args]
 
 
+def _die_with_parent() -> None:
+    """In the child, before exec: SIGTERM when the parent dies, even by kill -9 (Linux prctl PR_SET_PDEATHSIG).
+
+    So a killed `dive sim` or `dive run` never leaves a virtual agent running and holding its port. Elsewhere
+    (no prctl) the parent's signal handlers are the only guard.
+    """
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
+    except (OSError, AttributeError):
+        pass
+    if os.getppid() == 1:  # the parent died before prctl took effect
+        os._exit(1)
+
+
+PR_SET_PDEATHSIG = 1
+
+
+def child_options() -> dict[str, Any]:
+    """Popen options for a simulator child: it stops when this process dies (see _die_with_parent)."""
+    return {"preexec_fn": _die_with_parent} if sys.platform.startswith("linux") else {}
+
+
 def run_simulator_command(args: Sequence[str]) -> int:
     """Run the simulator CLI in the foreground, passing the terminal through; returns its exit code.
 
     Its help and usage lines then say `dive ...`, the command the user typed (simulator/cli.py). A SIGTERM
-    to `dive` is passed on, so the agent shuts down cleanly (closing its port) instead of being orphaned.
+    or SIGHUP to `dive` is passed on, so the agent shuts down cleanly (closing its port) instead of being orphaned.
     """
-    child = subprocess.Popen(simulator_command(args), env={**os.environ, PROG_NAME_VARIABLE: "dive"})
+    child = subprocess.Popen(simulator_command(args), env={**os.environ, PROG_NAME_VARIABLE: "dive"},
+                             **child_options())
 
     def pass_on(signum: int, _frame: object) -> None:
         child.send_signal(signum)
 
-    previous = signal.signal(signal.SIGTERM, pass_on)
+    previous = {sig: signal.signal(sig, pass_on) for sig in (signal.SIGTERM, signal.SIGHUP)}
     try:
         while True:
             try:
@@ -40,4 +66,5 @@ def run_simulator_command(args: Sequence[str]) -> int:
                 except subprocess.TimeoutExpired:
                     child.send_signal(signal.SIGINT)
     finally:
-        signal.signal(signal.SIGTERM, previous)
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)

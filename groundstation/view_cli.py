@@ -16,10 +16,12 @@ from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
 from groundstation import replay as rp
 from groundstation.errors import GroundStationError
+from groundstation.keys import KeyFileOption, resolve_key
 from groundstation.links import make_link
 from groundstation.mcap_io import RecordingContents
 from groundstation.rerun_view import RerunView, ViewConfig, Viewer, attach_view
-from groundstation.session import Session
+from groundstation.safe_output import in_markup, one_line
+from groundstation.session import Session, SessionConfig
 from groundstation.view_errors import ViewError
 
 ViewerOption = Annotated[
@@ -32,7 +34,7 @@ GrpcPortOption = Annotated[int, typer.Option("--grpc-port", help="Port of the Re
 
 
 def _fail(message: str) -> typer.Exit:
-    typer.echo(f"dive: {message}", err=True)  # the prefix of every dive error (cli.py)
+    typer.echo(f"dive: {one_line(message)}", err=True)  # the prefix of every dive error (cli.py)
     return typer.Exit(1)
 
 
@@ -131,17 +133,17 @@ def replay(
             if factor is None:
                 with Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.completed} frames"),
                               TimeElapsedColumn(), transient=True, disable=not sys.stderr.isatty()) as progress:
-                    task = progress.add_task(f"reading {file.name}", total=None)
+                    task = progress.add_task(f"reading {in_markup(file.name)}", total=None)
                     batch, count = rp.convert(_progress_items(items, progress, task))
                 view.send(batch)
             else:
                 count = rp.play(items, view.feed_model, factor)
             rp.check_nonempty(count, file, status)
             if status.truncated:
-                typer.echo(f"warning: {file} was cut short (no footer); showing what was complete", err=True)
+                typer.echo(f"warning: {one_line(file)} was cut short (no footer); showing what was complete", err=True)
             if rrd is not None:
                 view.flush()
-                typer.echo(f"wrote {rrd}: {count} frames in {time.perf_counter() - began:.2f} s")
+                typer.echo(f"wrote {one_line(rrd)}: {count} frames in {time.perf_counter() - began:.2f} s")
             if view.address:
                 if factor is None:
                     view.flush()
@@ -160,6 +162,7 @@ def view(
     rrd: Annotated[Path | None, typer.Option("--rrd", help="Also save the stream to this .rrd file.")] = None,
     web_port: WebPortOption = 9090,
     grpc_port: GrpcPortOption = 9876,
+    key_file: KeyFileOption = None,
 ) -> None:
     """Watch the agent live in the Rerun view, without commanding it."""
     signal.signal(signal.SIGTERM, _interrupt)
@@ -169,9 +172,10 @@ def view(
         with RerunView.open(config, name=link.url) as live:
             if live.address:
                 typer.echo(f"Rerun web viewer: {live.address}")
-            with Session(link, listeners=[live]) as session:
+            # signed too: a signing agent refuses an unsigned HELLO's follow-ups (PARAM_LIST) as UNAUTHORIZED
+            with Session(link, SessionConfig(key=resolve_key(key_file)), listeners=[live]) as session:
                 hello = session.agent_hello
-                typer.echo(f"watching {hello.name if hello else 'the agent'} at {link.url}")
+                typer.echo(f"watching {one_line(hello.name) if hello else 'the agent'} at {one_line(link.url)}")
                 wait_for_interrupt("watching")
     except GroundStationError as e:
         raise _fail(str(e)) from None

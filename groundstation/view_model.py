@@ -170,8 +170,10 @@ class ViewModel:
             self._agent_time_s = message.t_us / 1e6
             level = _LEVELS.get(message.severity, "INFO")
             self._row("log/agent", (message.text, level), host_time_ns)
-        elif isinstance(message, m.ParamValue) and message.name == "zdot_cells" and message.value >= 1:
-            self._zdot_cells = int(message.value)
+        elif isinstance(message, m.ParamValue):
+            self._dumps.saw_parameter(message.name, message.value)  # the grid bounds a dump's size
+            if message.name == "zdot_cells" and message.value >= 1:
+                self._zdot_cells = int(message.value)
 
     def event(self, kind: str, host_time_ns: int, detail: str = "", data: dict[str, Any] | None = None) -> None:
         """A link life-cycle event or a user marker (live: LinkEvent; replay: the /event and /marker topics)."""

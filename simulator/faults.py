@@ -31,7 +31,9 @@ class FaultConfig:
     - delay_ms: wall-clock latency added to every byte, each direction (a network delay, so wall time).
     - disconnect_every_s: the agent closes the connection every this many seconds of AGENT time
       (0 = never). Agent time, so an outage pattern is the same at every --speed and lines up with
-      the dive; at --speed max choose a correspondingly larger value.
+      the dive; at --speed max choose a correspondingly larger value. A connection is never closed before it
+      has lasted `min_connection_s` of wall time (1 s + 4 delays): at --speed 100, 20 s of agent time is 0.2 s
+      of wall time, shorter than one round trip with a 200 ms delay, and no command could ever be answered.
     - blackout_below_m: the radio works only shallower than this true depth (None = always): deeper,
       frames are neither sent nor received (lost, not queued), as Wi-Fi does not reach through water.
     """
@@ -51,6 +53,11 @@ class FaultConfig:
             raise ParamsError("--delay and --disconnect-every must not be negative")
         if self.blackout_below_m is not None and self.blackout_below_m < 0:
             raise ParamsError("--blackout-below must not be negative")
+
+    @property
+    def min_connection_s(self) -> float:
+        """Wall time a connection lasts at least before a forced disconnect: two round trips and a second."""
+        return 1.0 + 4 * self.delay_ms / 1000.0
 
     @property
     def active(self) -> bool:

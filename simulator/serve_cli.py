@@ -19,9 +19,10 @@ from protocol.signing import parse_key
 from simulator.agent_mission import MissionConfig
 from simulator.errors import ParamsError, SimulatorError
 from simulator.faults import FaultConfig
+from simulator.firmware_qemu import QemuConfig, serve_qemu
 from simulator.parameters import PlantParams, preset, with_overrides
 from simulator.params_table import Scope, binding, check_value
-from simulator.server import AgentServer, ServeConfig
+from simulator.server import FIRMWARES, AgentServer, ServeConfig
 from simulator.signing_mark import mark_path
 
 EXIT_BAD_ARGUMENT = 2
@@ -46,6 +47,13 @@ def parse_speed(text: str) -> float | None:
     if not speed > 0 or speed == float("inf"):
         raise ParamsError(f"--speed wants a positive number or 'max', got {text!r}")
     return speed
+
+
+def parse_firmware(text: str) -> str:
+    """One of FIRMWARES."""
+    if text not in FIRMWARES:
+        raise ParamsError(f"--firmware wants one of {', '.join(FIRMWARES)}, got {text!r}")
+    return text
 
 
 def read_key_file(path: Path) -> bytes:
@@ -95,6 +103,25 @@ def apply_param_file(
     return plant, learner, replace(mission, **changes[Scope.MISSION])
 
 
+def serve_on_qemu(tcp: str, pty: bool, speed: str, seed: int | None, key_file: Path | None,
+                  refused: list[str]) -> None:
+    """`serve --firmware qemu`: the whole firmware on QEMU, its own C plant; QEMU serves the link."""
+    try:
+        if refused:
+            raise ParamsError(f"--firmware qemu runs its own C plant: {', '.join(refused)} do not apply")
+        host, port = parse_tcp(tcp)
+        config = QemuConfig(host=host, port=port, pty=pty, speed=parse_speed(speed), seed=seed,
+                            key=read_key_file(key_file) if key_file is not None else None)
+    except SimulatorError as e:
+        typer.echo(f"error: {e}", err=True)
+        raise typer.Exit(EXIT_BAD_ARGUMENT) from None
+    try:
+        serve_qemu(config)
+    except SimulatorError as e:
+        typer.echo(f"error: {e}", err=True)
+        raise typer.Exit(1) from None
+
+
 def serve(
     tcp: Annotated[str, typer.Option(help="HOST:PORT to listen on (port 0 = a free one).")] = "127.0.0.1:2323",
     pty: Annotated[bool, typer.Option("--pty", help="Serve on a new pseudo-terminal instead of TCP.")] = False,
@@ -120,11 +147,22 @@ def serve(
     state_dir: Annotated[
         Path | None, typer.Option(help="Where the signing mark survives restarts (default: beside the key file).")
     ] = None,
+    firmware: Annotated[str, typer.Option(help=(
+        "The on-board program: python (the reference in simulator/) or c (the C firmware of firmware/, its host "
+        "build, made on demand; it starts from the real agent's parameter defaults) or qemu (the whole firmware "
+        "with a C port of the hardware plant on an emulated Cortex-M4; only --tcp, --pty, --speed, --seed and "
+        "--key-file apply)."))] = "python",
     report: Annotated[
         Path | None, typer.Option(help="At exit, write what the faults did and the samples produced (JSON).")
     ] = None,
 ) -> None:
     """Serve a virtual diving agent over TCP or a pseudo-terminal; prints what to connect to first."""
+    if firmware == "qemu":
+        refused = {"--preset": preset_name != "paper", "--learner": learner != "paper", "--params": params is not None,
+                   "--report": report is not None, "fault options": bool(drop or corrupt or delay or disconnect_every)
+                   or blackout_below is not None}
+        serve_on_qemu(tcp, pty, speed, seed, key_file, [name for name, given in refused.items() if given])
+        return
     try:
         host, port = parse_tcp(tcp)
         plant = preset(preset_name)
@@ -138,6 +176,7 @@ def serve(
             host=host, port=port, pty=pty, speed=parse_speed(speed), seed=seed,
             key=read_key_file(key_file) if key_file is not None else None,
             mark_file=mark_path(key_file, state_dir) if key_file is not None else None,
+            firmware=parse_firmware(firmware),
         )
         server = AgentServer(config)
     except (SimulatorError, LearningError) as e:

@@ -5,17 +5,16 @@ from __future__ import annotations
 import random
 import selectors
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from learning import LearnerConfig
-from simulator.agent_link import AgentLink
 from simulator.agent_mission import MissionConfig
 from simulator.faults import MAX_LOGGED_SEQS, DelayLine, FaultConfig, FrameFaults, frame_seq
-from simulator.onboard import OnboardProgram
-from simulator.onboard_hw import SimulatedHardware
+from simulator.onboard_agent import OnboardAgent, PythonAgent
 from simulator.parameters import PlantParams
 from simulator.server_transport import PtyTransport, TcpTransport, Transport
 
@@ -23,6 +22,8 @@ SLICE_S = 0.004  # longest the program runs before the sockets are served again
 MAX_WAIT_S = 0.02  # longest select() waits, so pty opens and delayed bytes are noticed
 HIGH_WATER_BYTES = 256 * 1024  # --speed max waits for the client above this; real time drops frames
 STEPS_PER_CLOCK_READ = 8
+# --firmware: the Python reference, the C firmware's host build, the C firmware on an emulated Cortex-M4
+FIRMWARES = ("python", "c", "qemu")
 
 
 @dataclass(frozen=True)
@@ -40,6 +41,7 @@ class ServeConfig:
     seed: int | None = None
     key: bytes | None = None  # signing key: commands must be signed (SPEC s. 12)
     mark_file: Path | None = None  # where the signing mark survives a restart (SPEC s. 12)
+    firmware: str = "python"  # the on-board program: python (the reference), c (firmware/ host build)
 
 
 class AgentServer:
@@ -66,14 +68,8 @@ class AgentServer:
         self.lost_by_connection: list[list[int]] = []
         self.connection_end_seqs: list[int] = []  # the seq after the last frame of each finished connection
         self._logged = 0
-        # SPEC s. 4, time base: faster than real time, link silence, the HELLO repeat and signing ages are in wall
-        # seconds, because the ground lives in wall time; otherwise in agent time, as on the real agent.
-        fast = config.speed is None or config.speed > 1.0
-        self.link = AgentLink(self._write, node_id=0x5100_0000 | (seed & 0xFFFF), key=config.key,
-                              link_clock_s=time.monotonic if fast else None, mark_file=config.mark_file)
-        self.hw = SimulatedHardware(config.plant, rng)
-        self.program = OnboardProgram(config.plant, config.learner, config.mission, self.hw, rng, self.link)
-        self.link.attach(self.program)
+        self._connected_wall_s = 0.0
+        self.agent = _onboard_agent(config, rng, self._write, node_id=0x5100_0000 | (seed & 0xFFFF), seed=seed)
         self.transport.on_connect = self._connected
         self.transport.on_data = self._received
         self.transport.on_disconnect = self._disconnected
@@ -87,7 +83,7 @@ class AgentServer:
     # ------------------------------------------------------------------ the faulty link
     def _blacked_out(self) -> bool:
         below = self.config.faults.blackout_below_m
-        return below is not None and self.hw.true_depth_m > below
+        return below is not None and self.agent.true_depth_m > below
 
     def _write(self, wire: bytes) -> None:
         transport = self.transport
@@ -120,7 +116,7 @@ class AgentServer:
         if self.in_delay.delay_s:
             self.in_delay.put(time.monotonic(), data)
         else:
-            self.link.receive(data)
+            self.agent.receive(data)
 
     def _log_lost(self, wire: bytes) -> None:
         seq = frame_seq(wire)
@@ -129,16 +125,17 @@ class AgentServer:
             self.lost_by_connection[-1].append(seq)
 
     def _disconnected(self) -> None:
-        self.connection_end_seqs.append(self.link.next_seq)
-        self.link.on_disconnect()
+        self.connection_end_seqs.append(self.agent.next_seq)
+        self.agent.link_down()
 
     def _connected(self) -> None:
-        self.lost_by_connection.append([self.link.next_seq])
+        self._connected_wall_s = time.monotonic()
+        self.lost_by_connection.append([self.agent.next_seq])
         self.in_faults.reset()
         self.out_delay.clear()
         self.in_delay.clear()
-        self._next_disconnect_us = self.program.t_us + self._disconnect_period_us()
-        self.link.on_connect()
+        self._next_disconnect_us = self.agent.t_us + self._disconnect_period_us()
+        self.agent.link_up()
 
     def _disconnect_period_us(self) -> int:
         every_s = self.config.faults.disconnect_every_s
@@ -146,16 +143,17 @@ class AgentServer:
 
     def report(self) -> dict[str, object]:
         """What the faults did and what the agent produced (serve --report FILE writes it at exit)."""
-        out, into, prog = self.out_faults, self.in_faults, self.program
-        ends = [*self.connection_end_seqs, self.link.next_seq][: len(self.lost_by_connection)]
+        out, into, agent = self.out_faults, self.in_faults, self.agent
+        counters = agent.counters()
+        ends = [*self.connection_end_seqs, agent.next_seq][: len(self.lost_by_connection)]
         return {
-            "connections": len(self.lost_by_connection), "next_sample": prog.next_sample, "t_agent_s": prog.t_us / 1e6,
-            "signing_rejects": self.link.signing_rejects,
+            "connections": len(self.lost_by_connection), "next_sample": counters["next_sample"],
+            "t_agent_s": agent.t_us / 1e6, "signing_rejects": counters["signing_rejects"],
             "out": {"dropped": out.dropped, "corrupted": out.corrupted, "blacked_out": self.blacked_out,
                     "dropped_full": self.dropped_full, "lost_by_connection": self.lost_by_connection,
                     "connection_end_seqs": ends},
-            "in": {"dropped": into.dropped, "corrupted": into.corrupted, "rx_lost": self.link.decoder.stats.lost,
-                   "rx_rejects": self.link.decoder.stats.rejects},
+            "in": {"dropped": into.dropped, "corrupted": into.corrupted, "rx_lost": counters["rx_lost"],
+                   "rx_rejects": counters["rx_rejects"]},
         }
 
     # ------------------------------------------------------------------ the loop
@@ -178,10 +176,9 @@ class AgentServer:
 
     def _loop(self) -> None:
         speed = self.config.speed
-        program, link, transport = self.program, self.link, self.transport
-        hw = program.hw  # its clock is program.t_us, read here without the property on every step
+        agent, transport = self.agent, self.transport
         wall0 = time.monotonic()
-        agent0_us = program.t_us
+        agent0_us = agent.t_us
         while self._running:
             now = time.monotonic()
             if speed is None:
@@ -192,21 +189,21 @@ class AgentServer:
                 blocked = False
             deadline = now + SLICE_S
             steps = 0
-            while not blocked and hw.t_us < due_us:
-                program.step()
-                link.tick()
+            while not blocked and agent.t_us < due_us:
+                agent.step()
                 steps += 1
-                if hw.t_us >= self._next_disconnect_us:
-                    self._next_disconnect_us = program.t_us + self._disconnect_period_us()
+                if agent.t_us >= self._next_disconnect_us and \
+                        time.monotonic() - self._connected_wall_s >= self.config.faults.min_connection_s:
+                    self._next_disconnect_us = agent.t_us + self._disconnect_period_us()
                     transport.drop_client()
                 if steps % STEPS_PER_CLOCK_READ == 0:
                     if time.monotonic() >= deadline:
                         break
                     if speed is None and len(transport.outbuf) > HIGH_WATER_BYTES:
                         break
-            if speed is not None and program.t_us < due_us and steps and time.monotonic() >= deadline:
+            if speed is not None and agent.t_us < due_us and steps and time.monotonic() >= deadline:
                 # Cannot keep up with the requested speed: do not try to catch up in a burst later.
-                wall0, agent0_us = time.monotonic(), program.t_us
+                wall0, agent0_us = time.monotonic(), agent.t_us
             self._io(self._wait_s(speed, due_us))
 
     def _wait_s(self, speed: float | None, due_us: int) -> float:
@@ -214,7 +211,7 @@ class AgentServer:
             wait = MAX_WAIT_S if len(self.transport.outbuf) > HIGH_WATER_BYTES else 0.0
         else:
             # Sleep until the next control step is due in agent time.
-            wait = min(MAX_WAIT_S, max(0.0, (self.program.t_us + 1 - due_us) / 1e6 / speed))
+            wait = min(MAX_WAIT_S, max(0.0, (self.agent.t_us + 1 - due_us) / 1e6 / speed))
         for line in (self.out_delay, self.in_delay):
             release = line.next_release_s()
             if release is not None:
@@ -224,7 +221,7 @@ class AgentServer:
     def _io(self, timeout_s: float) -> None:
         transport = self.transport
         transport.poll()
-        self.link.service()
+        self.agent.service()
         transport.flush()
         for key, mask in self.selector.select(timeout_s):
             key.data(mask)
@@ -236,5 +233,24 @@ class AgentServer:
         if len(self.in_delay):
             ready = self.in_delay.due(now)
             if ready:
-                self.link.receive(ready)
+                self.agent.receive(ready)
         transport.flush()
+
+
+def _onboard_agent(config: ServeConfig, rng: np.random.Generator, write: Callable[[bytes], None], node_id: int,
+                   seed: int) -> OnboardAgent:
+    """The on-board program the configuration names: the Python reference, or the C firmware's host build.
+
+    SPEC s. 4, time base: faster than real time, link silence, the HELLO repeat and signing ages are in wall
+    seconds, because the ground lives in wall time; otherwise in agent time, as on the real agent.
+    """
+    fast = config.speed is None or config.speed > 1.0
+    if config.firmware == "c":
+        from simulator.firmware_host import FirmwareAgent  # builds or loads the C library only when asked for
+
+        # The firmware keeps its non-volatile area (the signing mark) in its own format, beside the Python agent's.
+        nv_file = config.mark_file.with_name(config.mark_file.name + ".fw-nv") if config.mark_file else None
+        return FirmwareAgent(config.plant, rng, write, node_id, config.key, seed, wall_link_clock=fast,
+                             nv_file=nv_file)
+    return PythonAgent(config.plant, config.learner, config.mission, rng, write, node_id, config.key,
+                       link_clock_s=time.monotonic if fast else None, mark_file=config.mark_file)

@@ -14,7 +14,7 @@ from urllib.parse import parse_qsl, urlsplit
 from groundstation.errors import LinkError, LinkTimeout
 from groundstation.links import Link
 from groundstation.links.tcp import TcpLink
-from groundstation.simulator_process import simulator_command
+from groundstation.simulator_process import child_options, simulator_command
 
 START_TIMEOUT_S = 60.0  # first start compiles numba kernels
 
@@ -43,7 +43,8 @@ class SimLink(Link):
         stderr = tempfile.TemporaryFile()
         try:
             child = subprocess.Popen(
-                simulator_command(self.arguments), stdout=subprocess.PIPE, stderr=stderr, stdin=subprocess.DEVNULL
+                simulator_command(self.arguments), stdout=subprocess.PIPE, stderr=stderr, stdin=subprocess.DEVNULL,
+                **child_options(),
             )
         except OSError as e:
             raise LinkError(f"{self.url}: cannot start the virtual agent ({e})") from e

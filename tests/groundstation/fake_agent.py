@@ -41,8 +41,21 @@ class FakeAgent:
         self.learning = False
         self.max_episodes = 0
         self.ignore_commands = 0  # swallow this many command frames (to exercise retries)
+        # identity and misbehaviour, for the safety tests (tests/reliability/test_safety_*.py)
+        self.name, self.node_id, self.boot_id = "fake", 0xA6E47, 1234
+        self.nack_reason = ""  # the reason text of every NACK
+        self.refuse = 0  # non-zero: refuse every command (but PARAM_LIST, LOG_REQUEST) with this AckResult
+        self.hello_on_accept = True  # send HELLO when a connection comes (else only in answer to the ground's)
+        self.unanswered_hellos = 0  # leave this many ground HELLOs unanswered (a HELLO lost on the link)
+        self.duplicate_frames = False  # send every live frame twice, byte for byte
+        self.replay_limit = 512  # samples replayed per LOG_REQUEST at most (SPEC.md 1.1)
+        self.ignored_log_requests = 0  # ACK this many LOG_REQUESTs without replaying (a replay lost each time)
+        self.log_requests = 0
+        self.live = True  # False: SAMPLE and episode frames go to the on-board log only (a radio blackout)
+        self._t0 = time.monotonic()
         self._conn: socket.socket | None = None
         self._lock = threading.Lock()
+        self._last_wire = b""
         self._stop = threading.Event()
         self.server = socket.create_server(("127.0.0.1", 0))
         self.url = f"tcp://127.0.0.1:{self.server.getsockname()[1]}"
@@ -75,10 +88,19 @@ class FakeAgent:
             if conn is None:
                 return
             wire = self.encoder.encode(message, flags).wire
+            self._last_wire = wire
             try:
                 conn.sendall(wire)
             except OSError:
                 pass
+
+    def _resend_last(self) -> None:
+        with self._lock:
+            if self._conn is not None:
+                try:
+                    self._conn.sendall(self._last_wire)
+                except OSError:
+                    pass
 
     def _accept(self) -> None:
         self.server.settimeout(0.1)
@@ -89,9 +111,8 @@ class FakeAgent:
                 continue
             with self._lock:
                 self._conn = conn
-            self._send(m.Hello(protocol_version=self.protocol_version, node_kind=1, definitions_hash=self.defs_hash,
-                               firmware_major=9, firmware_minor=8, firmware_patch=7, node_id=0xA6E47, boot_id=1234,
-                               name="fake"))
+            if self.hello_on_accept:
+                self._send_hello()
             threading.Thread(target=self._read, args=(conn,), daemon=True).start()
 
     def _read(self, conn: socket.socket) -> None:
@@ -107,9 +128,28 @@ class FakeAgent:
                 self._handle(frame.message, frame.seq, frame.flags)
 
     # ------------------------------------------------------------------ behaviour
+    def now_us(self) -> int:
+        """The agent clock: microseconds since it started (HEARTBEAT uptime_ms is the same clock)."""
+        return int((time.monotonic() - self._t0) * 1e6) + 1_000_000
+
+    def send(self, message: Message, flags: int = 0) -> None:
+        """Send any frame now (tests inject hostile ones)."""
+        self._send(message, flags)
+
+    def _send_hello(self) -> None:
+        self._send(m.Hello(protocol_version=self.protocol_version, node_kind=1, definitions_hash=self.defs_hash,
+                           firmware_major=9, firmware_minor=8, firmware_patch=7, node_id=self.node_id,
+                           boot_id=self.boot_id, name=self.name))
+
     def _handle(self, msg: Message, seq: int, flags: int) -> None:
+        if isinstance(msg, m.Hello):  # every ground HELLO is answered (SPEC.md 1.1)
+            if self.unanswered_hellos > 0:
+                self.unanswered_hellos -= 1
+            else:
+                self._send_hello()
+            return
         if isinstance(msg, m.Timesync) and msg.receive_us == 0:
-            now = int(time.monotonic() * 1e6)
+            now = self.now_us()
             self._send(m.Timesync(origin_us=msg.origin_us, receive_us=now, transmit_us=now))
             return
         if not flags & FrameFlag.ACK_REQUESTED:
@@ -123,7 +163,7 @@ class FakeAgent:
                 return
         result, after = self._execute(msg)
         self.answered.append((msg.MSG_ID, seq, result))
-        self._send(m.Ack(cmd_msg_id=msg.MSG_ID, cmd_seq=seq, result=result))
+        self._send(m.Ack(cmd_msg_id=msg.MSG_ID, cmd_seq=seq, result=result, reason=self.nack_reason if result else ""))
         for reply, reply_flags in after:
             self._send(reply, reply_flags)
 
@@ -134,6 +174,8 @@ class FakeAgent:
 
     def _execute(self, msg: Message) -> tuple[int, list[tuple[Message, int]]]:
         self.executed.append(msg.DEFINITION.name)
+        if self.refuse and not isinstance(msg, m.ParamListRequest | m.LogRequest):
+            return self.refuse, []
         names = list(self.params)
         if isinstance(msg, m.ParamListRequest):
             return 0, [(self._param(i, n), 0) for i, n in enumerate(names)]
@@ -165,8 +207,12 @@ class FakeAgent:
                 chunks = chunks[:1]  # lose the rest: the ground must ask for the missing range
             return 0, list(chunks)
         if isinstance(msg, m.LogRequest):
+            self.log_requests += 1
             replay = [(frame, int(FrameFlag.REPLAYED)) for s, frame in list(self.log)
-                      if msg.first_sample <= s < msg.end_sample]
+                      if msg.first_sample <= s < min(msg.end_sample, msg.first_sample + self.replay_limit)]
+            if self.ignored_log_requests > 0:
+                self.ignored_log_requests -= 1
+                replay = []
             rng = m.LogRange(first_sample=0, next_sample=self.sample, replayed=len(replay), bytes_used=0,
                              capacity_bytes=512 * 1024)
             return 0, [*replay, (rng, 0)]
@@ -178,12 +224,13 @@ class FakeAgent:
         while not self._stop.wait(self.period_s):
             if time.monotonic() >= next_hb:
                 next_hb += 0.2
-                self._send(m.Heartbeat(uptime_ms=0, mode=1 if self.learning else 0, battery_mv=4000, rx_frames=0,
-                                       rx_rejects=0, rx_lost=0, log_first_sample=0, log_next_sample=self.sample,
+                self._send(m.Heartbeat(uptime_ms=self.now_us() // 1000, mode=1 if self.learning else 0,
+                                       battery_mv=4000, rx_frames=0, rx_rejects=0, rx_lost=0, log_first_sample=0,
+                                       log_next_sample=self.sample,
                                        episode=self.episode, signing_rejects=0))
             if not self.learning:
                 continue
-            t_us = int(time.monotonic() * 1e6)
+            t_us = self.now_us()
             out: list[tuple[int, Message]] = []
             if step == 0:
                 self.episode += 1
@@ -207,7 +254,10 @@ class FakeAgent:
                     self.learning = False
             for index, frame in out:
                 self.log.append((index, frame))
-                dropped = self.drop_every and isinstance(frame, m.Sample) and index % self.drop_every == 3
+                dropped = not self.live or (self.drop_every and isinstance(frame, m.Sample)
+                                            and index % self.drop_every == 3)
                 if not dropped:
                     self._send(frame)
+                    if self.duplicate_frames:
+                        self._resend_last()
             self.sample += 1

@@ -37,8 +37,8 @@ def test_a_lost_episode_start_is_requested_by_the_index_of_its_first_sample() ->
     assert planner.due(now_s=0.0) == [(100, 101)]
 
 
-def test_complete_episodes_need_nothing_and_requests_are_retried_then_given_up() -> None:
-    planner = BackfillPlanner(retry_after_s=1.0, attempts=2)
+def test_complete_episodes_need_nothing_and_requests_are_retried_while_the_agent_holds_them() -> None:
+    planner = BackfillPlanner(retry_after_s=1.0, max_wait_s=4.0)
     _learning_episode(planner, 1, range(0, 30), start=True, end=True)
     _recovery(planner, 1, range(30, 35))
     assert not planner.pending() and planner.due(now_s=0.0) == []
@@ -47,6 +47,23 @@ def test_complete_episodes_need_nothing_and_requests_are_retried_then_given_up()
     assert planner.due(now_s=0.0) == [(49, 50)]
     assert planner.due(now_s=0.5) == []  # not again before the retry interval
     assert planner.due(now_s=1.5) == [(49, 50)]
-    assert planner.due(now_s=3.0) == []  # two attempts, then it is left to the final report
+    assert planner.due(now_s=2.0) == []  # the wait grows: 1.5 s after the second try
+    assert planner.due(now_s=3.0) == [(49, 50)]
+    asked = [t for t in range(4, 200) if planner.due(now_s=float(t))]
+    assert len(asked) >= 40  # never given up while the log holds it, at most every 4 s
     planner.episodes.ends.add(2)  # the replayed frame arrived
     assert not planner.pending()
+
+
+def test_a_gap_is_lost_only_once_the_agents_log_no_longer_holds_it() -> None:
+    planner = BackfillPlanner()
+    for index in [*range(0, 100), *range(2000, 2010)]:
+        planner.held.add(index)
+    planner.saw_log_window(0, 2010)
+    assert planner.lost() == 0 and planner.pending()
+    pieces = planner.due(now_s=0.0)
+    assert pieces[0] == (100, 612) and all(b - a <= 512 for a, b in pieces)  # the agent replays 512 at most
+    assert sum(b - a for a, b in pieces) == 1900
+    planner.saw_log_window(1000, 2010)  # the log was overwritten up to 1000 (LOG_RANGE / HEARTBEAT says so)
+    assert planner.lost() == 900
+    assert planner.fetchable() == [(1000, 2000)]

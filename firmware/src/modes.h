@@ -1,0 +1,26 @@
+/* The mode machine (SPEC.md s. 6, 1.1 matrix): one control step per call, limits, episodes, samples. */
+#ifndef MODES_H
+#define MODES_H
+
+#include <stdbool.h>
+#include <stdint.h>
+
+#include "params.h"
+
+void     modes_init(void);
+/* One control step of the current mode; returns the period in us until the next step. */
+uint32_t modes_step(void);
+uint8_t  modes_mode(void);
+uint32_t modes_episode(void);
+uint32_t modes_next_sample(void);
+
+/* Commands: the verdict (value checks before mode checks); with apply set, also carried out. */
+void modes_cmd_start(uint32_t max_episodes, bool apply, verdict_t *v);
+void modes_cmd_stop(bool apply, verdict_t *v);
+void modes_cmd_pause(bool apply, verdict_t *v);
+void modes_cmd_surface(bool apply, verdict_t *v);
+void modes_cmd_hover(float depth_m, bool apply, verdict_t *v);
+void modes_cmd_reset_model(bool apply, verdict_t *v);
+void modes_param_set(uint16_t index, uint64_t value_bits, bool apply, verdict_t *v);
+
+#endif

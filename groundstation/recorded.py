@@ -1,0 +1,53 @@
+"""Reading recorded JSON as untrusted input, and telling the agent's boots apart (issue 13 items 1 and 5).
+
+A recording is a file anyone can hand us: a well-formed MCAP may hold a SAMPLE that is `{}`, a list, or not JSON.
+Such a message is counted and skipped, never a traceback. Sample indices restart at every agent reboot, so
+everything keyed by sample index is kept per boot (the HELLO's boot_id), never spliced across one.
+"""
+
+from __future__ import annotations
+
+import json
+from typing import Any
+
+from groundstation.mcap_io import RecordedMessage
+
+_NUMBER = (int, float)
+
+
+def json_fields(msg: RecordedMessage, integers: tuple[str, ...] = (), numbers: tuple[str, ...] = ()
+                ) -> dict[str, Any] | None:
+    """The message's JSON object if it is one with these integer and number fields; None (malformed) otherwise."""
+    try:
+        body = json.loads(msg.data)
+    except (ValueError, UnicodeDecodeError):
+        return None
+    if not isinstance(body, dict):
+        return None
+    for key in integers:
+        value = body.get(key)
+        if isinstance(value, bool) or not isinstance(value, int):
+            return None
+    for key in numbers:
+        value = body.get(key)
+        if isinstance(value, bool) or not (value is None or isinstance(value, _NUMBER)):
+            return None  # None: a NaN or infinity the recorder wrote as null
+    return body
+
+
+class Boots:
+    """Numbers the agent's boots 1, 2, ... in file order from its HELLOs (a reconnect to the same boot is not one)."""
+
+    def __init__(self) -> None:
+        self.current = 1
+        self._boot_id: int | None = None
+
+    def hello(self, msg: RecordedMessage) -> bool:
+        """Follow a /agent/HELLO; True if it starts a new boot."""
+        body = json_fields(msg, integers=("boot_id",))
+        if body is None:
+            return False
+        new = self._boot_id is not None and body["boot_id"] != self._boot_id
+        self.current += new
+        self._boot_id = body["boot_id"]
+        return new

@@ -1,0 +1,225 @@
+"""The C firmware on an emulated Cortex-M4 (QEMU mps2-an386): `dive sim --firmware qemu`.
+
+The whole agent runs inside QEMU: the core, the learner, and the C port of the plant and sensor that
+stand in for the water (firmware/boards/qemu). Its link is the board's UART0, which QEMU itself serves
+on a loopback TCP port (or a pseudo-terminal), so the ground station talks to the emulated MCU directly
+and nothing of Python sits in the loop. Agent time is the emulated plant's time: at speed "max" the
+agent runs as fast as the emulated CPU goes; a speed factor paces it against QEMU's real clock.
+
+Boot arguments (speed, seed, node id, bench mode) reach the firmware through QEMU's generic loader,
+written into a RAM block the linker script reserves (firmware/boards/qemu/bootargs.h).
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import shutil
+import signal
+import socket
+import subprocess
+import threading
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from types import TracebackType
+
+from simulator.errors import SimulatorError
+
+FIRMWARE_DIR = Path(__file__).resolve().parent.parent / "firmware"
+ELF_ENV = "DIVE_FIRMWARE_ELF"  # a prebuilt QEMU ELF to run instead of building one
+QEMU_ENV = "DIVE_QEMU"  # the qemu-system-arm to run
+MACHINE = "mps2-an386"
+BOOTARGS_ADDR = 0x20000000 + 4 * 1024 * 1024 - 256  # RAM end - 256 (mps2_an386.ld)
+BOOTARGS_MAGIC = 0x41524753
+KEY_BYTES = 32
+START_TIMEOUT_S = 20.0  # QEMU up and its port listening
+_PTY_LINE = re.compile(r"char device redirected to (\S+) \(label serial0\)")
+
+
+class QemuError(SimulatorError):
+    """QEMU or the cross compiler is missing, the firmware does not build, or QEMU did not start."""
+
+
+@dataclass(frozen=True)
+class QemuConfig:
+    """How to run the emulated agent."""
+
+    host: str = "127.0.0.1"
+    port: int = 0  # 0: a free port
+    pty: bool = False  # serve the link on a pseudo-terminal instead of TCP
+    speed: float | None = None  # times real time; None = as fast as the emulated CPU goes
+    seed: int | None = None  # sensor noise and the learner's tie-break stream (default: random)
+    node_id: int = 0  # 0: the board's default
+    key: bytes | None = None  # the 32-byte signing key: commands must then be signed
+    bench: bool = False  # print instruction counts on UART1 (with icount)
+    icount: bool = False  # -icount shift=0: virtual time counts instructions (1 ns each)
+    diag_path: Path | None = None  # where UART1 (the board's diagnostics) goes; None = discarded
+
+
+def qemu_binary() -> str:
+    """The qemu-system-arm to run, or QemuError naming what is missing."""
+    found = shutil.which(os.environ.get(QEMU_ENV, "qemu-system-arm"))
+    if found is None:
+        raise QemuError("qemu-system-arm not found: install qemu-system-arm (or set DIVE_QEMU)")
+    return found
+
+
+def build_elf(build_dir: Path | None = None, extra_cflags: str = "") -> Path:
+    """firmware/build/qemu/agent.elf (or under build_dir), made with `make -C firmware qemu` when stale."""
+    prebuilt = os.environ.get(ELF_ENV)
+    if prebuilt and build_dir is None and not extra_cflags:
+        if not Path(prebuilt).is_file():
+            raise QemuError(f"{ELF_ENV}={prebuilt} is not a file")
+        return Path(prebuilt)
+    if shutil.which("arm-none-eabi-gcc") is None:
+        raise QemuError("arm-none-eabi-gcc not found: install gcc-arm-none-eabi and libnewlib-arm-none-eabi")
+    if shutil.which("make") is None:
+        raise QemuError("make not found: it builds the firmware")
+    out = build_dir if build_dir is not None else FIRMWARE_DIR / "build" / "qemu"
+    cmd = ["make", "-s", "-C", str(FIRMWARE_DIR), "qemu", f"QEMU_BUILD_DIR={out}"]
+    if extra_cflags:
+        cmd.append(f"QEMU_EXTRA_CFLAGS={extra_cflags}")
+    done = subprocess.run(cmd, capture_output=True, text=True, check=False)
+    if done.returncode != 0:
+        lines = [x for x in (done.stderr or done.stdout).splitlines() if x.strip()]
+        raise QemuError(f"the QEMU firmware does not build: {lines[-1] if lines else 'make failed'}")
+    return out / "agent.elf"
+
+
+def free_port(host: str) -> int:
+    """A port the OS calls free now (QEMU binds it a moment later)."""
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        s.bind((host, 0))
+        return int(s.getsockname()[1])
+
+
+def _bootargs(config: QemuConfig) -> list[str]:
+    seed = config.seed if config.seed is not None else int.from_bytes(os.urandom(8), "little")
+    speed_milli = 0 if config.speed is None else max(1, round(config.speed * 1000))
+    words = [BOOTARGS_MAGIC, config.node_id, seed & 0xFFFFFFFF, (seed >> 32) & 0xFFFFFFFF, speed_milli,
+             int(config.bench), int(config.key is not None)]
+    if config.key is not None:
+        if len(config.key) != KEY_BYTES:
+            raise QemuError(f"the signing key must be {KEY_BYTES} bytes")
+        words += [int.from_bytes(config.key[i:i + 4], "little") for i in range(0, KEY_BYTES, 4)]
+    args: list[str] = []
+    for i, word in enumerate(words):
+        args += ["-device", f"loader,addr={BOOTARGS_ADDR + 4 * i:#x},data={word:#x},data-len=4"]
+    return args
+
+
+class QemuAgent:
+    """One QEMU process running the firmware; `address` is what a ground station connects to."""
+
+    def __init__(self, config: QemuConfig, elf: Path | None = None) -> None:
+        self.config = config
+        self.elf = elf
+        self.address = ""
+        self._process: subprocess.Popen[bytes] | None = None
+        self._stderr_lines: list[str] = []
+
+    def start(self) -> str:
+        """Build if needed, start QEMU, wait until its link is reachable; returns the address."""
+        binary = qemu_binary()
+        elf = self.elf if self.elf is not None else build_elf()
+        c = self.config
+        if c.pty:
+            serial = "pty"
+        else:
+            port = c.port or free_port(c.host)
+            serial = f"tcp:{c.host}:{port},server=on,wait=off"
+            self.address = f"tcp://{c.host}:{port}"
+        diag = f"file:{c.diag_path}" if c.diag_path is not None else "null"
+        cmd = [binary, "-M", MACHINE, "-nographic", "-monitor", "none", "-kernel", str(elf),
+               "-serial", serial, "-serial", diag, *_bootargs(c)]
+        if c.icount:
+            cmd += ["-icount", "shift=0"]
+        try:
+            self._process = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                                             stderr=subprocess.PIPE)
+        except OSError as e:
+            raise QemuError(f"cannot start {binary}: {e}") from e
+        threading.Thread(target=self._read_stderr, daemon=True).start()
+        self._wait_ready()
+        return self.address
+
+    def _read_stderr(self) -> None:
+        process = self._process
+        assert process is not None and process.stderr is not None
+        for raw in process.stderr:
+            line = raw.decode(errors="replace").strip()
+            self._stderr_lines.append(line)
+            found = _PTY_LINE.search(line)
+            if found:
+                self.address = found.group(1)
+
+    def _wait_ready(self) -> None:
+        deadline = time.monotonic() + START_TIMEOUT_S
+        while time.monotonic() < deadline:
+            if self._process is not None and self._process.poll() is not None:
+                why = self._stderr_lines[-1] if self._stderr_lines else f"exit code {self._process.returncode}"
+                raise QemuError(f"QEMU stopped at start: {why}")
+            if self.config.pty:
+                if self.address:
+                    return
+            elif self._listening():
+                return
+            time.sleep(0.05)
+        self.stop()
+        raise QemuError(f"QEMU's link was not up within {START_TIMEOUT_S:.0f} s")
+
+    def _listening(self) -> bool:
+        # A probe connection is harmless: the agent repeats HELLO until the ground answers.
+        host, port = self.address.removeprefix("tcp://").rsplit(":", 1)
+        try:
+            with socket.create_connection((host, int(port)), timeout=0.5):
+                return True
+        except OSError:
+            return False
+
+    @property
+    def running(self) -> bool:
+        return self._process is not None and self._process.poll() is None
+
+    def wait(self, timeout_s: float | None = None) -> int | None:
+        """QEMU's exit code, or None if it is still running after timeout_s."""
+        if self._process is None:
+            return None
+        try:
+            return self._process.wait(timeout_s)
+        except subprocess.TimeoutExpired:
+            return None
+
+    def stop(self) -> None:
+        process, self._process = self._process, None
+        if process is None:
+            return
+        if process.poll() is None:
+            process.terminate()
+            try:
+                process.wait(5.0)
+            except subprocess.TimeoutExpired:
+                process.kill()
+                process.wait(5.0)
+
+    def __enter__(self) -> QemuAgent:
+        self.start()
+        return self
+
+    def __exit__(self, kind: type[BaseException] | None, value: BaseException | None,
+                 tb: TracebackType | None) -> None:
+        self.stop()
+
+
+def serve_qemu(config: QemuConfig) -> None:
+    """`serve --firmware qemu`: print the address, run until SIGINT/SIGTERM or QEMU's end."""
+    stop = threading.Event()
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signum, lambda *_: stop.set())
+    with QemuAgent(config) as agent:
+        print(agent.address, flush=True)
+        while not stop.is_set() and agent.running:
+            stop.wait(0.2)
+    if not stop.is_set():
+        raise QemuError("QEMU stopped")

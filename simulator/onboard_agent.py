@@ -1,0 +1,101 @@
+"""The on-board program as the server sees it: the Python reference or the C firmware, behind one interface.
+
+The server (server.py) owns the transport, the faults and the pacing; an OnboardAgent owns everything the
+agent itself does: its link layer, its program and the simulated hardware it runs on.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+from typing import Protocol
+
+import numpy as np
+
+from learning import LearnerConfig
+from simulator.agent_link import AgentLink
+from simulator.agent_mission import MissionConfig
+from simulator.onboard import OnboardProgram
+from simulator.onboard_hw import SimulatedHardware
+from simulator.parameters import PlantParams
+
+Write = Callable[[bytes], None]  # takes the wire bytes of one frame
+
+
+class OnboardAgent(Protocol):
+    """What AgentServer drives: bytes in, frames out through `write`, agent time advancing one step per call."""
+
+    @property
+    def t_us(self) -> int:
+        """Agent time."""
+
+    @property
+    def next_seq(self) -> int:
+        """The seq the agent's next frame gets."""
+
+    @property
+    def true_depth_m(self) -> float:
+        """The plant's depth (for the radio blackout model only)."""
+
+    def step(self) -> None:
+        """One control step of the program, then its period of agent time passes."""
+
+    def receive(self, data: bytes) -> None:
+        """Whatever the link delivered."""
+
+    def service(self) -> None:
+        """Called every loop of the server, steps or not: the HELLO repeat until the ground is heard."""
+
+    def link_up(self) -> None:
+        """A new connection: sequence tracking restarts, HELLO goes out."""
+
+    def link_down(self) -> None:
+        """The connection closed."""
+
+    def counters(self) -> dict[str, int]:
+        """next_sample, signing_rejects, rx_lost and rx_rejects, for serve --report."""
+
+
+class PythonAgent:
+    """The Python reference: AgentLink + OnboardProgram over SimulatedHardware."""
+
+    def __init__(self, plant: PlantParams, learner: LearnerConfig, mission: MissionConfig, rng: np.random.Generator,
+                 write: Write, node_id: int, key: bytes | None, link_clock_s: Callable[[], float] | None = None,
+                 mark_file: Path | None = None) -> None:
+        self.link = AgentLink(write, node_id=node_id, key=key, link_clock_s=link_clock_s, mark_file=mark_file)
+        self.hw = SimulatedHardware(plant, rng)
+        self.program = OnboardProgram(plant, learner, mission, self.hw, rng, self.link)
+        self.link.attach(self.program)
+
+    @property
+    def t_us(self) -> int:
+        return self.hw.t_us
+
+    @property
+    def next_seq(self) -> int:
+        return self.link.next_seq
+
+    @property
+    def true_depth_m(self) -> float:
+        return self.hw.true_depth_m
+
+    def step(self) -> None:
+        self.program.step()
+        self.link.tick()
+
+    def receive(self, data: bytes) -> None:
+        self.link.receive(data)
+
+    def service(self) -> None:
+        self.link.service()
+
+    def link_up(self) -> None:
+        self.link.on_connect()
+
+    def link_down(self) -> None:
+        self.link.on_disconnect()
+
+    def counters(self) -> dict[str, int]:
+        stats = self.link.decoder.stats
+        return {"next_sample": self.program.next_sample, "signing_rejects": self.link.signing_rejects,
+                "rx_lost": stats.lost, "rx_rejects": stats.rejects}

@@ -1,0 +1,129 @@
+"""Builds fwctl's C modules (observer, recovery, learner, plant, sensor) into a host library for ctypes."""
+
+from __future__ import annotations
+
+import ctypes
+import shutil
+import subprocess
+from pathlib import Path
+
+import pytest
+
+FIRMWARE = Path(__file__).resolve().parents[2] / "firmware"
+SOURCES = ("observer", "recovery", "rng", "learner", "plant", "sensor")
+
+
+class SmoState(ctypes.Structure):
+    _fields_ = [("x1_m", ctypes.c_float), ("x2_mps", ctypes.c_float)]
+
+
+class SmoGains(ctypes.Structure):
+    _fields_ = [("rho_mps", ctypes.c_float), ("tau_s", ctypes.c_float), ("phi_m", ctypes.c_float)]
+
+
+class RecoveryParams(ctypes.Structure):
+    _fields_ = [(name, ctypes.c_float) for name in (
+        "lambda_per_s", "phi_mps", "gain_deg", "avg_time_s", "settle_depth_m", "settle_velocity_mps",
+        "settle_time_s", "give_up_s", "alpha_max_deg",
+    )]
+
+
+class RecoveryState(ctypes.Structure):
+    _fields_ = [("avg_deg", ctypes.c_float), ("calm_s", ctypes.c_float), ("elapsed_s", ctypes.c_float)]
+
+
+class LearnerConfigC(ctypes.Structure):
+    _fields_ = [
+        ("z_cells", ctypes.c_uint8), ("zdot_cells", ctypes.c_uint8), ("act_bins", ctypes.c_uint8),
+        ("slots", ctypes.c_uint8), ("z_tol_m", ctypes.c_float), ("zdot_tol_mps", ctypes.c_float),
+        ("gamma", ctypes.c_float), ("vi_tol", ctypes.c_float), ("term_reward", ctypes.c_float),
+        ("p_explore_start", ctypes.c_float), ("p_explore_end", ctypes.c_float),
+        ("explore_decay_episodes", ctypes.c_uint32), ("untried_q", ctypes.c_float),
+        ("known_count", ctypes.c_uint16), ("random_ties", ctypes.c_bool),
+        ("depth_only_terminal", ctypes.c_bool), ("in_place_sweeps", ctypes.c_bool),
+        ("explore_literal_gt", ctypes.c_bool), ("policy_argmin", ctypes.c_bool),
+        ("alg4_printed", ctypes.c_bool), ("max_sweeps", ctypes.c_uint32),
+    ]
+
+
+class PlantParamsC(ctypes.Structure):
+    _fields_ = [(name, ctypes.c_double) for name in (
+        "mass_kg", "added_mass_kg", "water_density_kgpm3", "gravity_mps2", "trim_error_fraction",
+        "compressibility_m3pm", "drag_kgpm", "floor_depth_m", "stroke_volume_m3", "alpha_max_deg",
+        "alpha_rate_dps", "substep_s",
+    )]
+
+
+class PlantStateC(ctypes.Structure):
+    _fields_ = [("z_m", ctypes.c_double), ("zdot_mps", ctypes.c_double), ("alpha_deg", ctypes.c_double)]
+
+
+class SensorParamsC(ctypes.Structure):
+    _fields_ = [(name, ctypes.c_double) for name in (
+        "surface_pressure_pa", "water_density_kgpm3", "gravity_mps2", "noise_pa", "lsb_pa", "min_pa", "max_pa",
+    )]
+
+
+class RngC(ctypes.Structure):
+    _fields_ = [("state", ctypes.c_uint64)]
+
+
+_SIGNATURES: dict[str, tuple[object, list[object]]] = {
+    "smo_reset": (None, [ctypes.POINTER(SmoState), ctypes.c_float]),
+    "smo_update": (ctypes.c_float, [ctypes.POINTER(SmoState), ctypes.POINTER(SmoGains), ctypes.c_float,
+                                    ctypes.c_float]),
+    "recovery_init": (None, [ctypes.POINTER(RecoveryState), ctypes.c_float]),
+    "recovery_restart": (None, [ctypes.POINTER(RecoveryState)]),
+    "recovery_step": (ctypes.c_float, [
+        ctypes.POINTER(RecoveryState), ctypes.POINTER(RecoveryParams), ctypes.c_float, ctypes.c_float,
+        ctypes.c_float, ctypes.c_float, ctypes.c_float, ctypes.POINTER(ctypes.c_bool),
+        ctypes.POINTER(ctypes.c_bool),
+    ]),
+    "recovery_alpha_avg_deg": (ctypes.c_float, [ctypes.POINTER(RecoveryState)]),
+    "learner_default_config": (None, [ctypes.POINTER(LearnerConfigC)]),
+    "learner_memory_bytes": (ctypes.c_uint32, [ctypes.POINTER(LearnerConfigC)]),
+    "learner_total_bytes": (ctypes.c_uint32, [ctypes.POINTER(LearnerConfigC)]),
+    "learner_arena_bytes": (ctypes.c_uint32, []),
+    "learner_used_bytes": (ctypes.c_uint32, []),
+    "learner_configure": (ctypes.c_bool, [ctypes.POINTER(LearnerConfigC)]),
+    "learner_seed": (None, [ctypes.c_uint64]),
+    "learner_reset": (None, []),
+    "learner_n_states": (ctypes.c_uint16, []),
+    "learner_state": (ctypes.c_uint16, [ctypes.c_float] * 4),
+    "learner_reward": (ctypes.c_float, [ctypes.c_float, ctypes.c_float, ctypes.c_uint16]),
+    "learner_act": (ctypes.c_uint8, [ctypes.c_uint16]),
+    "learner_observe": (None, [ctypes.c_uint16, ctypes.c_uint8, ctypes.c_float, ctypes.c_uint16]),
+    "learner_end_episode": (None, []),
+    "learner_plan_slice": (ctypes.c_bool, [ctypes.c_uint32]),
+    "learner_last_sweeps": (ctypes.c_uint32, []),
+    "learner_episode": (ctypes.c_uint32, []),
+    "learner_p_explore": (ctypes.c_float, []),
+    "learner_value": (ctypes.c_float, [ctypes.c_uint16]),
+    "learner_policy": (ctypes.c_uint8, [ctypes.c_uint16]),
+    "learner_q": (ctypes.c_float, [ctypes.c_uint16, ctypes.c_uint8]),
+    "learner_count": (ctypes.c_uint16, [ctypes.c_uint8, ctypes.c_uint16, ctypes.c_uint16]),
+    "plant_hardware_params": (None, [ctypes.POINTER(PlantParamsC)]),
+    "plant_neutral_alpha_deg": (ctypes.c_double, [ctypes.POINTER(PlantParamsC)]),
+    "plant_step": (None, [ctypes.POINTER(PlantStateC), ctypes.POINTER(PlantParamsC), ctypes.c_double,
+                          ctypes.c_double]),
+    "sensor_hardware_params": (None, [ctypes.POINTER(SensorParamsC)]),
+    "sensor_read_pa": (ctypes.c_double, [ctypes.POINTER(SensorParamsC), ctypes.POINTER(RngC), ctypes.c_double]),
+}
+
+
+def build_ctl_library(out_dir: Path) -> ctypes.CDLL:
+    """cc the modules into out_dir/libctl.so (the flags of the firmware build) and load it; skip without cc."""
+    cc = shutil.which("cc")
+    if cc is None:
+        pytest.skip("cc not found: the C differential tests need a host C compiler")
+    lib_path = out_dir / "libctl.so"
+    sources = [str(FIRMWARE / "src" / f"{name}.c") for name in SOURCES]
+    cmd = [cc, "-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-Wdouble-promotion", "-shared", "-fPIC",
+           "-o", str(lib_path), *sources, "-lm"]
+    subprocess.run(cmd, check=True, capture_output=True, text=True)
+    lib = ctypes.CDLL(str(lib_path))
+    for name, (restype, argtypes) in _SIGNATURES.items():
+        fn = getattr(lib, name)
+        fn.restype = restype
+        fn.argtypes = argtypes
+    return lib

@@ -1,0 +1,107 @@
+"""Signing on the C agent (SPEC.md 1.1 s. 12): the order of checks, replay, too new, CMD_SURFACE always runs,
+the mark persisted through hal_nv_* refuses what was accepted before a reboot."""
+
+from __future__ import annotations
+
+import os
+import time
+from collections.abc import Iterator
+from typing import Any
+
+import numpy as np
+import pytest
+
+from protocol import AckResult, FrameEncoder, FrameFlag, StreamDecoder, messages
+from protocol.signing import Signer
+from simulator.parameters import preset
+from tests.firmware.core_build import require_cc
+
+KEY = bytes(range(32))
+ACK = int(FrameFlag.ACK_REQUESTED)
+
+
+class Clock:
+    """The ground's wall clock, moved by hand."""
+
+    def __init__(self) -> None:
+        self.ns = time.time_ns()
+
+    def __call__(self) -> int:
+        return self.ns
+
+
+class KeyedAgent:
+    def __init__(self) -> None:
+        from simulator.firmware_host import FirmwareAgent
+
+        self.decoder = StreamDecoder()
+        self.frames: list[Any] = []
+        self.agent = FirmwareAgent(preset("hardware"), np.random.default_rng(2), self.frames_in, node_id=9, key=KEY,
+                                   seed=2)
+
+    def frames_in(self, wire: bytes) -> None:
+        self.frames += self.decoder.feed(wire)
+
+    def send(self, wire: bytes) -> list[messages.Ack]:
+        self.frames.clear()
+        self.agent.receive(wire)
+        return [f.message for f in self.frames if isinstance(f.message, messages.Ack)]
+
+    def texts(self) -> int:
+        return sum(isinstance(f.message, messages.Text) for f in self.frames)
+
+
+@pytest.fixture
+def keyed(tmp_path_factory: pytest.TempPathFactory) -> Iterator[KeyedAgent]:
+    require_cc()
+    os.environ.setdefault("DIVE_FIRMWARE_CACHE", str(tmp_path_factory.mktemp("firmware-cache")))
+    yield KeyedAgent()
+
+
+def results(acks: list[messages.Ack]) -> list[AckResult]:
+    return [AckResult(a.result) for a in acks]
+
+
+def test_unsigned_and_wrongly_signed_commands_are_refused(keyed: KeyedAgent) -> None:
+    plain = FrameEncoder(first_seq=10)
+    assert results(keyed.send(plain.encode(messages.Hover(depth_m=0.2), ACK).wire)) == [AckResult.UNAUTHORIZED]
+    wrong = FrameEncoder(first_seq=20, signer=Signer(bytes(32), 3))
+    assert results(keyed.send(wrong.encode(messages.Hover(depth_m=0.2), ACK).wire)) == [AckResult.UNAUTHORIZED]
+    assert keyed.agent.counters()["signing_rejects"] == 2
+
+
+def test_exact_replay_gets_the_original_ack_and_is_not_run_again(keyed: KeyedAgent) -> None:
+    clock = Clock()
+    ground = FrameEncoder(first_seq=100, signer=Signer(KEY, 5, clock))
+    wire = ground.encode(messages.Hover(depth_m=0.2), ACK).wire
+    assert results(keyed.send(wire)) == [AckResult.ACCEPTED] and keyed.texts() == 1
+    assert results(keyed.send(wire)) == [AckResult.ACCEPTED] and keyed.texts() == 0  # ACK memory first
+    # The same timestamp on a new command (new seq) is a replay.
+    clock.ns -= 10**9
+    older = FrameEncoder(first_seq=200, signer=Signer(KEY, 5, clock))
+    assert results(keyed.send(older.encode(messages.Hover(depth_m=0.3), ACK).wire)) == [AckResult.UNAUTHORIZED]
+
+
+def test_too_new_refused_but_surface_always_runs(keyed: KeyedAgent) -> None:
+    clock = Clock()
+    ground = FrameEncoder(first_seq=300, signer=Signer(KEY, 6, clock))
+    assert results(keyed.send(ground.encode(messages.Hover(depth_m=0.2), ACK).wire)) == [AckResult.ACCEPTED]
+    clock.ns += 120 * 10**9  # two minutes ahead of the agent's estimate
+    assert results(keyed.send(ground.encode(messages.Hover(depth_m=0.4), ACK).wire)) == [AckResult.UNAUTHORIZED]
+    assert results(keyed.send(ground.encode(messages.Surface(), ACK).wire)) == [AckResult.ACCEPTED]
+    assert keyed.texts() == 1  # HOVER -> SURFACING
+
+
+def test_mark_survives_a_reboot(keyed: KeyedAgent) -> None:
+    clock = Clock()
+    ground = FrameEncoder(first_seq=400, signer=Signer(KEY, 7, clock))
+    recorded = ground.encode(messages.Hover(depth_m=0.2), ACK).wire
+    assert results(keyed.send(recorded)) == [AckResult.ACCEPTED]
+    io = keyed.agent._io
+    assert io.nv_writes >= 1 and io.nv_len > 0
+    keyed.agent._lib.host_init(9, KEY)  # reboot: RAM state gone, the nv area kept
+    keyed.frames.clear()
+    assert results(keyed.send(recorded)) == [AckResult.UNAUTHORIZED]  # recorded before the reboot
+    clock.ns += 11 * 10**9  # past the persisted mark (accepted + 10 s)
+    fresh = FrameEncoder(first_seq=500, signer=Signer(KEY, 8, clock))
+    assert results(keyed.send(fresh.encode(messages.Hover(depth_m=0.2), ACK).wire)) == [AckResult.ACCEPTED]
