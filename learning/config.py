@@ -41,7 +41,9 @@ class LearnerConfig:
     known_count: int = 1  # 1: the paper; m > 1: R-MAX's "known" threshold
     random_ties: bool = True  # False: np.argmax's habit of always picking a1 on ties
     model_form: ModelForm = ModelForm.SPARSE
-    sparse_slots: int = 12  # successor slots per (s, a); 12 never overflows on the paper's grid
+    # Successor slots per (s, a): never all taken on the paper's grid; with actuator bins a pair can have more
+    # than 12 successors (actuator3 does) and the rarest is evicted (counted: summary.json model.slot_evictions).
+    sparse_slots: int = 12
     actuator_bins: int = 1  # > 1 adds the actuator position (relative to neutral) to the state
     in_place_sweeps: bool = False  # Gauss-Seidel value iteration: same fixed point, fewer sweeps
     max_sweeps: int = 100_000  # sweeps per planning call: a safety stop, or a budget (bounded planning)

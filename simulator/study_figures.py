@@ -13,6 +13,7 @@ import numpy as np  # noqa: E402
 from numpy.typing import NDArray  # noqa: E402
 
 from learning import LearnerConfig  # noqa: E402
+from learning.acting import TIED  # noqa: E402
 from simulator.study_stats import WINDOW, moving_average  # noqa: E402
 
 _DPI = 120
@@ -81,7 +82,8 @@ def write_figures(
 
     _heatmap(_grid(values, config), config, f"Fig. 6 - mean value function ({values.shape[0]} trials)",
              "v(s)", paths[2], "viridis")
-    _heatmap(_grid(policy.astype(float), config), config,
+    share = np.where(policy == TIED, 0.5, policy).astype(float)  # a tie drawn per step is half a2
+    _heatmap(_grid(share, config), config,
              f"Fig. 7 - mean policy ({policy.shape[0]} trials)", "share choosing a2 (more volume)",
              paths[3], "coolwarm")
     return paths
