@@ -134,6 +134,10 @@ class OnboardProgram:
             if self.hw.t_us >= self._next_idle_sample_us:
                 self._next_idle_sample_us = self.hw.t_us + int(self.mission.idle_sample_period_s * 1e6)
                 self._sample(Action.NONE, 0.0, 0)
+        self.finish_step(dt)
+
+    def finish_step(self, dt: float) -> None:
+        """The end of every step: the dive limits, then dt of agent time passes (also after a compiled batch)."""
         if self.mode in _DIVING:
             self._check_limits()
         self.hw.advance(dt)
@@ -203,6 +207,10 @@ class OnboardProgram:
         )
         self.hw.set_actuator_cmd_deg(cmd)
         self._sample(Action.NONE, 0.0, 0)
+        self.held_sampled(settled, gave_up)
+
+    def held_sampled(self, settled: bool, gave_up: bool) -> None:
+        """What a held step does after its SAMPLE: RECOVERING hands over to the learner or gives up."""
         if self.mode == Mode.RECOVERING:
             if settled:
                 self._begin_episode(self.recovery.alpha_avg_deg + self.params.start_trim_error_deg)
