@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -19,7 +21,7 @@ from learning.shared import (
     shared_memory_bytes,
     state_cell_code,
 )
-from learning.spec import direct_entry
+from learning.spec import KernelSpec, direct_entry
 
 _REWARD_SUM_BYTES = 4  # float32 per (s, a) on the Teensy
 _COUNT_BYTES = 2  # uint16
@@ -69,6 +71,21 @@ def learner_memory_bytes(config: LearnerConfig) -> int:
     if config.shared_model:
         return model_memory_bytes(config)
     return model_memory_bytes(config) + n_states(config) * (_VALUE_BYTES + _POLICY_BYTES)
+
+
+class LearnerArrays(NamedTuple):
+    """A learner's live state as its kernels take it, for compiled loops that act and observe many steps at once."""
+
+    spec: KernelSpec
+    policy: NDArray[np.int8]
+    rng_state: NDArray[np.uint64]
+    succ_idx: NDArray[np.uint16]
+    succ_cnt: NDArray[np.uint16]
+    reward_sum: NDArray[np.float32]
+    codes: NDArray[np.uint8]
+    type_counts: NDArray[np.uint16]
+    totals: NDArray[np.uint16]
+    type_evictions: NDArray[np.uint16]
 
 
 class Learner:
@@ -126,6 +143,13 @@ class Learner:
     @property
     def config(self) -> LearnerConfig:
         return self._config
+
+    @property
+    def arrays(self) -> LearnerArrays:
+        """The live arrays act() and observe() use (replaced by reset()); a loop that acts and observes with
+        select_action_kernel, record_transition and record_shared on them adds its evictions to `evictions`."""
+        return LearnerArrays(self._spec, self._policy, self._rng_state, self._succ_idx, self._succ_cnt,
+                             self._reward_sum, self._codes, self._type_counts, self._totals, self._type_evictions)
 
     @property
     def episode(self) -> int:

@@ -281,7 +281,7 @@ class OnboardProgram:
         limit = round(self.params.episode_limit_s / self.params.control_period_s)
         if state == self._terminal or self._steps >= limit:
             self._sample(Action.NONE, reward, state)
-            self._end_episode(EndReason.FAILURE if state == self._terminal else EndReason.SUCCESS, state)
+            self.learning_over(state)
             return
         action = self.learner.act(state)
         step = self.params.action_step_deg if action == Action.INCREASE_VOLUME else -self.params.action_step_deg
@@ -291,6 +291,10 @@ class OnboardProgram:
         self._prev_state, self._prev_action = state, action
         self._sample(action, reward, state)
         self._steps += 1
+
+    def learning_over(self, state: int) -> None:
+        """After the last SAMPLE of an episode: it failed (left the region) or succeeded (lasted its time)."""
+        self._end_episode(EndReason.FAILURE if state == self._terminal else EndReason.SUCCESS, state)
 
     def _end_episode(self, reason: EndReason, state: int) -> None:
         self.learner.end_episode()

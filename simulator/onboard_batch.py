@@ -9,6 +9,8 @@ exactly as OnboardProgram.step would. The wire bytes of a batch go out in one wr
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from learning.spec import direct_entry
@@ -42,14 +44,19 @@ class StepBatcher:
         )
         self._tables = (self.socs, self.volts, ring.data, ring.index, ring.counters, self.wire)
         self._held = direct_entry(k.held_steps, *self._held_args, True, spec, *self._tables)
+        self._learning_args = (self.ints, self.floats, plant_state, program.observer.state, sensor_rng)
+        self._learning: dict[type, Callable[..., None]] = {}  # compiled per learner spec type (they differ in none)
 
     def run(self, max_steps: int, until_us: int) -> int:
         """Up to max_steps steps, each a program step and a link tick, until agent time reaches until_us."""
         program, link = self.program, self.link
         done = 0
         while done < max_steps and program.hw.t_us < until_us:
-            if program.mode in _HELD:
+            mode = program.mode
+            if mode in _HELD:
                 done += self._held_batch(max_steps - done, until_us)
+            elif mode == Mode.LEARNING and not program.config.velocity_diff_steps:
+                done += self._learning_batch(max_steps - done, until_us)
             else:
                 program.step()
                 done += 1
@@ -69,6 +76,45 @@ class StepBatcher:
             program.held_sampled(status == k.SETTLED, status == k.GAVE_UP)
         if status != k.DONE:
             program.finish_step(params.recovery_period_s)
+        return steps
+
+    def _learning_batch(self, max_steps: int, until_us: int) -> int:
+        program, ints, floats = self.program, self.ints, self.floats
+        params, learner = program.params, program.learner
+        self._load(min(max_steps, _MAX_BATCH_STEPS), until_us, params.control_period_s)
+        ints[k.PREV_STATE] = program._prev_state
+        ints[k.PREV_ACTION] = program._prev_action
+        ints[k.EVICTIONS] = 0
+        ints[k.OBSERVED] = 0
+        ints[k.TERMINAL] = program._terminal
+        ints[k.STEP_LIMIT] = round(params.episode_limit_s / params.control_period_s)
+        floats[k.RETURN] = program._return
+        floats[k.P_EXPLORE] = learner.p_explore
+        floats[k.CENTER_DEG] = program._center_deg
+        floats[k.WINDOW_DEG] = params.action_window_deg
+        floats[k.ACTION_STEP_DEG] = params.action_step_deg
+        floats[k.TARGET_M] = params.target_depth_m
+        arrays = learner.arrays
+        entry = self._learning.get(type(arrays.spec))
+        if entry is None:
+            entry = self._learning[type(arrays.spec)] = direct_entry(
+                k.learning_steps, *self._learning_args, True, program.hw.kernel_state[2], *self._tables, *arrays
+            )
+        entry(*self._learning_args, params.use_observer, program.hw.kernel_state[2], *self._tables, *arrays)
+        steps = int(ints[k.STEPS_RUN])
+        self._store(steps)
+        program._prev_state = int(ints[k.PREV_STATE])
+        program._prev_action = int(ints[k.PREV_ACTION])
+        program._steps = int(ints[k.STEPS])
+        program._return = float(floats[k.RETURN])
+        learner.evictions += int(ints[k.EVICTIONS])
+        if ints[k.OBSERVED]:
+            program.down.model_changed()
+        status = ints[k.STATUS]
+        if status == k.EPISODE_OVER:
+            program.learning_over(int(ints[k.LAST_STATE]))
+        if status != k.DONE:
+            program.finish_step(params.control_period_s)
         return steps
 
     def _load(self, max_steps: int, until_us: int, dt_s: float) -> None:

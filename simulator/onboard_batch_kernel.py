@@ -18,12 +18,15 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from learning.acting import reward_kernel, select_action_kernel, state_index_kernel
+from learning.model import record_transition
+from learning.shared import raw_cell_kernel, record_shared
 from learning.spec import KernelSpec
 from protocol.crc import CRC_INIT
 from protocol.enums import PROTOCOL_VERSION
 from protocol.fast_frames import _CRC_TABLE
 from simulator.log_ring import ring_commit, ring_reserve
-from simulator.onboard_kernel import recovery_period_kernel
+from simulator.onboard_kernel import recovery_period_kernel, sense_kernel
 from simulator.plant_kernel import ALPHA, plant_step
 
 SAMPLE_ID = 0x20  # messages.Sample.MSG_ID (a test checks they agree)
@@ -36,11 +39,15 @@ MODE_RECOVERING = 2
 # Integer registers of a batch (one int64 array in and out).
 T_US, NEXT_SAMPLE, SEQ, EPISODE, STEPS, MODE, WIRE_END, STATUS = 0, 1, 2, 3, 4, 5, 6, 7
 HEARTBEAT_DUE_US, UNTIL_US, DIVE_START_US, DT_US, MAX_STEPS, STEPS_RUN, LINK_CHECK = 8, 9, 10, 11, 12, 13, 14
-N_INTS = 15
+# LEARNING only: the learner's previous (state, action), evictions counted, transitions observed, episode bounds.
+PREV_STATE, PREV_ACTION, EVICTIONS, OBSERVED, TERMINAL, STEP_LIMIT, LAST_STATE = 15, 16, 17, 18, 19, 20, 21
+N_INTS = 22
 # Float registers (one float64 array in and out).
 CMD_DEG, CHARGE, HOLD_M, PRESSURE_PA, DEPTH_M, VELOCITY_MPS, LOW_BATTERY_V, MAX_DIVE_S = 0, 1, 2, 3, 4, 5, 6, 7
 ENDURANCE_S, DT_S, LINK_TIMEOUT_S, LAST_RX_S = 8, 9, 10, 11
-N_FLOATS = 12
+# LEARNING only: the episode's return, exploration, actuator window and target.
+RETURN, P_EXPLORE, CENTER_DEG, WINDOW_DEG, ACTION_STEP_DEG, TARGET_M = 12, 13, 14, 15, 16, 17
+N_FLOATS = 18
 # LINK_CHECK: how the batch sees link loss (SPEC s. 4) when it surfaces the agent.
 LINK_IGNORED, LINK_AGENT_CLOCK, LINK_LOST = 0, 1, 2
 # Why a batch returned (STATUS).
@@ -48,6 +55,7 @@ DONE = 0  # the step budget, the agent-time budget or a HEARTBEAT due: the last 
 SETTLED = 1  # RECOVERING: the recovery controller settled (the step stopped after its SAMPLE)
 GAVE_UP = 2  # RECOVERING: the recovery controller gave up (the step stopped after its SAMPLE)
 LIMIT = 3  # a dive limit holds (the step stopped after its SAMPLE and mode events, before the limit check)
+EPISODE_OVER = 4  # LEARNING: the episode's last SAMPLE is out (the learner is not asked to act)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -185,6 +193,72 @@ def held_steps(
         if recovering and (settled or gave_up):
             ints[STATUS] = SETTLED if settled else GAVE_UP
             return
+        if limit_holds(ints, floats, socs, volts):
+            ints[STATUS] = LIMIT
+            return
+        advance(ints, floats, plant, spec)
+        if ints[T_US] >= ints[HEARTBEAT_DUE_US]:
+            return
+
+
+@njit(cache=True, error_model="numpy")
+def learning_steps(
+    ints: NDArray[np.int64], floats: NDArray[np.float64], plant: NDArray[np.float64],
+    observer: NDArray[np.float64], sensor_rng: NDArray[np.uint64], use_observer: bool, spec: KernelSpec,
+    socs: NDArray[np.float64], volts: NDArray[np.float64], ring_data: NDArray[np.uint8],
+    ring_index: NDArray[np.int64], ring_counters: NDArray[np.int64], wire: NDArray[np.uint8],
+    lspec: KernelSpec, policy: NDArray[np.int8], learner_rng: NDArray[np.uint64], succ_idx: NDArray[np.uint16],
+    succ_cnt: NDArray[np.uint16], reward_sum: NDArray[np.float32], codes: NDArray[np.uint8],
+    type_counts: NDArray[np.uint16], totals: NDArray[np.uint16], type_evictions: NDArray[np.uint16],
+) -> None:
+    """Steps of LEARNING (OnboardProgram._learning_step with Learner.observe and act) until the batch must return.
+
+    The learner's velocity is the sensed one (a k-step depth difference runs step by step in Python).
+    """
+    f32 = np.empty(1, np.float32)
+    f32_bytes = f32.view(np.uint8)
+    alpha_max = spec.alpha_max_deg
+    shared = lspec.shared_model
+    local = (not shared) or lspec.dirichlet_weight != 0.0
+    sparse = lspec.model_form == 1
+    target, center, window = floats[TARGET_M], floats[CENTER_DEG], floats[WINDOW_DEG]
+    ints[STATUS] = DONE
+    ints[STEPS_RUN] = 0
+    while ints[STEPS_RUN] < ints[MAX_STEPS] and ints[T_US] < ints[UNTIL_US]:
+        pressure, depth, velocity = sense_kernel(plant, observer, sensor_rng, use_observer, floats[DT_S], spec)
+        floats[PRESSURE_PA], floats[DEPTH_M], floats[VELOCITY_MPS] = pressure, depth, velocity
+        cmd = floats[CMD_DEG]
+        fraction = (cmd - center) / window
+        state = state_index_kernel(depth, velocity, target, fraction, lspec)
+        reward = 0.0
+        prev_state, prev_action = ints[PREV_STATE], ints[PREV_ACTION]
+        if prev_state >= 0:
+            reward = reward_kernel(depth, target, state, lspec)
+            floats[RETURN] += reward
+            if shared:
+                cell = raw_cell_kernel(depth, velocity, target, fraction, lspec)
+                if record_shared(codes, type_counts, totals, type_evictions, prev_state, prev_action, cell, lspec):
+                    ints[EVICTIONS] += 1
+            if local and record_transition(succ_idx, succ_cnt, reward_sum, prev_state, prev_action, reward, state,
+                                           sparse):
+                ints[EVICTIONS] += 1
+            ints[OBSERVED] += 1
+        ints[STEPS_RUN] += 1
+        if state == ints[TERMINAL] or ints[STEPS] >= ints[STEP_LIMIT]:
+            emit_sample(ints, ring_data, ring_index, ring_counters, wire, f32, f32_bytes, pressure, depth, velocity,
+                        plant[ALPHA], cmd, reward, state, ACTION_NONE)
+            ints[LAST_STATE] = state  # for the Python program to end the episode with
+            ints[STATUS] = EPISODE_OVER
+            return
+        action = select_action_kernel(policy, state, floats[P_EXPLORE], lspec, learner_rng)
+        step = floats[ACTION_STEP_DEG] if action == 1 else -floats[ACTION_STEP_DEG]
+        cmd = min(max(cmd + step, center - window), center + window)
+        cmd = min(max(cmd, 0.0), alpha_max)
+        floats[CMD_DEG] = cmd
+        ints[PREV_STATE], ints[PREV_ACTION] = state, action
+        emit_sample(ints, ring_data, ring_index, ring_counters, wire, f32, f32_bytes, pressure, depth, velocity,
+                    plant[ALPHA], cmd, reward, state, action)
+        ints[STEPS] += 1
         if limit_holds(ints, floats, socs, volts):
             ints[STATUS] = LIMIT
             return
