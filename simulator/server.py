@@ -115,7 +115,11 @@ class AgentServer:
         if self.out_delay.delay_s:
             self.out_delay.put(time.monotonic(), wire)
         elif self.config.speed is not None and len(transport.outbuf) > HIGH_WATER_BYTES:
-            self.dropped_full += wire.count(0)  # like a UART FIFO: the agent does not wait for a slow reader
+            # Like a UART FIFO: the agent does not wait for a slow reader. Each frame lost (a batch writes several)
+            # is logged as a fault's is: the ground sees it as a seq gap.
+            for frame in wire.split(b"\x00")[:-1]:
+                self.dropped_full += 1
+                self._log_lost(frame + b"\x00")
         else:
             transport.outbuf += wire
 
