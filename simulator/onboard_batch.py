@@ -13,6 +13,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from learning.learner import LearnerArrays
 from learning.spec import direct_entry
 from protocol import Mode
 from simulator import onboard_batch_kernel as k
@@ -45,7 +46,8 @@ class StepBatcher:
         self._tables = (self.socs, self.volts, ring.data, ring.index, ring.counters, self.wire)
         self._held = direct_entry(k.held_steps, *self._held_args, True, spec, *self._tables)
         self._learning_args = (self.ints, self.floats, plant_state, program.observer.state, sensor_rng)
-        self._learning: dict[type, Callable[..., None]] = {}  # compiled per learner spec type (they differ in none)
+        self._learning: dict[type, Callable[..., None]] = {}  # by learner spec type (all learners share one)
+        self._learning_entry(program.learner.arrays)  # compiled (or loaded) now, not in the first episode
 
     def run(self, max_steps: int, until_us: int) -> int:
         """Up to max_steps steps, each a program step and a link tick, until agent time reaches until_us."""
@@ -95,11 +97,7 @@ class StepBatcher:
         floats[k.ACTION_STEP_DEG] = params.action_step_deg
         floats[k.TARGET_M] = params.target_depth_m
         arrays = learner.arrays
-        entry = self._learning.get(type(arrays.spec))
-        if entry is None:
-            entry = self._learning[type(arrays.spec)] = direct_entry(
-                k.learning_steps, *self._learning_args, True, program.hw.kernel_state[2], *self._tables, *arrays
-            )
+        entry = self._learning_entry(arrays)
         entry(*self._learning_args, params.use_observer, program.hw.kernel_state[2], *self._tables, *arrays)
         steps = int(ints[k.STEPS_RUN])
         self._store(steps)
@@ -116,6 +114,14 @@ class StepBatcher:
         if status != k.DONE:
             program.finish_step(params.control_period_s)
         return steps
+
+    def _learning_entry(self, arrays: LearnerArrays) -> Callable[..., None]:
+        entry = self._learning.get(type(arrays.spec))
+        if entry is None:
+            entry = self._learning[type(arrays.spec)] = direct_entry(
+                k.learning_steps, *self._learning_args, True, self.program.hw.kernel_state[2], *self._tables, *arrays
+            )
+        return entry
 
     def _load(self, max_steps: int, until_us: int, dt_s: float) -> None:
         """The registers from the program, its hardware and its link."""
