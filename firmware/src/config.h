@@ -18,7 +18,11 @@
 #define CFG_SURFACE_DEPTH_M 0.02f        /* SURFACING ends shallower than this */
 #define CFG_START_DEPTH_FRACTION 0.95f   /* recovery start depth ~ U(+/- 0.95 z_tol) around the target */
 #define CFG_HOVER_MAX_DEPTH_M 2.5f
-#define CFG_PLAN_SWEEPS_PER_STEP 2u      /* value iteration sweeps per recovery period (~2.6 ms each) */
+/* Value iteration per recovery period, in state backups (a sweep is S - 1 of them; the per-state learners
+   round up to whole sweeps: 2 at S = 101). Bounded by backups, not sweeps, so a step's planning costs the same
+   whatever S is: at most ~30 % of the 25 ms period on a 72 MHz Cortex-M4 (docs/firmware.md, measured in QEMU). */
+#define CFG_PLAN_BACKUPS_PER_STEP 200u
+#define CFG_VEL_DIFF_MAX_STEPS 16u       /* depth history for the k-step velocity (vel_diff_steps <= 16) */
 
 #define CFG_OBSERVER_RHO_MPS 2.5f
 #define CFG_OBSERVER_TAU_S 0.2f

@@ -1,4 +1,5 @@
-/* Snapshot store: 4 slots; VALUES / POLICY / Q_VALUES are copies in one arena, COUNTS is read live. */
+/* Snapshot store: 4 slots; VALUES / POLICY / Q_VALUES are copies in one arena, COUNTS is read live, and so is
+   Q_VALUES of a shared-model learner (computed from its values and histograms: SPEC.md s. 10 and 13). */
 #include "dumps.h"
 
 #include <string.h>
@@ -13,7 +14,8 @@ typedef struct {
     uint32_t total_bytes;
     uint32_t age;       /* higher = newer */
     uint8_t kind;
-    bool stale;         /* COUNTS after the model changed */
+    bool live;          /* rendered from the learner when read: COUNTS, a shared model's Q_VALUES */
+    bool stale;         /* a live one after the model (or a shared model's values) changed */
 } slot_t;
 
 static uint8_t g_arena[DUMPS_ARENA_BYTES];
@@ -23,7 +25,9 @@ static uint32_t g_age;
 
 #define SLOT_BYTES (DUMPS_ARENA_BYTES / PARAM_SNAPSHOTS_HELD)
 
-uint32_t dumps_max_states(void) { return SLOT_BYTES / PARAM_SNAPSHOT_BYTES_PER_STATE; }
+uint32_t dumps_max_states(bool shared_model) {
+    return SLOT_BYTES / (shared_model ? PARAM_SHARED_SNAPSHOT_BYTES_PER_STATE : PARAM_SNAPSHOT_BYTES_PER_STATE);
+}
 
 void dumps_init(void) {
     memset(g_slots, 0, sizeof g_slots);
@@ -33,7 +37,7 @@ void dumps_init(void) {
 
 void dumps_model_changed(void) {
     for (unsigned i = 0; i < PARAM_SNAPSHOTS_HELD; i++) {
-        if (g_slots[i].kind == DUMP_KIND_COUNTS) { g_slots[i].stale = true; }
+        if (g_slots[i].live) { g_slots[i].stale = true; }
     }
 }
 
@@ -83,7 +87,8 @@ uint32_t dumps_take(uint8_t kind) {
     slot->total_bytes = snapshot_bytes(kind, states);
     slot->age = ++g_age;
     slot->stale = false;
-    if (kind != DUMP_KIND_COUNTS && slot->total_bytes <= SLOT_BYTES) {
+    slot->live = kind == DUMP_KIND_COUNTS || (kind == DUMP_KIND_Q_VALUES && learner_config()->shared_model);
+    if (!slot->live && slot->total_bytes <= SLOT_BYTES) {
         render(kind, g_arena + (uint32_t)(slot - g_slots) * SLOT_BYTES, states);
     }
     return slot->dump_id;
@@ -111,8 +116,18 @@ void dumps_read(uint32_t dump_id, uint32_t offset, uint8_t *out, uint32_t n) {
         if (g_slots[i].dump_id == dump_id) { slot = &g_slots[i]; }
     }
     if (slot == NULL) { return; }
-    if (slot->kind != DUMP_KIND_COUNTS) {
+    if (!slot->live) {
         memcpy(out, g_arena + (uint32_t)(slot - g_slots) * SLOT_BYTES + offset, n);
+        return;
+    }
+    if (slot->kind == DUMP_KIND_Q_VALUES) {
+        /* f32 q[S][2], little-endian, from the live values and histograms. */
+        for (uint32_t i = 0; i < n; i++) {
+            uint32_t pos = offset + i;
+            uint8_t word[4];
+            wire_put_f32(word, learner_q((uint16_t)(pos / 8u), (uint8_t)((pos / 4u) % 2u)));
+            out[i] = word[pos % 4u];
+        }
         return;
     }
     /* u16 count[2][S][S] little-endian, rendered from the live model byte by byte. */

@@ -12,10 +12,12 @@
 #define DUMPS_ARENA_BYTES (PARAM_SNAPSHOTS_HELD * PARAM_SNAPSHOT_BYTES_PER_STATE * 128u)  /* S <= 128 */
 #endif
 
-/* Largest S whose copied snapshots fit the arena (the RAM budget check uses it too). */
-uint32_t dumps_max_states(void);
+/* Largest S whose copied snapshots fit the arena (the RAM budget check uses it too); a shared-model learner
+   copies at most VALUES (its Q_VALUES is rendered live). */
+uint32_t dumps_max_states(bool shared_model);
 void dumps_init(void);
-/* The model changed (a transition observed, a reset): COUNTS snapshots go stale. */
+/* The model changed (a transition observed, a reset) or, for a shared model, its values (a planning slice):
+   the snapshots rendered live (COUNTS; Q_VALUES of a shared model) go stale. */
 void dumps_model_changed(void);
 /* Takes a snapshot of kind (1-4) from the learner; returns its id (never 0). */
 uint32_t dumps_take(uint8_t kind);
