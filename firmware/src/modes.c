@@ -197,11 +197,17 @@ static void surface(const char *why) {
 }
 
 /* Planning of the last episode, a few sweeps per call; the episode dumps wait for the new values. */
-static void plan(uint32_t backups) {
+static void plan(bool to_completion) {
     if (learner_planning()) {
-        /* A shared model's Q_VALUES snapshot is rendered from the values, which this slice changes. */
+        if (to_completion) {
+            (void)learner_plan_slice(0xFFFFFFFFu);
+        } else if (learner_config()->shared_model) {
+            (void)learner_plan_backups(CFG_PLAN_BACKUPS_PER_STEP);
+        } else {
+            (void)learner_plan_slice(CFG_PLAN_SWEEPS_PER_STEP);
+        }
+        /* A shared model's Q_VALUES snapshot is rendered from the values, which planning changes. */
         if (learner_config()->shared_model) { dumps_model_changed(); }
-        (void)learner_plan_backups(backups);
     }
     if (!learner_planning() && g.dumps_after_planning) {
         g.dumps_after_planning = false;
@@ -212,7 +218,7 @@ static void plan(uint32_t backups) {
 static void begin_episode(float center_deg) {
     if (learner_planning()) {
         g.forced_plans++;  /* not reached: RECOVERING waits for planning (controller_step) */
-        plan(0xFFFFFFFFu);  /* the next episode acts on the finished plan */
+        plan(true);  /* the next episode acts on the finished plan */
     }
     reset_episode();
     depth_ring_reset();
@@ -272,12 +278,12 @@ static void controller_step(float dt_s) {
     set_cmd(cmd);
     sample(ACTION_NONE, 0.0f, 0);
     if (g.mode == MODE_RECOVERING) {
-        plan(CFG_PLAN_BACKUPS_PER_STEP);
+        plan(false);
         if (settled && learner_planning()) {
             g.plan_waits++;  /* hold the start depth a step longer: planning never runs late */
         } else if (settled) {
             begin_episode(recovery_alpha_avg_deg(&g.recovery));
-        } else if (gave_up) {
+        } else if (gave_up && !learner_planning()) {  /* unsettled while waiting for a long plan: hold on */
             enter(MODE_SURFACING, "recovery did not settle");
         }
     }
@@ -337,7 +343,7 @@ uint32_t modes_step(void) {
             sample(ACTION_NONE, 0.0f, 0);
         }
     }
-    if (g.mode != MODE_RECOVERING) { plan(CFG_PLAN_BACKUPS_PER_STEP); }  /* RECOVERING planned above */
+    if (g.mode != MODE_RECOVERING) { plan(false); }  /* RECOVERING planned above */
     if (diving(g.mode)) { check_limits(); }
     return period_us;
 }
