@@ -39,6 +39,7 @@ static struct {
     float delta;               /* max |change| of the current sweep so far */
     uint32_t sweeps;
     bool planning;
+    bool policy_pass;          /* values final: the policy is being derived, state by state */
 } SH;
 
 static uint32_t states_of(const learner_config_t *c)
@@ -426,6 +427,7 @@ void shared_start_planning(void)
     SH.delta = 0.0f;
     SH.sweeps = 0u;
     SH.planning = true;
+    SH.policy_pass = false;
 }
 
 static void set_policy(uint32_t s, uint8_t p)
@@ -435,29 +437,27 @@ static void set_policy(uint32_t s, uint8_t p)
     *byte = (uint8_t)((*byte & ~(3u << shift_bits)) | ((uint32_t)p << shift_bits));
 }
 
-/* planning.plan_rows' policy: argmax of Q from the final values, ties TIED or drawn in state order. */
-static void finish_planning(rng_t *rng)
+/* planning.plan_rows' policy for state s: argmax of Q from the final values, a tie TIED or drawn (the
+   states in order, so the draws are Python's). */
+static void derive_policy(uint32_t s, rng_t *rng)
 {
     const learner_config_t *c = &SH.cfg;
-    for (uint32_t s = 0u; s < SH.n_states; s++) {
-        float d = 0.0f;
-        if (s != SH.terminal) {
-            d = action_value(s, 1u, SH.values) - action_value(s, 0u, SH.values);
-            d = c->policy_argmin ? -d : d;
-        }
-        uint8_t p = 0u;
-        if (d > 0.0f) {
-            p = 1u;
-        } else if (d < 0.0f) {
-            p = 0u;
-        } else if (c->random_ties && c->ties_per_step) {
-            p = (uint8_t)SHARED_TIED;
-        } else {
-            p = (uint8_t)(c->random_ties && rng_coin(rng) ? 1u : 0u);
-        }
-        set_policy(s, p);
+    float d = 0.0f;
+    if (s != SH.terminal) {
+        d = action_value(s, 1u, SH.values) - action_value(s, 0u, SH.values);
+        d = c->policy_argmin ? -d : d;
     }
-    SH.planning = false;
+    uint8_t p = 0u;
+    if (d > 0.0f) {
+        p = 1u;
+    } else if (d < 0.0f) {
+        p = 0u;
+    } else if (c->random_ties && c->ties_per_step) {
+        p = (uint8_t)SHARED_TIED;
+    } else {
+        p = (uint8_t)(c->random_ties && rng_coin(rng) ? 1u : 0u);
+    }
+    set_policy(s, p);
 }
 
 bool shared_plan_backups(uint32_t max_backups, rng_t *rng)
@@ -467,6 +467,16 @@ bool shared_plan_backups(uint32_t max_backups, rng_t *rng)
     }
     for (uint32_t i = 0u; i < max_backups; i++) {
         uint32_t s = SH.next_state;
+        if (SH.policy_pass) {
+            /* The policy costs what a backup does (two Q values per state): sliced the same way. */
+            derive_policy(s, rng);
+            SH.next_state++;
+            if (SH.next_state == SH.n_states) {
+                SH.planning = false;
+                return true;
+            }
+            continue;
+        }
         float best = action_value(s, 0u, SH.values);
         float q1 = action_value(s, 1u, SH.values);
         best = q1 > best ? q1 : best;
@@ -486,8 +496,7 @@ bool shared_plan_backups(uint32_t max_backups, rng_t *rng)
         SH.next_state = 0u;
         SH.delta = 0.0f;
         if (converged || SH.sweeps >= SH.cfg.max_sweeps) {
-            finish_planning(rng);
-            return true;
+            SH.policy_pass = true;  /* the policy of the plan in progress is final only when this pass ends */
         }
     }
     return false;

@@ -68,9 +68,10 @@ uint16_t shared_type_total(uint32_t t);
 uint16_t shared_type_evictions(uint32_t t);
 
 void     shared_start_planning(void);
-/* Up to max_backups state backups of the sweeps in progress (a sweep may end in the middle of one and
-   resume at the next call: in-place sweeps are Gauss-Seidel, so this is exactly whole sweeps); true when
-   planning is done (then the policy is new, tied states drawn from rng in state order). */
+/* Up to max_backups units of the planning in progress: state backups of the sweeps (a sweep may stop in
+   the middle and resume at the next call: exactly whole sweeps, in-place or Jacobi), then, once the values
+   have converged, the policy state by state (one unit each: two Q values, as a backup). True when planning
+   is done (then the policy is new, tied states drawn from rng in state order). */
 bool     shared_plan_backups(uint32_t max_backups, rng_t *rng);
 uint32_t shared_sweeps(void);
 
