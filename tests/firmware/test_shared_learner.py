@@ -195,6 +195,10 @@ def replay_in_c(lib: ctypes.CDLL, config: LearnerConfig, rec: Recording, slice_b
         lib.learner_seed(rec.rng_after[ep])  # a no-op unless the tied states differed
     assert rec.learner is not None
     _check_model(lib, rec.learner)
+    # The counts a COUNTS snapshot shows (the histograms shifted to each state): the same on both sides.
+    counts = rec.learner.counts
+    for s, s2, a in list(zip(*np.nonzero(counts), strict=True))[::7]:
+        assert lib.learner_count(a, s, s2) == counts[s, s2, a]
     assert lib.learner_evictions() == rec.learner.evictions or rec.learner.evictions > 65535
     return worst, tie_mismatches
 
