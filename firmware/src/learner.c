@@ -115,8 +115,8 @@ static bool config_valid(const learner_config_t *c)
     if (states_of(c) > MAX_STATES || c->explore_decay_episodes < 1u || c->max_sweeps < 1u) {
         return false;
     }
-    if (c->shared_model && c->slots != SHARED_SLOTS) {
-        return false;  /* the shared layout has SHARED_SLOTS slots per type */
+    if (c->shared_model && (c->slots != SHARED_SLOTS || c->z_cells > SHARED_MAX_Z_CELLS)) {
+        return false;  /* the shared layout has SHARED_SLOTS slots per type, a reward per depth cell */
     }
     if (!(c->dirichlet_w >= 0.0f) || !(c->count_bonus >= 0.0f) || !isfinite(c->dirichlet_w)
         || !isfinite(c->count_bonus)) {

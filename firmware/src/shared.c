@@ -14,7 +14,6 @@
 #define DV_SPAN (2 * DV_MAX + 1)
 #define DB_SPAN (2 * DB_MAX + 1)
 #define STATE_INDEX_U8_LIMIT 256u
-#define MAX_Z_CELLS 255u
 #define POLICY_STATES_PER_BYTE 4u
 
 _Static_assert(sizeof(shared_type_t) == 3u * SHARED_SLOTS + 4u, "the Teensy layout: 40 B per type");
@@ -33,7 +32,7 @@ static struct {
     shared_local8_t *local8;
     shared_local16_t *local16;
     uint8_t *policy;
-    float z_reward[MAX_Z_CELLS];  /* reward of arriving in each depth cell (cell_reward of learning) */
+    float z_reward[SHARED_MAX_Z_CELLS];  /* reward of arriving in each depth cell (cell_reward of learning) */
     /* planning in progress */
     uint32_t next_state;       /* where the current sweep resumes */
     float delta;               /* max |change| of the current sweep so far */
@@ -106,7 +105,7 @@ void shared_carve(uint8_t *base, const learner_config_t *c)
     off += local_bytes(c);
     SH.policy = base + off;
     /* learning.shared.cell_reward: minus the distance of the depth cell's centre from the target. */
-    for (uint32_t iz = 0u; iz < c->z_cells && iz < MAX_Z_CELLS; iz++) {
+    for (uint32_t iz = 0u; iz < c->z_cells && iz < SHARED_MAX_Z_CELLS; iz++) {
         SH.z_reward[iz] = -fabsf(-c->z_tol_m + ((float)iz + 0.5f) * 2.0f * c->z_tol_m / (float)c->z_cells);
     }
     SH.planning = false;
