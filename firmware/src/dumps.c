@@ -51,13 +51,8 @@ static uint32_t snapshot_bytes(uint8_t kind, uint32_t states) {
 }
 
 /* Policy byte of state s: 255 where the state was never left (untried), as simulator/agent_dumps.py. */
-static uint8_t policy_byte(uint16_t s, uint16_t states) {
-    for (uint8_t a = 0; a < LEARNER_ACTIONS; a++) {
-        for (uint16_t t = 0; t < states; t++) {
-            if (learner_count(a, s, t) != 0u) { return learner_policy(s); }
-        }
-    }
-    return ACTION_NONE;
+static uint8_t policy_byte(uint16_t s) {
+    return learner_tried(s) ? learner_policy(s) : ACTION_NONE;
 }
 
 static void render(uint8_t kind, uint8_t *out, uint16_t states) {
@@ -65,7 +60,7 @@ static void render(uint8_t kind, uint8_t *out, uint16_t states) {
         if (kind == DUMP_KIND_VALUES) {
             wire_put_f32(out + 4u * s, learner_value(s));
         } else if (kind == DUMP_KIND_POLICY) {
-            out[s] = policy_byte(s, states);
+            out[s] = policy_byte(s);
         } else {
             wire_put_f32(out + 8u * s, learner_q(s, 0));
             wire_put_f32(out + 8u * s + 4u, learner_q(s, 1));
@@ -102,6 +97,13 @@ static const slot_t *find(uint32_t dump_id, uint8_t kind) {
     return NULL;
 }
 
+bool dumps_live(uint32_t dump_id) {
+    for (unsigned i = 0; i < PARAM_SNAPSHOTS_HELD; i++) {
+        if (g_slots[i].dump_id == dump_id) { return g_slots[i].live; }
+    }
+    return false;
+}
+
 bool dumps_find(uint32_t dump_id, uint8_t kind, uint32_t *total_bytes, uint32_t *episode) {
     const slot_t *slot = find(dump_id, kind);
     if (slot == NULL) { return false; }
@@ -121,11 +123,15 @@ void dumps_read(uint32_t dump_id, uint32_t offset, uint8_t *out, uint32_t n) {
         return;
     }
     if (slot->kind == DUMP_KIND_Q_VALUES) {
-        /* f32 q[S][2], little-endian, from the live values and histograms. */
+        /* f32 q[S][2], little-endian, from the live values and histograms: each Q computed once. */
+        uint8_t word[4];
+        uint32_t word_at = 0xFFFFFFFFu;
         for (uint32_t i = 0; i < n; i++) {
             uint32_t pos = offset + i;
-            uint8_t word[4];
-            wire_put_f32(word, learner_q((uint16_t)(pos / 8u), (uint8_t)((pos / 4u) % 2u)));
+            if (pos / 4u != word_at) {
+                word_at = pos / 4u;
+                wire_put_f32(word, learner_q((uint16_t)(word_at / 2u), (uint8_t)(word_at % 2u)));
+            }
             out[i] = word[pos % 4u];
         }
         return;

@@ -23,6 +23,8 @@ void dumps_model_changed(void);
 uint32_t dumps_take(uint8_t kind);
 /* The snapshot held under id with that kind: its size and episode; false if not held (STALE). */
 bool dumps_find(uint32_t dump_id, uint8_t kind, uint32_t *total_bytes, uint32_t *episode);
+/* True if the snapshot under dump_id is rendered when read (COUNTS, a shared model's Q_VALUES). */
+bool dumps_live(uint32_t dump_id);
 /* Copies [offset, offset + n) of a held snapshot into out. */
 void dumps_read(uint32_t dump_id, uint32_t offset, uint8_t *out, uint32_t n);
 

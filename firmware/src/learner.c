@@ -324,6 +324,17 @@ uint16_t learner_count(uint8_t a, uint16_t s, uint16_t s_next)
     return 0u;
 }
 
+bool learner_tried(uint16_t s)
+{
+    if (s >= learner_terminal()) {
+        return false;
+    }
+    if (L.cfg.shared_model) {
+        return shared_tried(s);
+    }
+    return row_total((uint32_t)s * LEARNER_ACTIONS) > 0u || row_total((uint32_t)s * LEARNER_ACTIONS + 1u) > 0u;
+}
+
 /* ------------------------------------------------------------------ planning (Alg. 4, fixed), sliced */
 
 /* Q of one pair from the model and the given values (planning.py _action_value). */

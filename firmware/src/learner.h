@@ -107,5 +107,7 @@ uint8_t  learner_policy(uint16_t s);
 /* Q(s, a) from the model and the current values (computed, not stored: 0 for the terminal state). */
 float    learner_q(uint16_t s, uint8_t a);
 uint16_t learner_count(uint8_t a, uint16_t s, uint16_t s_next);
+/* True if s was ever left (a transition counted from it, either action): what POLICY's 255 "untried" tells. */
+bool     learner_tried(uint16_t s);
 
 #endif

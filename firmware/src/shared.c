@@ -327,6 +327,11 @@ uint16_t shared_count(uint8_t a, uint16_t s, uint16_t s_next)
     return (uint16_t)(n > LEARNER_COUNT_MAX ? LEARNER_COUNT_MAX : n);
 }
 
+bool shared_tried(uint16_t s)
+{
+    return s < SH.terminal && (SH.types[type_of(s, 0u)].total > 0u || SH.types[type_of(s, 1u)].total > 0u);
+}
+
 uint32_t shared_evictions(void)
 {
     uint32_t n = 0u;

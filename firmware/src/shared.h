@@ -62,6 +62,7 @@ void     shared_observe(uint16_t s, uint8_t a, uint16_t s_next, uint32_t next_ce
 /* The raw cell code of a measurement (inside the region or not). */
 uint32_t shared_raw_cell(float depth_m, float velocity_mps, float target_m, float actuator_fraction);
 uint16_t shared_count(uint8_t a, uint16_t s, uint16_t s_next);
+bool     shared_tried(uint16_t s);  /* a type of s has a count (every slot shifts s somewhere) */
 uint32_t shared_evictions(void);
 /* Inspection of type t (tests, dumps): slot k's count (its offset code in *code), the total, evictions. */
 uint16_t shared_slot(uint32_t t, uint32_t k, uint8_t *code);
