@@ -252,15 +252,7 @@ void learner_observe(uint16_t s, uint8_t a, float reward, uint16_t s_next)
     }
     if (L.cfg.shared_model) {
         /* the cell of a live successor is its own; a terminal one lies out of reach */
-        uint32_t cell = SHARED_FAR_CELL;
-        if (s_next != learner_terminal()) {
-            const learner_config_t *c = &L.cfg;
-            uint32_t iv = s_next % c->zdot_cells;
-            uint32_t iz = (s_next / c->zdot_cells) % c->z_cells;
-            uint32_t ib = s_next / ((uint32_t)c->zdot_cells * c->z_cells);
-            cell = (ib * 3u * c->z_cells + iz + c->z_cells) * 3u * c->zdot_cells + iv + c->zdot_cells;
-        }
-        shared_observe(s, a, s_next, cell);
+        shared_observe(s, a, s_next, s_next == learner_terminal() ? SHARED_FAR_CELL : shared_state_cell(s_next));
         return;
     }
     uint32_t row = (uint32_t)s * LEARNER_ACTIONS + a;

@@ -152,7 +152,7 @@ uint32_t shared_raw_cell(float depth_m, float velocity_mps, float target_m, floa
     return (ib * 3u * c->z_cells + rz) * 3u * c->zdot_cells + rv;
 }
 
-static uint32_t state_cell(uint32_t s)
+uint32_t shared_state_cell(uint32_t s)
 {
     const learner_config_t *c = &SH.cfg;
     uint32_t iv = s % c->zdot_cells;
@@ -293,7 +293,7 @@ void shared_observe(uint16_t s, uint8_t a, uint16_t s_next, uint32_t next_cell)
     const learner_config_t *c = &SH.cfg;
     uint32_t z3 = 3u * c->z_cells;
     uint32_t v3 = 3u * c->zdot_cells;
-    uint32_t here = state_cell(s);
+    uint32_t here = shared_state_cell(s);
     int32_t dv = (int32_t)(next_cell % v3) - (int32_t)(here % v3);
     int32_t dz = (int32_t)((next_cell / v3) % z3) - (int32_t)((here / v3) % z3);
     int32_t db = (int32_t)(next_cell / (v3 * z3)) - (int32_t)(here / (v3 * z3));

@@ -59,6 +59,8 @@ void     shared_reset(void);   /* empty model, values 0 (the arena is already ze
 /* Records s --a--> the raw cell next_cell (learning.shared.raw_cell_kernel's packing), and s_next
    in the local counts with a Dirichlet weight. */
 void     shared_observe(uint16_t s, uint8_t a, uint16_t s_next, uint32_t next_cell);
+/* The raw cell of a live state (what shared_raw_cell gives for a point inside that state's cell). */
+uint32_t shared_state_cell(uint32_t s);
 /* The raw cell code of a measurement (inside the region or not). */
 uint32_t shared_raw_cell(float depth_m, float velocity_mps, float target_m, float actuator_fraction);
 uint16_t shared_count(uint8_t a, uint16_t s, uint16_t s_next);
