@@ -222,3 +222,12 @@ def test_field_names_cover_python_config() -> None:
         if f.name in ("model_form", "z_cells", "zdot_cells") or renamed.get(f.name, f.name) in c_names:
             continue
         raise AssertionError(f"LearnerConfig.{f.name} has no field in learner_config_t")
+
+
+@pytest.mark.slow
+def test_c_learner_draws_ties_per_step_as_python(ctl: ctypes.CDLL) -> None:
+    """ties_per_step: a tied state is marked (2) at planning and its action drawn at each step, in both."""
+    config = replace(learner_preset("paper"), ties_per_step=True)
+    rec = record_python(config, 30)
+    assert any((p == 2).any() for p in rec.policy)  # ties were left to the steps
+    replay_in_c(ctl, config, rec, 5)
