@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 FIRMWARE = Path(__file__).resolve().parents[2] / "firmware"
-SOURCES = ("observer", "recovery", "rng", "learner", "shared", "plant", "sensor")
+SOURCES = ("observer", "recovery", "rng", "learner", "shared", "shared_plan", "plant", "sensor")
 
 
 class SmoState(ctypes.Structure):

@@ -28,9 +28,9 @@ SKETCH_CORE = $(SKETCH_DIR)/src/core
 
 .PHONY: teensy teensy-sketch teensy-variant
 
-$(ARENA_TOOL): $(TEENSY_DIR)/arena_size.c $(FIRMWARE)/src/learner.c $(FIRMWARE)/src/shared.c $(FIRMWARE)/src/rng.c $(FIRMWARE)/src/learner.h
+$(ARENA_TOOL): $(TEENSY_DIR)/arena_size.c $(FIRMWARE)/src/learner.c $(FIRMWARE)/src/shared.c $(FIRMWARE)/src/shared_plan.c $(FIRMWARE)/src/rng.c $(FIRMWARE)/src/learner.h
 	@mkdir -p $(dir $@)
-	$(HOST_CC) -std=c99 -O1 $(INCLUDES) $(TEENSY_DIR)/arena_size.c $(FIRMWARE)/src/learner.c $(FIRMWARE)/src/shared.c $(FIRMWARE)/src/rng.c -lm -o $@
+	$(HOST_CC) -std=c99 -O1 $(INCLUDES) $(TEENSY_DIR)/arena_size.c $(FIRMWARE)/src/learner.c $(FIRMWARE)/src/shared.c $(FIRMWARE)/src/shared_plan.c $(FIRMWARE)/src/rng.c -lm -o $@
 
 teensy: $(ARENA_TOOL)
 	@for v in $(TEENSY_VARIANTS); do \
