@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from groundstation.columns import record_dtype
-from groundstation.mcap_io import RecordingContents, iter_messages, iter_topic_data
+from groundstation.mcap_io import RecordingContents, iter_messages, iter_topic_data, read_header
 from groundstation.view_errors import ReplayError
 from groundstation.view_model import Batch, ViewModel
 from protocol import PROTOCOL_VERSION, FrameError, FrameFlag, Message, PayloadError, UnknownMessageError, message_class
@@ -54,6 +54,7 @@ class Item:
     agent_time_s: float | None  # the message's own clock, when it has one
     episode: int | None
     feed: Callable[[ViewModel], None]
+    setup: bool = False  # state the view needs whatever the window (a parameter: the grid's size), no rows
 
 
 def _decode(inner: bytes) -> tuple[Message, int] | None:
@@ -75,7 +76,8 @@ def _frame_item(log_time_ns: int, inner: bytes) -> Item | None:
     def feed(model: ViewModel) -> None:
         model.feed(message, log_time_ns, flags=flags)
 
-    return Item(log_time_ns, None if t_us is None else t_us / 1e6, getattr(message, "episode", None), feed)
+    return Item(log_time_ns, None if t_us is None else t_us / 1e6, getattr(message, "episode", None), feed,
+                isinstance(message, m.ParamValue))
 
 
 def _json_item(topic: str, log_time_ns: int, data: bytes) -> Item | None:
@@ -131,6 +133,9 @@ def select(items: Iterator[Item], start: Bound | None, end: Bound | None) -> Ite
     latest_s = 0.0
     episode = 0
     for item in items:
+        if item.setup:
+            yield item
+            continue
         if item.agent_time_s is not None:
             first_s = item.agent_time_s if first_s is None else first_s
             latest_s = item.agent_time_s
@@ -161,6 +166,14 @@ def convert(items: Iterator[Item], progress: Callable[[int], None] | None = None
 
 def convert_recording(path: Path, info: RecordingContents | None = None,
                       progress: Callable[[int], None] | None = None) -> tuple[Batch, int]:
+    """The whole file's rows at once (see _convert_into) and the count of items shown."""
+    model = ViewModel()
+    count = _convert_into(model, path, info, progress)
+    return model.take(), count
+
+
+def _convert_into(model: ViewModel, path: Path, info: RecordingContents | None = None,
+                  progress: Callable[[int], None] | None = None, count: int = 0) -> int:
     """convert(read_items(path)) with runs of SAMPLEs decoded and turned into rows as columns.
 
     A recorded hour holds some 133,000 SAMPLEs: decoding and feeding them one by one is most of a
@@ -169,8 +182,6 @@ def convert_recording(path: Path, info: RecordingContents | None = None,
     counted and do not end a run; every other record takes the per-item path, so episodes, dumps,
     events and damaged frames are shown exactly as convert() shows them (a test compares the two).
     """
-    model = ViewModel()
-    count = 0
     inners: list[bytes] = []
     times: list[int] = []
 
@@ -206,7 +217,7 @@ def convert_recording(path: Path, info: RecordingContents | None = None,
         if progress is not None and count % 4096 == 0:
             progress(count)
     flush()
-    return model.take(), count
+    return count
 
 
 _SAMPLE_ID = m.Sample.MSG_ID
@@ -233,7 +244,106 @@ def play(items: Iterator[Item], sink: Callable[[Callable[[ViewModel], None]], No
     return count
 
 
-def check_nonempty(count: int, path: Path, info: RecordingContents) -> None:
+def check_nonempty(count: int, path: Path | str, info: RecordingContents) -> None:
     if count == 0:
         cut = " (cut short before its first complete chunk)" if info.truncated else ""
         raise ReplayError(f"{path} holds no agent frames to show{cut}")
+
+
+# ---------------------------------------------------------------------- several files: the parts of one recording
+_PART = re.compile(r"-part\d+$")
+
+
+class MixedRecordingsError(ReplayError):
+    """Files of different recordings given to one replay (bad usage: their agent times overlap)."""
+
+
+@dataclass(frozen=True, slots=True)
+class Parts:
+    """The files of one recording in play order (a split recording's parts by part number) and the first's header."""
+
+    files: list[Path]
+    header: dict[str, list[dict[str, str]]]
+    name: str  # for the viewer: the first file's name without its part number
+    missing: list[int]  # part numbers between the first and the last given that were not given
+
+
+def _session(header: dict[str, list[dict[str, str]]]) -> dict[str, str]:
+    return (header.get("session") or [{}])[0]
+
+
+def plan(files: list[Path]) -> Parts:
+    """Order the files given as the parts of one recording, reading each one's header first (so a missing or
+    non-MCAP file is one line before anything is shown or written).
+
+    Parts of one split recording play as one timeline: the agent's clock runs on across them. Files of different
+    recordings are refused: their agent times overlap (each starts near the agent's boot), one timeline cannot
+    hold them, and a user replays one session at a time.
+    """
+    unique = list(dict.fromkeys(f.resolve() for f in files))
+    headers = {f: read_header(f) for f in unique}
+    recordings: dict[str, list[Path]] = {}
+    for f in unique:
+        session = _session(headers[f])
+        # recording_id since split parts carry it; before that the parts shared the session's URL and start
+        key = session.get("recording_id") or (f"{session['url']}|{session['started']}" if "started" in session
+                                              and "url" in session else str(f))
+        recordings.setdefault(key, []).append(f)
+    if len(recordings) > 1:
+        names = ", ".join(group[0].name for group in list(recordings.values())[:3])
+        more = ", ..." if len(recordings) > 3 else ""
+        raise MixedRecordingsError(
+            f"the files hold {len(recordings)} recordings ({names}{more}): dive replay shows one at a time "
+            "(a file, or the parts of a split one)")
+
+    def part(f: Path) -> int:
+        number = _session(headers[f]).get("part", "")
+        return int(number) if number.isdigit() else 0
+
+    ordered = sorted(unique, key=part)
+    numbers = [part(f) for f in ordered]
+    for a, b in zip(ordered, ordered[1:], strict=False):
+        if part(a) and part(a) == part(b):
+            raise ReplayError(f"{a} and {b} are both part {part(a)} of one recording: give one of them")
+    missing = sorted(set(range(numbers[0], numbers[-1] + 1)) - set(numbers)) if numbers[0] else []
+    return Parts(ordered, headers[ordered[0]], _PART.sub("", ordered[0].stem), missing)
+
+
+def header_items(parts: Parts) -> list[Item]:
+    """The parameter table the first file's header carries, as the view takes it (a later part holds no PARAM_VALUE
+    of its own: without these its value and policy heatmaps would take the default grid)."""
+    items: list[Item] = []
+    for name, text in (parts.header.get("parameters") or [{}])[-1].items():
+        try:
+            value = float(text)
+        except ValueError:
+            continue
+        message = m.ParamValue(index=0, count=0, param_type=5, value=value, minimum=value, maximum=value, name=name)
+        items.append(Item(0, None, None, _feeder(message), setup=True))
+    return items
+
+
+def _feeder(message: Message) -> Callable[[ViewModel], None]:
+    def feed(model: ViewModel) -> None:
+        model.feed(message, 0)
+
+    return feed
+
+
+def read_parts(parts: Parts, infos: list[RecordingContents]) -> Iterator[Item]:
+    """The header's items, then every file's items in play order (infos: one per file, filled as they are read)."""
+    yield from header_items(parts)
+    for path, info in zip(parts.files, infos, strict=True):
+        yield from read_items(path, info)
+
+
+def convert_parts(parts: Parts, infos: list[RecordingContents],
+                  progress: Callable[[int], None] | None = None) -> tuple[Batch, int]:
+    """convert_recording over every part into one model: one timeline, the view's state carried across parts."""
+    model = ViewModel()
+    for item in header_items(parts):
+        item.feed(model)
+    count = 0
+    for path, info in zip(parts.files, infos, strict=True):
+        count = _convert_into(model, path, info, progress, count)
+    return model.take(), count
