@@ -18,7 +18,7 @@ from urllib.parse import urlencode
 import typer
 from rich.text import Text
 
-from groundstation import view_cli
+from groundstation import record_cli, view_cli
 from groundstation.errors import GroundStationError
 from groundstation.keys import KEY_FILE_ENV, KeyFileOption, keygen, resolve_key
 from groundstation.safe_files import replaced_atomically, unused_name
@@ -554,6 +554,7 @@ def study(ctx: typer.Context) -> None:
 
 app.command(name="view")(view_cli.view)
 app.command(name="replay")(view_cli.replay)
+app.command(name="record")(record_cli.record)
 app.command(name="keygen")(keygen)
 
 

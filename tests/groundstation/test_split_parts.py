@@ -148,3 +148,21 @@ def test_bad_input_is_one_line_and_no_rrd(parts: list[Path], whole: Path, tmp_pa
     lines = [line for line in done.stderr.splitlines() if line.strip()]
     assert len(lines) == 1 and why in lines[0], done.stderr
     assert not out.exists()
+
+
+def test_two_recorders_in_one_folder_keep_their_parts_apart(tmp_path: Path) -> None:
+    """The run and a `dive record` of the same agent in the same second: two sets of parts, never interleaved."""
+    traffic = generate(duration_s=200.0)
+    config = RecorderConfig(directory=tmp_path, split_bytes=40_000)
+    recorders = [Recorder(config), Recorder(config)]
+    recorders[1]._stamp = recorders[0]._stamp  # noqa: SLF001 the same second, whenever the test runs
+    try:
+        play_session(traffic, recorders)
+    finally:
+        for recorder in recorders:
+            recorder.close()
+    first, second = (recorder.paths for recorder in recorders)
+    assert len(first) >= 2 and len(first) == len(second)
+    assert second[0].name == first[0].name.replace("-part001", "-2-part001")
+    assert all(p.name.startswith(second[0].name.removesuffix("-part001.mcap")) for p in second)
+    assert len(rp.plan(second).files) == len(second)  # the second's parts are one recording
