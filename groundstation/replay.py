@@ -13,7 +13,9 @@ from pathlib import Path
 import numpy as np
 
 from groundstation.columns import record_dtype
-from groundstation.mcap_io import RecordingContents, iter_messages, iter_topic_data, read_header
+from groundstation.mcap_io import RecordingContents, iter_messages, iter_topic_data
+from groundstation.recording_files import RecordingParts as Parts
+from groundstation.recording_files import group_recordings
 from groundstation.view_errors import ReplayError
 from groundstation.view_model import Batch, ViewModel
 from protocol import PROTOCOL_VERSION, FrameError, FrameFlag, Message, PayloadError, UnknownMessageError, message_class
@@ -251,62 +253,27 @@ def check_nonempty(count: int, path: Path | str, info: RecordingContents) -> Non
 
 
 # ---------------------------------------------------------------------- several files: the parts of one recording
-_PART = re.compile(r"-part\d+$")
-
-
 class MixedRecordingsError(ReplayError):
     """Files of different recordings given to one replay (bad usage: their agent times overlap)."""
 
 
-@dataclass(frozen=True, slots=True)
-class Parts:
-    """The files of one recording in play order (a split recording's parts by part number) and the first's header."""
-
-    files: list[Path]
-    header: dict[str, list[dict[str, str]]]
-    name: str  # for the viewer: the first file's name without its part number
-    missing: list[int]  # part numbers between the first and the last given that were not given
-
-
-def _session(header: dict[str, list[dict[str, str]]]) -> dict[str, str]:
-    return (header.get("session") or [{}])[0]
-
-
 def plan(files: list[Path]) -> Parts:
-    """Order the files given as the parts of one recording, reading each one's header first (so a missing or
-    non-MCAP file is one line before anything is shown or written).
+    """The files given as the parts of one recording, in part order, each one's header read first (so a missing
+    or non-MCAP file is one line before anything is shown or written).
 
     Parts of one split recording play as one timeline: the agent's clock runs on across them. Files of different
     recordings are refused: their agent times overlap (each starts near the agent's boot), one timeline cannot
     hold them, and a user replays one session at a time.
     """
-    unique = list(dict.fromkeys(f.resolve() for f in files))
-    headers = {f: read_header(f) for f in unique}
-    recordings: dict[str, list[Path]] = {}
-    for f in unique:
-        session = _session(headers[f])
-        # recording_id since split parts carry it; before that the parts shared the session's URL and start
-        key = session.get("recording_id") or (f"{session['url']}|{session['started']}" if "started" in session
-                                              and "url" in session else str(f))
-        recordings.setdefault(key, []).append(f)
+    recordings = group_recordings(files)
+    if not recordings:
+        raise ReplayError("no recording given")
     if len(recordings) > 1:
-        names = ", ".join(group[0].name for group in list(recordings.values())[:3])
-        more = ", ..." if len(recordings) > 3 else ""
+        names = ", ".join(r.files[0].name for r in recordings[:3]) + (", ..." if len(recordings) > 3 else "")
         raise MixedRecordingsError(
-            f"the files hold {len(recordings)} recordings ({names}{more}): dive replay shows one at a time "
+            f"the files hold {len(recordings)} recordings ({names}): dive replay shows one at a time "
             "(a file, or the parts of a split one)")
-
-    def part(f: Path) -> int:
-        number = _session(headers[f]).get("part", "")
-        return int(number) if number.isdigit() else 0
-
-    ordered = sorted(unique, key=part)
-    numbers = [part(f) for f in ordered]
-    for a, b in zip(ordered, ordered[1:], strict=False):
-        if part(a) and part(a) == part(b):
-            raise ReplayError(f"{a} and {b} are both part {part(a)} of one recording: give one of them")
-    missing = sorted(set(range(numbers[0], numbers[-1] + 1)) - set(numbers)) if numbers[0] else []
-    return Parts(ordered, headers[ordered[0]], _PART.sub("", ordered[0].stem), missing)
+    return recordings[0]
 
 
 def header_items(parts: Parts) -> list[Item]:

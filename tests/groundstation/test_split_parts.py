@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 from typer.testing import CliRunner
 
@@ -166,3 +167,17 @@ def test_two_recorders_in_one_folder_keep_their_parts_apart(tmp_path: Path) -> N
     assert second[0].name == first[0].name.replace("-part001", "-2-part001")
     assert all(p.name.startswith(second[0].name.removesuffix("-part001.mcap")) for p in second)
     assert len(rp.plan(second).files) == len(second)  # the second's parts are one recording
+
+
+def test_the_parts_export_as_one_recording(parts: list[Path], whole: Path, tmp_path: Path) -> None:
+    """`dive log export FOLDER`: one file for the parts of one recording, episodes across parts kept whole."""
+    runner = CliRunner()
+    done = runner.invoke(app, ["log", "export", str(parts[0].parent), "--format", "npz"])
+    assert done.exit_code == 0, done.output
+    [written] = list(parts[0].parent.glob("*.npz"))
+    assert written.name == parts[0].name.replace("-part001.mcap", ".npz")
+    one = runner.invoke(app, ["log", "export", str(whole), "--format", "npz", "--out", str(tmp_path / "one.npz")])
+    assert one.exit_code == 0, one.output
+    split, single = np.load(written), np.load(tmp_path / "one.npz")
+    assert len(split["episode"]) == len(single["episode"]) > 1000
+    assert (split["next_state"] == single["next_state"]).all()
