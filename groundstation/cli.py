@@ -170,7 +170,10 @@ def run_command(
         for path in result.paths:  # before a served web viewer waits: the path is printed however the run ends
             typer.echo(printable(path))
     if result.paths:
-        err.print(f"next: dive log info {result.paths[-1]}\n      dive replay {result.paths[-1]}"
+        # A split recording: all its parts (zero-padded, so the shell's order is part order), not the last one alone
+        shown = result.paths[-1] if len(result.paths) == 1 else \
+            result.paths[0].with_name(result.paths[0].name.replace("-part001.mcap", "-part*.mcap"))
+        err.print(f"next: dive log info {shown}\n      dive replay {shown}"
                   + ("" if view is not None else "\n      (dive run --viewer web shows the run live in a browser)"),
                   style="dim")
     if result.lost:
