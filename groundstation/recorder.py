@@ -302,6 +302,8 @@ class Recorder:
                 topic = f"/dump/{dump.kind.name}"
                 body = _compact_json(dump.as_dict()).encode()
                 w.write(w.channel(topic, "json", "diving_agent.dump", DUMP_SCHEMA), body, received.host_time_ns)
+        elif isinstance(msg, messages.Hello):  # after a reboot the next part's header names the new boot
+            self._hello = msg.to_dict()
 
     def _write_sent(self, sent: Sent) -> None:
         w = self._writer

@@ -3,6 +3,7 @@ its own (log info, replay, export), and replayed together as one timeline of age
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from pathlib import Path
 
@@ -16,6 +17,9 @@ from groundstation.mcap_io import RecordingContents, iter_messages
 from groundstation.recorder import Recorder, RecorderConfig
 from groundstation.recording import open_recording
 from groundstation.recording_files import expand
+from protocol import Frame
+from protocol import messages as m
+from protocol.frame import build_inner
 from tests.groundstation.synthetic_agent import Traffic, generate, play_session
 
 SPLIT_BYTES = 150_000
@@ -181,3 +185,25 @@ def test_the_parts_export_as_one_recording(parts: list[Path], whole: Path, tmp_p
     split, single = np.load(written), np.load(tmp_path / "one.npz")
     assert len(split["episode"]) == len(single["episode"]) > 1000
     assert (split["next_state"] == single["next_state"]).all()
+
+
+def test_a_reboot_inside_a_later_part_is_a_new_boot(tmp_path: Path) -> None:
+    """A later part has no HELLO of its own: its header names the boot it begins in, so the agent's reboot inside
+    it (a HELLO with a new boot id, sample indices from 0 again) is told apart, not spliced into one boot."""
+    before, after = generate(duration_s=300.0), generate(duration_s=100.0)
+    shift_ns = before.frames[-1].host_time_ns + 1_000_000_000 - after.frames[0].host_time_ns
+    rebooted = []
+    for received in after.frames:
+        frame = received.frame
+        if isinstance(frame.message, m.Hello):
+            hello = dataclasses.replace(frame.message, boot_id=12)
+            frame = Frame(frame.flags, frame.seq, frame.msg_id, hello, build_inner(frame.flags, frame.seq,
+                                                                                   frame.msg_id, hello.pack()))
+        rebooted.append(dataclasses.replace(received, frame=frame, host_time_ns=received.host_time_ns + shift_ns))
+    paths = _record(Traffic([*before.frames, *rebooted], []), RecorderConfig(directory=tmp_path, split_bytes=40_000))
+    [holding] = [p for p in paths[1:] if any(True for _ in iter_messages(p, {"/agent/HELLO"}))]
+    done = CliRunner().invoke(app, ["log", "info", str(holding), "--json"])
+    assert done.exit_code == 0, done.output
+    boots = [b["boot"] for b in json.loads(done.stdout)["boots"]]
+    assert boots == [1, 2]  # without the header the part's first boot was unknown and the reboot went unseen
+    assert sorted(set(open_recording(*paths).samples()["boot"].tolist())) == [1, 2]
