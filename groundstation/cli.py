@@ -128,7 +128,8 @@ def run_command(
     param: Annotated[list[str] | None, typer.Option(help="NAME=VALUE, any agent parameter (repeatable)")] = None,
     params: Annotated[Path | None, typer.Option(help="file of parameters: JSON or `name = value` lines")] = None,
     out_path: Annotated[Path | None, typer.Option("--out", help="recording directory, or a .mcap file name")] = None,
-    split_mb: Annotated[float, typer.Option(min=0, help="start a new file after this many MB (0 = never)")] = 0.0,
+    split_mb: Annotated[float, typer.Option(
+        min=0, help="start a new file (NAME-part002.mcap, ...) after this many MB on disk (0 = never)")] = 0.0,
     split_minutes: Annotated[float, typer.Option(
         min=0, help="start a new file after this many minutes (0 = never)")] = 0.0,
     reconnect: Annotated[bool, typer.Option(help="reconnect after a link loss and backfill the gap")] = True,

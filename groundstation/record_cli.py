@@ -15,7 +15,7 @@ from typing import Annotated
 
 import typer
 
-from groundstation.errors import GroundStationError
+from groundstation.errors import GroundStationError, RecordingExistsError
 from groundstation.keys import KeyFileOption, resolve_key
 from groundstation.safe_output import one_line, printable
 from groundstation.validate import UsageError
@@ -56,8 +56,9 @@ def record(
             out_path or Path("recordings")
         config = RecorderConfig(directory, out_path if out_path is not None and out_path.suffix == ".mcap" else None,
                                 int(split_mb * 1e6), split_minutes * 60.0)
-        if config.first_file is not None and config.first_file.exists():
-            raise UsageError(f"{config.first_file} exists; a recording is never overwritten: give another name")
+        if config.first_file is not None and config.first_file.exists():  # before attaching, as dive run does
+            raise RecordingExistsError(f"{one_line(config.first_file)} exists; a recording is never overwritten: "
+                                       "give another name or a directory")
         link = make_link(attach_url(url))
         through_hub = link.url.startswith("hub://")
         recorder = Recorder(config, session_info(link.url))

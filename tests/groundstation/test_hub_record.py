@@ -36,10 +36,11 @@ def test_a_second_recorder_through_the_hub_records_the_same_samples(tmp_path: Pa
         with running(runtime, agent.url, tmp_path / "run") as run:
             second = subprocess.Popen([*DIVE, "record", "--out", str(tmp_path / "second"), "--split-mb", "0.05"],
                                       env=_env(runtime), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-            deadline = time.monotonic() + 30
-            while time.monotonic() < deadline and not list((tmp_path / "second").glob("*.mcap")):
+            deadline = time.monotonic() + 60
+            # The agent learns on and both recorders take its frames, until the second has begun its second part.
+            while time.monotonic() < deadline and len(list((tmp_path / "second").glob("*.mcap"))) < 2:
                 time.sleep(0.05)
-            time.sleep(2.0)  # the agent learns on; both recorders take its frames
+            time.sleep(0.5)
             run.send_signal(signal.SIGINT)  # the run ends first: the second recorder ends with it
             out, err = second.communicate(timeout=30)
         run.communicate()
