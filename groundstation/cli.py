@@ -25,6 +25,7 @@ from groundstation.safe_files import replaced_atomically, unused_name
 from groundstation.safe_output import SafeConsole, in_markup, one_line, printable
 from groundstation.signals import stop_on_signals
 from groundstation.simulator_process import run_simulator_command
+from groundstation.typer_help import load_typer_help
 from groundstation.validate import UsageError, parse_speed
 from groundstation.view_options import Viewer
 
@@ -560,6 +561,7 @@ app.command(name="keygen")(keygen)
 def main() -> None:
     """Exit codes (README): 0 done, 1 failed, 2 bad usage, 130 interrupted. A bug is one line too, not a traceback
     (DIVE_DEBUG=1 shows it)."""
+    load_typer_help()
     try:
         app()
     except KeyboardInterrupt:
