@@ -81,12 +81,13 @@ class Bounds:
 
 
 def bounds(grid: Grid) -> Bounds:
-    """The grid and what is drawn around it: depth values left, legend right, velocity values and title below.
+    """The grid and what is drawn around it: depth values left, legend right, velocity values and title below,
+    titles and the box of the "outside" state above.
 
     Rerun draws a label centred under its point at a fixed size on screen; these margins hold labels of up to
     about 60 pixels at the ~25 pixels per cell a heatmap panel of the shipped layout gives a 10 x 10 grid.
     """
-    return Bounds(-3.0, grid.zdot_cells + 3.2, -1.2, grid.rows + 2.9)
+    return Bounds(-3.0, grid.zdot_cells + 3.2, -1.6, grid.rows + 2.9)
 
 
 @dataclass(frozen=True, slots=True)
