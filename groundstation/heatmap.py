@@ -19,6 +19,7 @@ UNTRIED: tuple[Colour, str] = ((90, 90, 90), "untried")
 _MAX_TICKS = 4  # labels per axis: more overlap in a panel a third of the screen wide
 _LEGEND_STEPS = 5  # colour swatches of the value legend, from the highest value down to the lowest
 SWATCH_RADIUS = 0.4  # a legend swatch's radius in cells
+_TOP_TITLE_Y = -2.2  # a title above the "outside" state's box (at y = -1)
 
 # Shown when the grid's geometry is not yet known: the agent's defaults (SPEC.md section 13).
 DEFAULT_GRID = {name: param(name).default for name in ("target_depth_m", "z_tol_m", "zdot_tol_mps", "z_cells",
@@ -87,7 +88,7 @@ def bounds(grid: Grid) -> Bounds:
     Rerun draws a label centred under its point at a fixed size on screen; these margins hold labels of up to
     about 60 pixels at the ~25 pixels per cell a heatmap panel of the shipped layout gives a 10 x 10 grid.
     """
-    return Bounds(-3.0, grid.zdot_cells + 3.2, -1.6, grid.rows + 2.9)
+    return Bounds(-3.0, grid.zdot_cells + 3.2, -1.6 if grid.blocks == 1 else _TOP_TITLE_Y - 0.2, grid.rows + 2.9)
 
 
 @dataclass(frozen=True, slots=True)
@@ -176,9 +177,10 @@ def axes(grid: Grid) -> tuple[tuple[tuple[tuple[float, float], ...], ...], tuple
             labels.append(Label(-1.6, y, _number(depths[i])))
         if block:
             lines.append(((0.0, float(top)), (width, float(top))))  # where the next actuator bin's block starts
-        if grid.blocks > 1:
-            labels.append(Label(-1.6, top - 0.4, f"actuator bin {block + 1}"))
-    labels.append(Label(-1.6, -1.0, "depth [m]"))
+    if grid.blocks == 1:
+        labels.append(Label(-1.6, -1.0, "depth [m]"))
+    else:  # one title above the "outside" box, not a label per block (it would sit on the depth values)
+        labels.append(Label(width / 2, _TOP_TITLE_Y, f"depth [m] in actuator bins 1-{grid.blocks}, top down"))
     return tuple(lines), tuple(labels)
 
 

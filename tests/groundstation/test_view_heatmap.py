@@ -29,8 +29,11 @@ VALUES = np.linspace(-4.0, 0.5, STATES).astype("<f4")  # cell 19 (last depth row
 ACTIONS = np.array([0, 1, 255, 0, 1] * Z_CELLS + [0], np.uint8)
 
 
-def _traffic() -> list[Received]:
+def _traffic(act_bins: int = 1) -> list[Received]:
     """What a session hands its listeners when the agent runs one episode on that grid and dumps its tables."""
+    states = Z_CELLS * ZDOT_CELLS * act_bins + 1
+    values = VALUES if act_bins == 1 else np.linspace(-4.0, 0.5, states).astype("<f4")
+    actions = ACTIONS if act_bins == 1 else np.zeros(states, np.uint8)
     frames: list[Received] = []
 
     def add(message: Message, t_s: float) -> None:
@@ -41,7 +44,7 @@ def _traffic() -> list[Received]:
 
     add(m.Hello(protocol_version=1, node_kind=1, definitions_hash=definitions_hash(), node_id=7, boot_id=11,
                 name="grid"), 0.0)
-    for index, (name, value) in enumerate((("z_cells", Z_CELLS), ("zdot_cells", ZDOT_CELLS), ("act_bins", 1))):
+    for index, (name, value) in enumerate((("z_cells", Z_CELLS), ("zdot_cells", ZDOT_CELLS), ("act_bins", act_bins))):
         add(m.ParamValue(index=index, count=3, param_type=ParamType.U8, value=value, minimum=1, maximum=50,
                          name=name), 0.0)
     add(m.EpisodeStart(t_us=0, episode=1, sample=0, start_state=7, depth_m=TARGET_M, velocity_mps=0.0,
@@ -50,10 +53,12 @@ def _traffic() -> list[Received]:
         add(m.Sample(t_us=i * 100_000, sample=i, episode=1, step=i, pressure_pa=109_000.0, depth_m=TARGET_M,
                      velocity_mps=0.0, actuator_deg=65.0, actuator_cmd_deg=65.0, reward=0.0, state=7, action=i % 2,
                      mode=Mode.LEARNING), i / 10)
-    add(m.EpisodeEnd(t_us=2_000_000, episode=1, sample=19, reason=EndReason.FAILURE, end_state=STATES - 1, steps=20,
+    add(m.EpisodeEnd(t_us=2_000_000, episode=1, sample=19, reason=EndReason.FAILURE, end_state=states - 1, steps=20,
                      duration_s=2.0, episode_return=-1.0, successes=0), 2.0)
-    for dump_id, (kind, data) in enumerate(((DumpKind.VALUES, VALUES.tobytes()), (DumpKind.POLICY, ACTIONS.tobytes()))):
-        add(m.DumpChunk(dump_id=dump_id + 1, kind=kind, episode=1, total_bytes=len(data), offset=0, data=data), 2.0)
+    for dump_id, (kind, data) in enumerate(((DumpKind.VALUES, values.tobytes()), (DumpKind.POLICY, actions.tobytes()))):
+        for offset in range(0, len(data), 224):  # a DUMP_CHUNK carries at most 247 payload bytes
+            add(m.DumpChunk(dump_id=dump_id + 1, kind=kind, episode=1, total_bytes=len(data), offset=offset,
+                            data=data[offset : offset + 224]), 2.0)
     return frames
 
 
@@ -134,3 +139,16 @@ def test_the_velocity_plot_and_the_heatmaps_are_scaled_for_the_agents_grid(recor
         bounds = blueprint_values(rrd, "VisualBounds2D:range")[-1][0]
         assert bounds["x_range"][0] < -1.6 and bounds["x_range"][1] > ZDOT_CELLS + 1.5  # depth values, legend
         assert bounds["y_range"][0] < 0 and bounds["y_range"][1] > Z_CELLS + 2.0  # titles, velocity values
+
+
+def test_with_actuator_bins_each_block_of_rows_gets_its_depth_values(tmp_path: Path) -> None:
+    """The actuator3 learner's grid stacks one block of depth rows per actuator bin: each block is labelled."""
+    with RerunView.open(ViewConfig(rrd=tmp_path / "live.rrd")) as view:
+        for received in _traffic(act_bins=3):
+            view.on_received(received)
+    texts = latest(tmp_path / "live.rrd", "/value_function/frame/texts")
+    left = {y: float(text) for y, text in _labels_at(texts, 0, -1.6).items() if y > 0}
+    assert left == {block * Z_CELLS + i + 0.5: d for block in range(3) for i, d in enumerate(DEPTHS_M)}
+    assert "depth [m] in actuator bins 1-3, top down" in texts["Points2D:labels"]
+    image = latest(tmp_path / "live.rrd", "/value_function/image")
+    assert (image["Image:format"][0]["width"], image["Image:format"][0]["height"]) == (ZDOT_CELLS, 3 * Z_CELLS)
