@@ -8,7 +8,7 @@ from typing import Annotated
 
 import typer
 
-from groundstation import cli_agent, cli_check, cli_log, cli_run, view_cli
+from groundstation import cli_agent, cli_check, cli_log, cli_run, record_cli, view_cli
 from groundstation.cli_common import TAKES_NEGATIVE, err
 from groundstation.keys import keygen
 from groundstation.simulator_process import run_simulator_command
@@ -67,6 +67,7 @@ def study(ctx: typer.Context) -> None:
 
 app.command(name="view")(view_cli.view)
 app.command(name="replay")(view_cli.replay)
+app.command(name="record")(record_cli.record)
 app.command(name="keygen")(keygen)
 
 

@@ -60,23 +60,26 @@ def log_export(files: Annotated[list[Path], typer.Argument(help="recordings, or 
                ) -> None:
     """Export samples as CSV, (s, a, r, s', terminated, truncated) transitions as .npz, or a Minari dataset.
 
-    Several recordings (or a folder) give one output file each, beside each recording.
+    Several recordings (or a folder) give one output file each, beside each recording; the parts of a split
+    recording given together make one (NAME.csv beside NAME-part001.mcap), episodes across parts kept whole.
     """
     from groundstation.export import export_csv, export_npz
-    from groundstation.recording_files import expand
+    from groundstation.recording_files import expand, group_recordings
 
     if format == ExportFormat.minari:
         if len(files) != 1:
             raise UsageError("minari exports one recording or one folder at a time")
         _export_minari(files[0], out_path)
         return
-    recordings = expand(files)
+    recordings = group_recordings(expand(files))
     if out_path is not None and len(recordings) > 1:
         raise UsageError(f"--out names one file, but {len(recordings)} recordings were given")
-    for file in recordings:
-        target = out_path or file.with_suffix(f".{format.value}")
-        with replaced_atomically(target, source=file) as temporary:
-            rows = (export_csv if format == ExportFormat.csv else export_npz)(file, temporary)
+    for recording in recordings:
+        first = recording.files[0]
+        name = first.stem if len(recording.files) == 1 else recording.name
+        target = out_path or first.with_name(f"{name}.{format.value}")
+        with replaced_atomically(target, source=first) as temporary:
+            rows = (export_csv if format == ExportFormat.csv else export_npz)(recording.files, temporary)
         out.print(f"{target} ({rows} rows)")
 
 

@@ -42,7 +42,8 @@ def run_command(
     param: Annotated[list[str] | None, typer.Option(help="NAME=VALUE, any agent parameter (repeatable)")] = None,
     params: Annotated[Path | None, typer.Option(help="file of parameters: JSON or `name = value` lines")] = None,
     out_path: Annotated[Path | None, typer.Option("--out", help="recording directory, or a .mcap file name")] = None,
-    split_mb: Annotated[float, typer.Option(min=0, help="start a new file after this many MB (0 = never)")] = 0.0,
+    split_mb: Annotated[float, typer.Option(
+        min=0, help="start a new file (NAME-part002.mcap, ...) after this many MB on disk (0 = never)")] = 0.0,
     split_minutes: Annotated[float, typer.Option(
         min=0, help="start a new file after this many minutes (0 = never)")] = 0.0,
     reconnect: Annotated[bool, typer.Option(help="reconnect after a link loss and backfill the gap")] = True,
@@ -84,7 +85,10 @@ def run_command(
         for path in result.paths:  # before a served web viewer waits: the path is printed however the run ends
             typer.echo(printable(path))
     if result.paths:
-        err.print(f"next: dive log info {result.paths[-1]}\n      dive replay {result.paths[-1]}"
+        # A split recording: all its parts (zero-padded, so the shell's order is part order), not the last one alone
+        shown = result.paths[-1] if len(result.paths) == 1 else \
+            result.paths[0].with_name(result.paths[0].name.replace("-part001.mcap", "-part*.mcap"))
+        err.print(f"next: dive log info {shown}\n      dive replay {shown}"
                   + ("" if view is not None else "\n      (dive run --viewer web shows the run live in a browser)"),
                   style="dim")
     if result.lost:
