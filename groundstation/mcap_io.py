@@ -179,7 +179,11 @@ def _message_adder(writer: Writer) -> _Adder:
     indices = builder.message_indices
     pack = _MESSAGE_HEAD.pack
 
-    def add(messages: tuple[tuple[int, bytes], ...], log_time: int, publish_time: int) -> None:
+    head_size = _MESSAGE_HEAD.size
+    message_op = int(Opcode.MESSAGE)  # an IntEnum member costs struct.pack a call to __index__
+
+    def add_each(messages: tuple[tuple[int, bytes], ...], log_time: int, publish_time: int) -> None:
+        """Message by message, closing the chunk as soon as it is full (as add_message does)."""
         stats = statistics
         chunk = builder
         buffer = records._buffer  # a new BytesIO after every chunk
@@ -202,9 +206,54 @@ def _message_adder(writer: Writer) -> _Adder:
             chunk.num_messages += 1
             buffer.write(pack(Opcode.MESSAGE, _MESSAGE_FIELDS + len(data), channel_id, 0, log_time, publish_time))
             buffer.write(data)
-            if position + _MESSAGE_HEAD.size + len(data) > chunk_size:  # Writer.__maybe_finalize_chunk
+            if position + head_size + len(data) > chunk_size:  # Writer.__maybe_finalize_chunk
                 finalize()
                 buffer = records._buffer
+
+    def add(messages: tuple[tuple[int, bytes], ...], log_time: int, publish_time: int) -> None:
+        """A frame's two messages (its JSON body and its raw bytes) with the bookkeeping done once, one write.
+
+        The result is add_each's: both have the same times, so the start and end times can change only at the
+        first; a chunk that fills at the first goes through add_each, which closes it in between.
+        """
+        if len(messages) != 2:
+            add_each(messages, log_time, publish_time)
+            return
+        (first, data), (second, raw) = messages
+        buffer = records._buffer
+        position = buffer.tell()
+        middle = position + head_size + len(data)
+        if middle > chunk_size:
+            add_each(messages, log_time, publish_time)
+            return
+        stats = statistics
+        chunk = builder
+        if log_time < stats.message_start_time or stats.message_count == 0:
+            stats.message_start_time = log_time
+        if log_time > stats.message_end_time:
+            stats.message_end_time = log_time
+        stats.message_count += 2
+        if log_time < chunk.message_start_time or chunk.num_messages == 0:
+            chunk.message_start_time = log_time
+        if log_time > chunk.message_end_time:
+            chunk.message_end_time = log_time
+        chunk.num_messages += 2
+        channel_counts[first] += 1
+        channel_counts[second] += 1
+        index = indices.get(first)
+        if index is None:
+            index = indices[first] = _MessageIndex(channel_id=first, records=[])
+        index.records.append((log_time, position))
+        index = indices.get(second)
+        if index is None:
+            index = indices[second] = _MessageIndex(channel_id=second, records=[])
+        index.records.append((log_time, middle))
+        buffer.write(b"".join((pack(message_op, _MESSAGE_FIELDS + len(data), first, 0, log_time, publish_time),
+                               data,
+                               pack(message_op, _MESSAGE_FIELDS + len(raw), second, 0, log_time, publish_time),
+                               raw)))
+        if middle + head_size + len(raw) > chunk_size:
+            finalize()
 
     return add
 

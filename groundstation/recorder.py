@@ -76,6 +76,7 @@ def message_json(message: Message, seq: int, flags: int, backfilled: bool) -> by
 
 # Messages orjson can serialise from their fields as the recording wants them (not empty, no bytes to hex).
 _DIRECT = frozenset(cls for cls in message_classes().values() if cls._names and not cls._bytes_names)
+_FOR_DUMPS = frozenset((messages.ParamValue, messages.DumpChunk))  # what the dump assembler needs to see
 
 
 @dataclass(frozen=True, slots=True)
@@ -134,8 +135,22 @@ class Recorder:
         return self.paths[-1] if self.paths else None
 
     # ------------------------------------------------------------------ listener
-    @_guarded
     def on_received(self, received: Received) -> None:
+        # _guarded written out: this runs for every frame, and the decorator's extra call is a tenth of its cost.
+        with self._lock:
+            if self.failure is not None:
+                return
+            try:
+                if self._writer is None or self._splits:
+                    self._first_or_rotate(received)
+                    if self._writer is None:
+                        return
+                self._write_received(received)
+            except OSError as e:  # RecordingError is an OSError too
+                self._fail(e)
+
+    def _first_or_rotate(self, received: Received) -> None:
+        """Open the file at the agent's HELLO (keeping what came before it), or start the next part when due."""
         msg = received.frame.message
         if self._writer is None and isinstance(msg, messages.Hello):
             self._hello = msg.to_dict()
@@ -143,10 +158,8 @@ class Recorder:
             self._open()
         if self._writer is None:
             self._early.append(("rx", received))
-            return
-        if self._splits:
+        elif self._splits:
             self._rotate_if_due()
-        self._write_received(received)
 
     @_guarded
     def on_sent(self, sent: Sent) -> None:
@@ -244,17 +257,24 @@ class Recorder:
     def _write_received(self, received: Received) -> None:
         w = self._writer
         assert w is not None
-        frame = received.frame
-        msg = frame.message
-        host_ns, agent_ns = received.host_time_ns, received.agent_time_ns
-        if received.after_end:  # from after the run's end: the raw frame only (Session.request_backfill)
+        frame, host_ns, agent_ns, backfilled, after_end = received
+        if after_end:  # from after the run's end: the raw frame only (Session.request_backfill)
             w.write(self._raw_rx, frame.inner, host_ns, agent_ns)
             return
-        channel = self._rx_channels.get(msg.__class__)
+        msg = frame.message
+        cls = msg.__class__
+        channel = self._rx_channels.get(cls)
         if channel is None:
-            channel = self._rx_channels[msg.__class__] = self._message_channel(w, "/agent", msg.__class__)
-        body = message_json(msg, frame.seq, frame.flags, received.backfilled)
-        w.write_many(((channel, body), (self._raw_rx, frame.inner)), host_ns, agent_ns)
+            channel = self._rx_channels[cls] = self._message_channel(w, "/agent", cls)
+        w.write_many(((channel, message_json(msg, frame.seq, frame.flags, backfilled)), (self._raw_rx, frame.inner)),
+                     host_ns, agent_ns)
+        if cls in _FOR_DUMPS:
+            self._dump_side(msg, host_ns)
+
+    def _dump_side(self, msg: Message, host_ns: int) -> None:
+        """A parameter bounds a dump's size; a dump's last chunk completes it: the whole dump goes to /dump/<kind>."""
+        w = self._writer
+        assert w is not None
         if isinstance(msg, messages.ParamValue):
             self._dumps.saw_parameter(msg.name, msg.value)
         elif isinstance(msg, messages.DumpChunk):
@@ -262,7 +282,7 @@ class Recorder:
             if dump is not None:
                 topic = f"/dump/{dump.kind.name}"
                 body = _compact_json(dump.as_dict()).encode()
-                w.write(w.channel(topic, "json", "diving_agent.dump", DUMP_SCHEMA), body, received.host_time_ns)
+                w.write(w.channel(topic, "json", "diving_agent.dump", DUMP_SCHEMA), body, host_ns)
 
     def _write_sent(self, sent: Sent) -> None:
         w = self._writer
