@@ -64,6 +64,7 @@ class SessionConfig:
 
 
 _SEQUENCED = (m.EpisodeStart, m.EpisodeEnd)
+_WAITED_FOR = (m.Sample, m.LogRange, m.EpisodeStart, m.EpisodeEnd)  # what request_backfill's waiter looks at
 HELLO_RESEND_S = 1.0  # an unanswered HELLO is sent again after this long (the agent answers every HELLO)
 
 
@@ -171,11 +172,12 @@ class Session:
         With wait, returns the ACK and raises CommandError on a NACK, CommandTimeout without an ACK.
         """
         now = time.monotonic()
+        ack_timeout_s = self._ack_timeout_s()
         with self._send_lock:
             encoded = self.encoder.encode(message)
             pending = None
             if message.DEFINITION.needs_ack:
-                pending = PendingCommand(message, encoded.seq, encoded.wire, now, now + self._ack_timeout_s())
+                pending = PendingCommand(message, encoded.seq, encoded.wire, now, now + ack_timeout_s)
                 if wait and timeout_s is not None:  # an explicit wait: keep trying (across reconnects) until then
                     pending.give_up_s = now + timeout_s
                 self._pending.add(pending)
@@ -188,7 +190,7 @@ class Session:
                     raise
         if pending is None or not wait:
             return None
-        limit = timeout_s if timeout_s is not None else self._ack_timeout_s() * (self.config.retries + 1) + 1.0
+        limit = timeout_s if timeout_s is not None else ack_timeout_s * (self.config.retries + 1) + 1.0
         pending.done.wait(limit)
         self._pending.discard(pending.seq)
         name = message.DEFINITION.name
@@ -457,7 +459,7 @@ class Session:
             self.backfill.saw_log_window(msg.first_sample, msg.next_sample)
             self._emit(LinkEvent(EventKind.BACKFILL_DONE, host_ns, f"{msg.replayed} frames replayed",
                                  msg.to_dict()))
-        if isinstance(msg, m.Sample | m.LogRange | m.EpisodeStart | m.EpisodeEnd):
+        if isinstance(msg, _WAITED_FOR):
             with self._cond:
                 self._cond.notify_all()
         # The run is over: what the agent sends from after its end is recorded raw only (the decoded recording ends
