@@ -222,37 +222,38 @@ def _message_adder(writer: Writer) -> _Adder:
         (first, data), (second, raw) = messages
         buffer = records._buffer
         position = buffer.tell()
-        middle = position + head_size + len(data)
+        data_size, raw_size = len(data), len(raw)
+        middle = position + head_size + data_size
         if middle > chunk_size:
             add_each(messages, log_time, publish_time)
             return
         stats = statistics
         chunk = builder
-        if log_time < stats.message_start_time or stats.message_count == 0:
+        count = stats.message_count
+        if log_time < stats.message_start_time or count == 0:
             stats.message_start_time = log_time
         if log_time > stats.message_end_time:
             stats.message_end_time = log_time
-        stats.message_count += 2
-        if log_time < chunk.message_start_time or chunk.num_messages == 0:
+        stats.message_count = count + 2
+        count = chunk.num_messages
+        if log_time < chunk.message_start_time or count == 0:
             chunk.message_start_time = log_time
         if log_time > chunk.message_end_time:
             chunk.message_end_time = log_time
-        chunk.num_messages += 2
+        chunk.num_messages = count + 2
         channel_counts[first] += 1
         channel_counts[second] += 1
-        index = indices.get(first)
-        if index is None:
-            index = indices[first] = _MessageIndex(channel_id=first, records=[])
-        index.records.append((log_time, position))
-        index = indices.get(second)
-        if index is None:
-            index = indices[second] = _MessageIndex(channel_id=second, records=[])
-        index.records.append((log_time, middle))
-        buffer.write(b"".join((pack(message_op, _MESSAGE_FIELDS + len(data), first, 0, log_time, publish_time),
-                               data,
-                               pack(message_op, _MESSAGE_FIELDS + len(raw), second, 0, log_time, publish_time),
-                               raw)))
-        if middle + head_size + len(raw) > chunk_size:
+        try:  # after the first frame of a chunk both channels have their index
+            indices[first].records.append((log_time, position))
+        except KeyError:
+            indices[first] = _MessageIndex(channel_id=first, records=[(log_time, position)])
+        try:
+            indices[second].records.append((log_time, middle))
+        except KeyError:
+            indices[second] = _MessageIndex(channel_id=second, records=[(log_time, middle)])
+        buffer.write(b"".join((pack(message_op, _MESSAGE_FIELDS + data_size, first, 0, log_time, publish_time), data,
+                               pack(message_op, _MESSAGE_FIELDS + raw_size, second, 0, log_time, publish_time), raw)))
+        if middle + head_size + raw_size > chunk_size:
             finalize()
 
     return add
