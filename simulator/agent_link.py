@@ -53,12 +53,8 @@ class AgentLink:
 
     def __init__(self, write: Callable[[bytes], None], node_id: int, ring: LogRing | None = None,
                  key: bytes | None = None, link_clock_s: Callable[[], float] | None = None,
-                 mark_file: Path | None = None, after_ack: Callable[[], None] | None = None) -> None:
+                 mark_file: Path | None = None) -> None:
         self.write = write
-        # Called once a command's ACK is written, before what follows it (its replies, the program's deferred
-        # messages) is built: the server sends the ACK at once, so the ground's waiting command returns while the
-        # rest is still being encoded (a PARAM_GET's ACK no longer waits for its PARAM_VALUE).
-        self.after_ack = after_ack or (lambda: None)
         self.link_clock_s = link_clock_s or self._agent_clock_s
         # With a key, commands must be signed (SPEC s. 12); refusals are counted in HEARTBEAT.signing_rejects.
         self.verifier: SignatureVerifier | None = None
@@ -256,7 +252,6 @@ class AgentLink:
             deferred, self._deferred = self._deferred, None
         self._answered.append((frame.msg_id, frame.seq, int(result), reason))
         self._ack(frame, result, reason)
-        self.after_ack()
         for action in deferred:
             action()
         for reply in replies:

@@ -61,9 +61,8 @@ class PythonAgent:
 
     def __init__(self, plant: PlantParams, learner: LearnerConfig, mission: MissionConfig, rng: np.random.Generator,
                  write: Write, node_id: int, key: bytes | None, link_clock_s: Callable[[], float] | None = None,
-                 mark_file: Path | None = None, after_ack: Callable[[], None] | None = None) -> None:
-        self.link = AgentLink(write, node_id=node_id, key=key, link_clock_s=link_clock_s, mark_file=mark_file,
-                              after_ack=after_ack)
+                 mark_file: Path | None = None) -> None:
+        self.link = AgentLink(write, node_id=node_id, key=key, link_clock_s=link_clock_s, mark_file=mark_file)
         self.hw = SimulatedHardware(plant, rng)
         self.program = OnboardProgram(plant, learner, mission, self.hw, rng, self.link)
         self.link.attach(self.program)

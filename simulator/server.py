@@ -72,8 +72,7 @@ class AgentServer:
         self.connection_end_seqs: list[int] = []  # the seq after the last frame of each finished connection
         self._logged = 0
         self._connected_wall_s = 0.0
-        self.agent = _onboard_agent(config, rng, self._write, node_id=0x5100_0000 | (seed & 0xFFFF), seed=seed,
-                                    after_ack=self.transport.flush)
+        self.agent = _onboard_agent(config, rng, self._write, node_id=0x5100_0000 | (seed & 0xFFFF), seed=seed)
         self.transport.on_connect = self._connected
         self.transport.on_data = self._received
         self.transport.on_disconnect = self._disconnected
@@ -246,7 +245,7 @@ class AgentServer:
 
 
 def _onboard_agent(config: ServeConfig, rng: np.random.Generator, write: Callable[[bytes], None], node_id: int,
-                   seed: int, after_ack: Callable[[], None] | None = None) -> OnboardAgent:
+                   seed: int) -> OnboardAgent:
     """The on-board program the configuration names: the Python reference, or the C firmware's host build.
 
     SPEC s. 4, time base: faster than real time, link silence, the HELLO repeat and signing ages are in wall
@@ -261,4 +260,4 @@ def _onboard_agent(config: ServeConfig, rng: np.random.Generator, write: Callabl
         return FirmwareAgent(config.plant, rng, write, node_id, config.key, seed, wall_link_clock=fast,
                              nv_file=nv_file)
     return PythonAgent(config.plant, config.learner, config.mission, rng, write, node_id, config.key,
-                       link_clock_s=time.monotonic if fast else None, mark_file=config.mark_file, after_ack=after_ack)
+                       link_clock_s=time.monotonic if fast else None, mark_file=config.mark_file)
