@@ -59,7 +59,7 @@ class McapFileWriter:
         self._writer = Writer(self._file, chunk_size=256 * 1024, compression=CompressionType.ZSTD)
         self._writer.start(profile=PROFILE, library=f"dive (mcap {mcap_library_version()})")
         self._file.flush()  # the magic and header on disk at once: a kill in the first second leaves no 0-byte file
-        self._add = _message_adder(self._writer)
+        self._add, self._add_pair = _message_adders(self._writer)
         self._schemas: dict[str, int] = {}
         self._channels: dict[str, int] = {}
         self._flush_period_s = flush_period_s
@@ -98,6 +98,16 @@ class McapFileWriter:
         self.bytes_written += written
         self.messages += len(messages)
         if time.monotonic() - self._last_flush_s >= self._flush_period_s:  # maybe_flush, inlined: once per frame
+            self.flush()
+
+    def write_frame(self, channel_id: int, data: bytes, raw_channel_id: int, raw: bytes, log_time_ns: int,
+                    publish_time_ns: int | None = None) -> None:
+        """write_many of a frame's two messages (JSON body, raw bytes) without building tuples: every frame's path."""
+        self._add_pair(channel_id, data, raw_channel_id, raw, log_time_ns,
+                       log_time_ns if publish_time_ns is None else publish_time_ns)
+        self.bytes_written += len(data) + len(raw) + 80  # as write_many counts them
+        self.messages += 2
+        if time.monotonic() - self._last_flush_s >= self._flush_period_s:
             self.flush()
 
     def metadata(self, name: str, values: dict[str, Any]) -> None:
@@ -150,10 +160,12 @@ class _MessageIndex(MessageIndex):
 
 
 _Adder = Callable[[tuple[tuple[int, bytes], ...], int, int], None]
+_PairAdder = Callable[[int, bytes, int, bytes, int, int], None]
 
 
-def _message_adder(writer: Writer) -> _Adder:
-    """`add(((channel_id, data), ...), log_time, publish_time)`: what Writer.add_message does for each message.
+def _message_adders(writer: Writer) -> tuple[_Adder, _PairAdder]:
+    """`add(((channel_id, data), ...), log_time, publish_time)`: what Writer.add_message does for each message,
+    and `add_pair(channel_id, data, channel_id, data, log_time, publish_time)`, the same for two messages.
 
     Writer.add_message builds a Message record object and writes it field by field (eight small writes
     and two seeks), more than a frame costs us to decode and encode as JSON; a recorder writes two per
@@ -173,7 +185,10 @@ def _message_adder(writer: Writer) -> _Adder:
         def add_messages(messages: tuple[tuple[int, bytes], ...], log_time: int, publish_time: int) -> None:
             for channel_id, data in messages:
                 writer.add_message(channel_id, log_time=log_time, data=data, publish_time=publish_time)
-        return add_messages
+
+        def add_two(first: int, data: bytes, second: int, raw: bytes, log_time: int, publish_time: int) -> None:
+            add_messages(((first, data), (second, raw)), log_time, publish_time)
+        return add_messages, add_two
     assert builder is not None and records is not None
     channel_counts = statistics.channel_message_counts
     indices = builder.message_indices
@@ -220,12 +235,15 @@ def _message_adder(writer: Writer) -> _Adder:
             add_each(messages, log_time, publish_time)
             return
         (first, data), (second, raw) = messages
+        add_pair(first, data, second, raw, log_time, publish_time)
+
+    def add_pair(first: int, data: bytes, second: int, raw: bytes, log_time: int, publish_time: int) -> None:
         buffer = records._buffer
         position = buffer.tell()
         data_size, raw_size = len(data), len(raw)
         middle = position + head_size + data_size
         if middle > chunk_size:
-            add_each(messages, log_time, publish_time)
+            add_each(((first, data), (second, raw)), log_time, publish_time)
             return
         stats = statistics
         chunk = builder
@@ -256,7 +274,7 @@ def _message_adder(writer: Writer) -> _Adder:
         if middle + head_size + raw_size > chunk_size:
             finalize()
 
-    return add
+    return add, add_pair
 
 
 @dataclass(frozen=True, slots=True)

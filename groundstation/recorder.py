@@ -266,8 +266,8 @@ class Recorder:
         channel = self._rx_channels.get(cls)
         if channel is None:
             channel = self._rx_channels[cls] = self._message_channel(w, "/agent", cls)
-        w.write_many(((channel, message_json(msg, frame.seq, frame.flags, backfilled)), (self._raw_rx, frame.inner)),
-                     host_ns, agent_ns)
+        w.write_frame(channel, message_json(msg, frame.seq, frame.flags, backfilled), self._raw_rx, frame.inner,
+                      host_ns, agent_ns)
         if cls in _FOR_DUMPS:
             self._dump_side(msg, host_ns)
 
