@@ -16,7 +16,9 @@ from learning.shared import (
     n_types,
     plan_shared_kernel,
     record_shared,
+    shared_dense_counts,
     shared_memory_bytes,
+    shared_q_kernel,
     state_cell_code,
 )
 from learning.spec import direct_entry
@@ -185,6 +187,14 @@ class Learner:
         """Q[s, a] of the last value iteration; a copy."""
         return self._q.copy()
 
+    def live_q_values(self) -> NDArray[np.float64]:
+        """Q[s, a] from the model as it is now and the current values (the shared model: computed, as its
+        firmware does; the per-state learners: the last value iteration's, their Q table)."""
+        if self._shared:
+            return shared_q_kernel(self._codes, self._type_counts, self._totals, self._succ_idx, self._succ_cnt,
+                                   self._values, self._spec)
+        return self.q_values
+
     @property
     def policy(self) -> NDArray[np.int64]:
         """Greedy action per state (2 = tied, drawn at every step, with ties_per_step); a copy."""
@@ -192,7 +202,10 @@ class Learner:
 
     @property
     def counts(self) -> NDArray[np.uint16]:
-        """Transition counts C[s, s', a] (uint16), exported from whichever form is stored."""
+        """Transition counts C[s, s', a] (uint16), exported from whichever form is stored (the shared
+        model's: its histograms shifted to each state, see learning.shared.shared_dense_counts)."""
+        if self._shared:
+            return shared_dense_counts(self._codes, self._type_counts, self._succ_idx, self._succ_cnt, self._spec)
         return dense_counts(self._succ_idx, self._succ_cnt)
 
     def export_model(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:

@@ -382,7 +382,7 @@ class OnboardProgram:
 def check_ram(config: LearnerConfig) -> None:
     """ParamsError naming the bytes if the learner and its snapshots would not fit the RAM budget (SPEC s. 13)."""
     states = n_states(config)
-    need = learner_memory_bytes(config) + snapshot_ram_bytes(states)
+    need = learner_memory_bytes(config) + snapshot_ram_bytes(states, config.shared_model)
     if need > RAM_BUDGET_BYTES:
         raise ParamsError(
             f"{states} states need {need} bytes of RAM (learner and snapshots), the budget is {RAM_BUDGET_BYTES}"
