@@ -87,7 +87,7 @@ def served(preset_name: str, wall_s: float) -> Served:
     try:
         assert proc.stdout is not None
         host, port = proc.stdout.readline().strip().removeprefix("tcp://").rsplit(":", 1)
-        # The client reads as the ground station's TCP link does (groundstation/links/tcp.py): an 8 KiB receive
+        # The client reads as the ground station's TCP link does (groundstation/links/tcp.py): its small receive
         # buffer set before connecting, reads of up to 64 KiB. With the kernel's default (autotuned to megabytes)
         # a client that falls behind reads half a megabyte at a time and decodes each frame 2.5x slower for it.
         sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)

@@ -12,9 +12,11 @@ from groundstation.links import Link
 CONNECT_TIMEOUT_S = 3.0
 # A small, fixed receive buffer (set before connecting, so the kernel does not autotune it to megabytes): when the
 # ground falls behind a fast sender (the virtual agent at --speed max), the backlog stays at the sender, which then
-# waits, instead of piling up here where every command's ACK would queue behind it. 8 KiB is still ~0.7 s of a
-# 115200-baud link, far above what the agent sends per round trip over Wi-Fi (benchmarks/link_latency_bench.py).
-RECEIVE_BUFFER_BYTES = 8 * 1024
+# waits, instead of piling up here where every command's ACK would queue behind it. Linux doubles it (4.5 KiB, ~0.4 s
+# of a 115200-baud link), still far above what the agent sends per round trip over Wi-Fi. At --speed max, 2 KiB
+# against 8 KiB halved the round trip (19 ms against 41 ms median, benchmarks/link_latency_bench.py, load 1.4-3)
+# and left the served agent's speed within run-to-run noise (benchmarks/sim_speed_bench.py).
+RECEIVE_BUFFER_BYTES = 2 * 1024
 
 
 def parse_host_port(url: str) -> tuple[str, int]:
