@@ -209,7 +209,12 @@ def cell_reward(state: int, spec: KernelSpec) -> float:
     if state == spec.z_cells * spec.zdot_cells * spec.actuator_bins:
         return spec.terminal_reward
     iz = (state // spec.zdot_cells) % spec.z_cells
-    return -abs(-spec.z_tol_m + (iz + 0.5) * 2.0 * spec.z_tol_m / spec.z_cells)
+    reward = -abs(-spec.z_tol_m + (iz + 0.5) * 2.0 * spec.z_tol_m / spec.z_cells)
+    if spec.velocity_penalty > 0.0:
+        iv = state % spec.zdot_cells
+        reward -= spec.velocity_penalty * abs(-spec.zdot_tol_mps + (iv + 0.5) * 2.0 * spec.zdot_tol_mps
+                                              / spec.zdot_cells)
+    return reward
 
 
 @njit(cache=True, error_model="numpy")
