@@ -18,7 +18,7 @@ from urllib.parse import urlencode
 import typer
 from rich.text import Text
 
-from groundstation import view_cli
+from groundstation import record_cli, view_cli
 from groundstation.errors import GroundStationError
 from groundstation.keys import KEY_FILE_ENV, KeyFileOption, keygen, resolve_key
 from groundstation.safe_files import replaced_atomically, unused_name
@@ -128,7 +128,8 @@ def run_command(
     param: Annotated[list[str] | None, typer.Option(help="NAME=VALUE, any agent parameter (repeatable)")] = None,
     params: Annotated[Path | None, typer.Option(help="file of parameters: JSON or `name = value` lines")] = None,
     out_path: Annotated[Path | None, typer.Option("--out", help="recording directory, or a .mcap file name")] = None,
-    split_mb: Annotated[float, typer.Option(min=0, help="start a new file after this many MB (0 = never)")] = 0.0,
+    split_mb: Annotated[float, typer.Option(
+        min=0, help="start a new file (NAME-part002.mcap, ...) after this many MB on disk (0 = never)")] = 0.0,
     split_minutes: Annotated[float, typer.Option(
         min=0, help="start a new file after this many minutes (0 = never)")] = 0.0,
     reconnect: Annotated[bool, typer.Option(help="reconnect after a link loss and backfill the gap")] = True,
@@ -170,7 +171,10 @@ def run_command(
         for path in result.paths:  # before a served web viewer waits: the path is printed however the run ends
             typer.echo(printable(path))
     if result.paths:
-        err.print(f"next: dive log info {result.paths[-1]}\n      dive replay {result.paths[-1]}"
+        # A split recording: all its parts (zero-padded, so the shell's order is part order), not the last one alone
+        shown = result.paths[-1] if len(result.paths) == 1 else \
+            result.paths[0].with_name(result.paths[0].name.replace("-part001.mcap", "-part*.mcap"))
+        err.print(f"next: dive log info {shown}\n      dive replay {shown}"
                   + ("" if view is not None else "\n      (dive run --viewer web shows the run live in a browser)"),
                   style="dim")
     if result.lost:
@@ -490,23 +494,26 @@ def log_export(files: Annotated[list[Path], typer.Argument(help="recordings, or 
                ) -> None:
     """Export samples as CSV, (s, a, r, s', terminated, truncated) transitions as .npz, or a Minari dataset.
 
-    Several recordings (or a folder) give one output file each, beside each recording.
+    Several recordings (or a folder) give one output file each, beside each recording; the parts of a split
+    recording given together make one (NAME.csv beside NAME-part001.mcap), episodes across parts kept whole.
     """
     from groundstation.export import export_csv, export_npz
-    from groundstation.recording_files import expand
+    from groundstation.recording_files import expand, group_recordings
 
     if format == ExportFormat.minari:
         if len(files) != 1:
             raise UsageError("minari exports one recording or one folder at a time")
         _export_minari(files[0], out_path)
         return
-    recordings = expand(files)
+    recordings = group_recordings(expand(files))
     if out_path is not None and len(recordings) > 1:
         raise UsageError(f"--out names one file, but {len(recordings)} recordings were given")
-    for file in recordings:
-        target = out_path or file.with_suffix(f".{format.value}")
-        with replaced_atomically(target, source=file) as temporary:
-            rows = (export_csv if format == ExportFormat.csv else export_npz)(file, temporary)
+    for recording in recordings:
+        first = recording.files[0]
+        name = first.stem if len(recording.files) == 1 else recording.name
+        target = out_path or first.with_name(f"{name}.{format.value}")
+        with replaced_atomically(target, source=first) as temporary:
+            rows = (export_csv if format == ExportFormat.csv else export_npz)(recording.files, temporary)
         out.print(f"{target} ({rows} rows)")
 
 
@@ -554,6 +561,7 @@ def study(ctx: typer.Context) -> None:
 
 app.command(name="view")(view_cli.view)
 app.command(name="replay")(view_cli.replay)
+app.command(name="record")(record_cli.record)
 app.command(name="keygen")(keygen)
 
 

@@ -14,14 +14,14 @@ from protocol import Action, EndReason, Mode
 _REASONS = {reason.name.lower(): int(reason) for reason in EndReason}
 
 
-def _samples_and_ends(path: Path) -> tuple[list[dict[str, object]], dict[tuple[int, int], int]]:
+def _samples_and_ends(paths: list[Path]) -> tuple[list[dict[str, object]], dict[tuple[int, int], int]]:
     """Samples by (boot, index), each once, in order; episode end reasons by (boot, episode).
 
     Read through open_recording (the notebook API), so the CLI and a notebook see the same rows: sample and
     episode numbers restart at an agent reboot, each row carries its `boot` (1, 2, ... in file order), two
     boots are never spliced, and messages whose JSON has the wrong shape are left out.
     """
-    recording = open_recording(path)
+    recording = open_recording(*paths)
     table = recording.samples()
     names = [name for name in table.dtype.names or () if name not in ("_seq", "_flags", "boot")]
     columns = ["boot", *names]
@@ -31,8 +31,16 @@ def _samples_and_ends(path: Path) -> tuple[list[dict[str, object]], dict[tuple[i
     return rows, ends
 
 
-def export_csv(path: Path, target: Path) -> int:
-    rows, _ = _samples_and_ends(path)
+def _files(source: Path | list[Path]) -> tuple[list[Path], str]:
+    """One recording's files (a file, or the parts of a split one) and how an error names them."""
+    files = source if isinstance(source, list) else [source]
+    return files, str(files[0]) if len(files) == 1 else f"{files[0]} and its {len(files) - 1} other part(s)"
+
+
+def export_csv(source: Path | list[Path], target: Path) -> int:
+    """The samples of a recording (a file, or the parts of a split one together) as CSV, one row each."""
+    files, path = _files(source)
+    rows, _ = _samples_and_ends(files)
     if not rows:
         raise RecordingError(f"{path} holds no samples to export")
     columns = [c for c in rows[0] if c not in ("_seq", "_flags")]
@@ -46,14 +54,16 @@ def export_csv(path: Path, target: Path) -> int:
     return len(rows)
 
 
-def export_npz(path: Path, target: Path) -> int:
+def export_npz(source: Path | list[Path], target: Path) -> int:
     """One row per learner transition: the SAMPLE at step t gives s, a; the one at t+1 gives r and s'.
 
     The last transition of an episode is `terminated` if it ended in failure (terminal state) and
     `truncated` if it ended by success or abort (time limit, command). Transitions across a missing
-    sample are left out rather than invented.
+    sample are left out rather than invented. The parts of a split recording are read together, so an episode
+    that crosses from one part into the next is kept whole.
     """
-    rows, ends = _samples_and_ends(path)
+    files, path = _files(source)
+    rows, ends = _samples_and_ends(files)
     learning = [r for r in rows if r["mode"] == Mode.LEARNING and (r["boot"], r["episode"]) in ends]
     cols: dict[str, list[float]] = {k: [] for k in (
         "boot", "episode", "state", "action", "reward", "next_state", "terminated", "truncated",

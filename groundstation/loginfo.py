@@ -58,6 +58,7 @@ class RecordingSummary:
     boots: list[BootSummary] = field(default_factory=list)
     malformed: int = 0  # messages whose JSON had the wrong shape (skipped)
     damaged_chunks: int = 0  # chunks skipped because their data was damaged
+    part: int = 0  # of a split recording (dive run --split-mb/--split-minutes): 1, 2, ...; 0 = not split
 
     def as_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -85,6 +86,8 @@ def summarize(path: Path) -> RecordingSummary:
     first_ns = last_ns = None
     first_us = last_us = None
     for msg in iter_messages(path, None, info):
+        if not summary.messages:  # the header is read by now: a split part begins in the boot its header names
+            boots.header(info.metadata)
         summary.messages += 1
         summary.topics[msg.topic] = summary.topics.get(msg.topic, 0) + 1
         first_ns = msg.log_time_ns if first_ns is None else min(first_ns, msg.log_time_ns)
@@ -142,6 +145,9 @@ def summarize(path: Path) -> RecordingSummary:
     summary.duration_s = (last_ns - first_ns) / 1e9 if first_ns is not None and last_ns is not None else 0.0
     if first_us is not None and last_us is not None:
         summary.agent_duration_s = (last_us - first_us) / 1e6
+    session = (info.metadata.get("session") or [{}])[0]
+    if session.get("split") == "true" and session.get("part", "").isdigit():
+        summary.part = int(session["part"])
     for name, key in (("agent_hello", "agent"), ("parameters", "parameters")):
         if info.metadata.get(name):
             setattr(summary, key, info.metadata[name][-1])
@@ -154,9 +160,14 @@ def _count(value: object) -> int:
 
 def format_summary(s: RecordingSummary) -> str:
     agent = s.agent.get("name", "?")
+    node_id = s.agent.get("node_id", "?")
+    node_id = f"{int(node_id):08x}" if node_id.isdigit() else node_id  # in hex, as dive status and file names
+    # A later part of a split recording holds no HELLO of its own: its session began in an earlier part.
+    sessions = f"part {s.part} of a split recording" + (f", {s.sessions} session(s)" if s.sessions else "") \
+        if s.part > 1 else f"{s.sessions} session(s)"
     lines = [
         f"{s.path}{'' if s.complete else '  (truncated: run `dive log recover`)'}",
-        f"  agent {agent} id {s.agent.get('node_id', '?')}, {s.sessions} session(s), {s.link_losses} link loss(es), "
+        f"  agent {agent} id {node_id}, {sessions}, {s.link_losses} link loss(es), "
         f"{s.duration_s:.1f} s host time ({s.agent_duration_s:.1f} s agent time), {s.messages} messages",
         f"  samples {s.samples} ({s.samples_backfilled} backfilled, {s.samples_missing} still missing), "
         f"frames lost {s.frames_lost}, rejects {s.rejects}",

@@ -60,7 +60,9 @@ class McapFileWriter:
         self._writer.start(profile=PROFILE, library=f"dive (mcap {mcap_library_version()})")
         self._file.flush()  # the magic and header on disk at once: a kill in the first second leaves no 0-byte file
         self._add = _message_adder(self._writer)
+        self._pending = _pending_chunk_bytes(self._writer)
         self._schemas: dict[str, int] = {}
+        self._summary_bytes = 0  # what close() writes again after the data: schemas and channels (size_on_disk)
         self._channels: dict[str, int] = {}
         self._flush_period_s = flush_period_s
         self._last_flush_s = time.monotonic()
@@ -76,10 +78,13 @@ class McapFileWriter:
             if schema is not None:
                 schema_id = self._schemas.get(schema_name, 0)
                 if not schema_id:
-                    schema_id = self._writer.register_schema(schema_name, JSONSCHEMA, json.dumps(schema).encode())
+                    data = json.dumps(schema).encode()
+                    schema_id = self._writer.register_schema(schema_name, JSONSCHEMA, data)
                     self._schemas[schema_name] = schema_id
+                    self._summary_bytes += len(data) + len(schema_name) + _SUMMARY_RECORD_BYTES
             channel_id = self._writer.register_channel(topic, encoding, schema_id)
             self._channels[topic] = channel_id
+            self._summary_bytes += len(topic) + _SUMMARY_RECORD_BYTES
         return channel_id
 
     def has_channel(self, topic: str) -> bool:
@@ -99,6 +104,20 @@ class McapFileWriter:
         self.messages += len(messages)
         if time.monotonic() - self._last_flush_s >= self._flush_period_s:  # maybe_flush, inlined: once per frame
             self.flush()
+
+    def size_on_disk(self) -> int:
+        """About the bytes this file holds on disk once closed (`dive run --split-mb` counts disk, not messages):
+        what was handed to the file, the chunk being built compressed as well as the chunks before it were, and
+        the summary close() adds (the schemas and channels again, an index entry per chunk: ~1 % of the data).
+        """
+        handed = self._file.tell()
+        pending = self._pending()
+        flushed = self.bytes_written - pending
+        # Before the first chunk is on disk, zstd's ratio on our JSON and raw frames is unknown: assume 1/4 (the
+        # recordings measured 5-10x), so a small split size is not overshot by the whole first chunk.
+        ratio = (handed / flushed) if flushed >= _RATIO_KNOWN_BYTES else 0.25
+        data = handed + int(pending * min(ratio, 1.0))
+        return data + self._summary_bytes + data // 100
 
     def metadata(self, name: str, values: dict[str, Any]) -> None:
         self._writer.add_metadata(name, {k: v if isinstance(v, str) else json.dumps(v) for k, v in values.items()})
@@ -147,6 +166,22 @@ class _MessageIndex(MessageIndex):
         records = self.records
         stream.write(struct.pack(f"<BQHI{2 * len(records)}Q", Opcode.MESSAGE_INDEX, 6 + 16 * len(records),
                                  self.channel_id, 16 * len(records), *chain.from_iterable(records)))
+
+
+_SUMMARY_RECORD_BYTES = 64  # a schema or channel record's fixed fields and its index entry, about
+_RATIO_KNOWN_BYTES = 64 * 1024  # message bytes on disk before their compression ratio is taken as known
+
+
+def _pending_chunk_bytes(writer: Writer) -> Callable[[], int]:
+    """The uncompressed bytes of the chunk the Writer is building (the same internals _message_adder uses);
+    always 0 if this mcap version lays its Writer out differently (the size on disk is then a chunk low)."""
+    builder = getattr(writer, "_Writer__chunk_builder", None)
+
+    def pending() -> int:
+        buffer = getattr(getattr(builder, "record_writer", None), "_buffer", None)
+        return buffer.tell() if isinstance(buffer, BytesIO) else 0
+
+    return pending
 
 
 _Adder = Callable[[tuple[tuple[int, bytes], ...], int, int], None]
@@ -500,6 +535,25 @@ def iter_topic_data(path: Path, topics: set[str],
             raise RecordingError(f"{path} is not an MCAP recording") from None
     finally:
         info.damaged_chunks = damaged[0]
+
+
+def read_header(path: Path) -> dict[str, list[dict[str, str]]]:
+    """The metadata a file begins with, read up to its first message: the recorder writes the session header
+    (agent_hello, host, session, parameters) before anything else. RecordingError if the file is missing or
+    not an MCAP recording."""
+    metadata: dict[str, list[dict[str, str]]] = {}
+    seen = 0
+    try:
+        for record in _records(path):
+            seen += 1
+            if isinstance(record, Metadata):
+                metadata.setdefault(record.name, []).append(dict(record.metadata))
+            elif isinstance(record, Message):
+                break
+    except _Truncated:
+        if seen == 0:
+            raise RecordingError(f"{path} is not an MCAP recording") from None
+    return metadata
 
 
 def read_recording(path: Path, topics: set[str] | None = None) -> RecordingContents:

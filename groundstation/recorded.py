@@ -47,7 +47,25 @@ class Boots:
         body = json_fields(msg, integers=("boot_id",))
         if body is None:
             return False
-        new = self._boot_id is not None and body["boot_id"] != self._boot_id
+        return self.boot(body["boot_id"])
+
+    def header(self, metadata: dict[str, list[dict[str, str]]]) -> bool:
+        """Follow a file's header (its `agent_hello` metadata, the boot the file begins in); True if a new boot.
+
+        A split part after the first holds no HELLO of its own: without this, a reboot inside it would not count.
+        """
+        boot_id = header_boot_id(metadata)
+        return False if boot_id is None else self.boot(boot_id)
+
+    def boot(self, boot_id: int) -> bool:
+        new = self._boot_id is not None and boot_id != self._boot_id
         self.current += new
-        self._boot_id = body["boot_id"]
+        self._boot_id = boot_id
         return new
+
+
+def header_boot_id(metadata: dict[str, list[dict[str, str]]]) -> int | None:
+    """The boot id of the first `agent_hello` metadata record (the HELLO the file was opened with), if readable."""
+    entries = metadata.get("agent_hello") or [{}]
+    text = entries[0].get("boot_id", "")
+    return int(text) if isinstance(text, str) and text.isdigit() else None

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import functools
 import json
+import os
 import platform
 import socket
 import sys
@@ -86,6 +87,19 @@ class RecorderConfig:
     split_s: float = 0.0
     flush_period_s: float = 1.0
 
+    @property
+    def splits(self) -> bool:
+        return bool(self.split_bytes or self.split_s)
+
+    @property
+    def first_file(self) -> Path | None:
+        """The first file's name when the user gave one: `path`, or `path`'s stem + `-part001.mcap` when splitting."""
+        if self.path is None or not self.splits:
+            return self.path
+        return self.path.with_name(f"{self.path.stem}-part001.mcap")
+
+
+_SIZE_CHECK_FRAMES = 32  # frames between looks at a split part's size on disk (~2 KB of disk at most between)
 
 _Method = TypeVar("_Method", bound=Callable[..., None])
 
@@ -126,7 +140,11 @@ class Recorder:
         self._rx_channels: dict[type[Message], int] = {}
         self._tx_channels: dict[type[Message], int] = {}
         self._raw_rx = 0
-        self._splits = bool(self.config.split_bytes or self.config.split_s)
+        self._splits = self.config.splits
+        self._base: Path | None = None  # the file name without its part number and suffix, fixed at the first file
+        # Every part's session metadata carries it: readers tell the parts of one recording from other recordings.
+        self._recording_id = os.urandom(8).hex()
+        self._part_frames = 0  # frames received since the last look at the file's size (see _rotate_if_due)
         self.failure: RecordingError | None = None  # the first write that failed; nothing is written after it
 
     @property
@@ -188,21 +206,33 @@ class Recorder:
                 pass  # the footer may not fit on a full disk; the chunks already flushed stay readable
 
     # ------------------------------------------------------------------ internals
-    def _file_name(self) -> Path:
-        if self.config.path is not None and not self.paths:
-            return self.config.path
-        base = self.config.path.with_suffix("") if self.config.path else \
-            self.config.directory / f"{self._stamp}-agent{self._agent_id:08x}"
-        return base.parent / (f"{base.name}-part{len(self.paths) + 1}.mcap" if self.paths else f"{base.name}.mcap")
+    def _file_name(self, base: Path) -> Path:
+        """`base.mcap`, or for split parts `base-part001.mcap`, `base-part002.mcap`, ...: zero-padded, so name order
+        (ls, a glob, a folder given to `dive replay`) is time order."""
+        part = f"-part{len(self.paths) + 1:03d}" if self._splits else ""
+        return base.with_name(f"{base.name}{part}.mcap")
 
     def _create(self) -> McapFileWriter:
-        """The next file: the name the user gave (refused if it exists), else a made-up name no file has yet."""
-        path = self._file_name()
+        """The next file: the name the user gave (refused if it exists), else a made-up name no file has yet.
+
+        The parts of one recording share one base name: when `…-part001.mcap` is taken (two recorders of one agent in
+        the same second, say the run and a `dive record` through its hub), this one becomes `…-2-part001.mcap`, and its
+        later parts `…-2-part002.mcap`, never mixed into the other's.
+        """
+        if self._base is None:
+            self._base = self.config.path.with_suffix("") if self.config.path else \
+                self.config.directory / f"{self._stamp}-agent{self._agent_id:08x}"
         if self.config.path is not None and not self.paths:
-            return McapFileWriter(path, self.config.flush_period_s)
-        while True:  # two recorders of one agent in the same second: the second takes name-2.mcap
-            try:
-                return McapFileWriter(unused_name(path), self.config.flush_period_s)
+            return McapFileWriter(self._file_name(self._base), self.config.flush_period_s)
+        stem, number = self._base, 1
+        while True:
+            path = self._file_name(self._base)
+            if not self.paths and path.exists():
+                number += 1
+                self._base = stem.with_name(f"{stem.name}-{number}")
+                continue
+            try:  # a later part's name taken all the same (a copy put there): the next free name
+                return McapFileWriter(unused_name(path) if self.paths else path, self.config.flush_period_s)
             except RecordingExistsError:
                 continue  # taken between the look and the exclusive create
 
@@ -218,7 +248,10 @@ class Recorder:
         w.metadata("host", {"hostname": socket.gethostname(), "platform": platform.platform(),
                             "python": sys.version.split()[0], "dive": tool_version(),
                             "mcap": mcap_library_version()})
+        # The session header every part carries, so that each opens on its own (dive log info, replay, export):
+        # the agent's HELLO, the host, the session with the part number and recording id, the parameter table.
         w.metadata("session", {**self.session_info, "part": str(len(self.paths)),
+                               "split": "true" if self._splits else "false", "recording_id": self._recording_id,
                                "started_ns": str(time.time_ns())})
         if self._parameters:
             w.metadata("parameters", self._parameters)
@@ -235,7 +268,11 @@ class Recorder:
     def _rotate_if_due(self) -> None:
         w = self._writer
         assert w is not None
-        too_big = self.config.split_bytes and w.bytes_written >= self.config.split_bytes
+        self._part_frames += 1
+        if self._part_frames < _SIZE_CHECK_FRAMES:  # the size on disk is an estimate; no need to look every frame
+            return
+        self._part_frames = 0
+        too_big = self.config.split_bytes and w.size_on_disk() >= self.config.split_bytes
         too_old = self.config.split_s and time.monotonic() - self._opened_s >= self.config.split_s
         if too_big or too_old:
             w.close()
@@ -257,12 +294,16 @@ class Recorder:
         w.write_many(((channel, body), (self._raw_rx, frame.inner)), host_ns, agent_ns)
         if isinstance(msg, messages.ParamValue):
             self._dumps.saw_parameter(msg.name, msg.value)
+            if self._parameters:  # the table the next part's header carries stays current (a tool's `params set`)
+                self._parameters[msg.name] = msg.value
         elif isinstance(msg, messages.DumpChunk):
             dump = self._dumps.feed(msg)
             if dump is not None:
                 topic = f"/dump/{dump.kind.name}"
                 body = _compact_json(dump.as_dict()).encode()
                 w.write(w.channel(topic, "json", "diving_agent.dump", DUMP_SCHEMA), body, received.host_time_ns)
+        elif isinstance(msg, messages.Hello):  # after a reboot the next part's header names the new boot
+            self._hello = msg.to_dict()
 
     def _write_sent(self, sent: Sent) -> None:
         w = self._writer

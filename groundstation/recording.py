@@ -27,7 +27,7 @@ from numpy.typing import NDArray
 
 from groundstation.errors import RecordingError
 from groundstation.mcap_io import RecordedMessage, RecordingContents, iter_messages
-from groundstation.recorded import Boots, json_fields
+from groundstation.recorded import Boots, header_boot_id, json_fields
 from protocol import EndReason
 
 SAMPLE_TOPIC = "/agent/SAMPLE"
@@ -86,7 +86,14 @@ class Recording:
         seen_samples: set[tuple[int, int]] = set()
         for path in self.files:
             info = RecordingContents()
+            first = True
             for msg in iter_messages(path, None, info):
+                if first:  # the header is read: a split part (no HELLO of its own) begins in the boot it names
+                    first = False
+                    if boots.header(info.metadata) or not self.boot_ids:
+                        boot_id = header_boot_id(info.metadata)
+                        if boot_id is not None:
+                            self.boot_ids.setdefault(boots.current, boot_id)
                 body = json_fields(msg, _REQUIRED_INTEGERS.get(msg.topic, ())) if msg.encoding == "json" else None
                 if msg.topic == HELLO_TOPIC:
                     boots.hello(msg)

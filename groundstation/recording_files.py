@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import math
+import re
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -25,6 +27,60 @@ def expand(paths: list[Path]) -> list[Path]:
         else:
             raise GroundStationError(f"no such recording: {path}")
     return found
+
+
+_PART = re.compile(r"-part\d+$")
+
+Header = dict[str, list[dict[str, str]]]  # a file's metadata records by name (mcap_io.read_header)
+
+
+@dataclass(frozen=True, slots=True)
+class RecordingParts:
+    """The files of one recording in part order (a split recording's parts by part number) and the first's header."""
+
+    files: list[Path]
+    header: Header
+    name: str  # the first file's name without its part number: the recording's name
+    missing: list[int]  # part numbers between the first and the last given that were not given
+
+
+def _session(header: Header) -> dict[str, str]:
+    return (header.get("session") or [{}])[0]
+
+
+def group_recordings(files: list[Path]) -> list[RecordingParts]:
+    """The files as recordings, in the order first given: each file's header read (a missing or non-MCAP file is
+    a RecordingError here, before anything is written), the parts of a split recording together in part order.
+    The same file given twice (by name and through its folder) counts once."""
+    from groundstation.mcap_io import read_header
+
+    first_given: dict[Path, Path] = {}
+    for f in files:
+        first_given.setdefault(f.resolve(), f)  # as the user named it, for the messages and outputs
+    unique = list(first_given.values())
+    headers = {f: read_header(f) for f in unique}
+    grouped: dict[str, list[Path]] = {}
+    for f in unique:
+        session = _session(headers[f])
+        # recording_id since split parts carry it; before that the parts shared the session's URL and start
+        key = session.get("recording_id") or (f"{session['url']}|{session['started']}" if "started" in session
+                                              and "url" in session else str(f))
+        grouped.setdefault(key, []).append(f)
+
+    def part(f: Path) -> int:
+        number = _session(headers[f]).get("part", "")
+        return int(number) if number.isdigit() else 0
+
+    recordings = []
+    for members in grouped.values():
+        ordered = sorted(members, key=part)
+        numbers = [part(f) for f in ordered]
+        for a, b in zip(ordered, ordered[1:], strict=False):
+            if part(a) and part(a) == part(b):
+                raise GroundStationError(f"{a} and {b} are both part {part(a)} of one recording: give one of them")
+        missing = sorted(set(range(numbers[0], numbers[-1] + 1)) - set(numbers)) if numbers[0] else []
+        recordings.append(RecordingParts(ordered, headers[ordered[0]], _PART.sub("", ordered[0].stem), missing))
+    return recordings
 
 
 def being_recorded(path: Path) -> str | None:

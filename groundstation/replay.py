@@ -14,6 +14,8 @@ import numpy as np
 
 from groundstation.columns import record_dtype
 from groundstation.mcap_io import RecordingContents, iter_messages, iter_topic_data
+from groundstation.recording_files import RecordingParts as Parts
+from groundstation.recording_files import group_recordings
 from groundstation.view_errors import ReplayError
 from groundstation.view_model import Batch, ViewModel
 from protocol import PROTOCOL_VERSION, FrameError, FrameFlag, Message, PayloadError, UnknownMessageError, message_class
@@ -54,6 +56,7 @@ class Item:
     agent_time_s: float | None  # the message's own clock, when it has one
     episode: int | None
     feed: Callable[[ViewModel], None]
+    setup: bool = False  # state the view needs whatever the window (a parameter: the grid's size), no rows
 
 
 def _decode(inner: bytes) -> tuple[Message, int] | None:
@@ -75,7 +78,8 @@ def _frame_item(log_time_ns: int, inner: bytes) -> Item | None:
     def feed(model: ViewModel) -> None:
         model.feed(message, log_time_ns, flags=flags)
 
-    return Item(log_time_ns, None if t_us is None else t_us / 1e6, getattr(message, "episode", None), feed)
+    return Item(log_time_ns, None if t_us is None else t_us / 1e6, getattr(message, "episode", None), feed,
+                isinstance(message, m.ParamValue))
 
 
 def _json_item(topic: str, log_time_ns: int, data: bytes) -> Item | None:
@@ -131,6 +135,9 @@ def select(items: Iterator[Item], start: Bound | None, end: Bound | None) -> Ite
     latest_s = 0.0
     episode = 0
     for item in items:
+        if item.setup:
+            yield item
+            continue
         if item.agent_time_s is not None:
             first_s = item.agent_time_s if first_s is None else first_s
             latest_s = item.agent_time_s
@@ -161,6 +168,14 @@ def convert(items: Iterator[Item], progress: Callable[[int], None] | None = None
 
 def convert_recording(path: Path, info: RecordingContents | None = None,
                       progress: Callable[[int], None] | None = None) -> tuple[Batch, int]:
+    """The whole file's rows at once (see _convert_into) and the count of items shown."""
+    model = ViewModel()
+    count = _convert_into(model, path, info, progress)
+    return model.take(), count
+
+
+def _convert_into(model: ViewModel, path: Path, info: RecordingContents | None = None,
+                  progress: Callable[[int], None] | None = None, count: int = 0) -> int:
     """convert(read_items(path)) with runs of SAMPLEs decoded and turned into rows as columns.
 
     A recorded hour holds some 133,000 SAMPLEs: decoding and feeding them one by one is most of a
@@ -169,8 +184,6 @@ def convert_recording(path: Path, info: RecordingContents | None = None,
     counted and do not end a run; every other record takes the per-item path, so episodes, dumps,
     events and damaged frames are shown exactly as convert() shows them (a test compares the two).
     """
-    model = ViewModel()
-    count = 0
     inners: list[bytes] = []
     times: list[int] = []
 
@@ -206,7 +219,7 @@ def convert_recording(path: Path, info: RecordingContents | None = None,
         if progress is not None and count % 4096 == 0:
             progress(count)
     flush()
-    return model.take(), count
+    return count
 
 
 _SAMPLE_ID = m.Sample.MSG_ID
@@ -233,7 +246,71 @@ def play(items: Iterator[Item], sink: Callable[[Callable[[ViewModel], None]], No
     return count
 
 
-def check_nonempty(count: int, path: Path, info: RecordingContents) -> None:
+def check_nonempty(count: int, path: Path | str, info: RecordingContents) -> None:
     if count == 0:
         cut = " (cut short before its first complete chunk)" if info.truncated else ""
         raise ReplayError(f"{path} holds no agent frames to show{cut}")
+
+
+# ---------------------------------------------------------------------- several files: the parts of one recording
+class MixedRecordingsError(ReplayError):
+    """Files of different recordings given to one replay (bad usage: their agent times overlap)."""
+
+
+def plan(files: list[Path]) -> Parts:
+    """The files given as the parts of one recording, in part order, each one's header read first (so a missing
+    or non-MCAP file is one line before anything is shown or written).
+
+    Parts of one split recording play as one timeline: the agent's clock runs on across them. Files of different
+    recordings are refused: their agent times overlap (each starts near the agent's boot), one timeline cannot
+    hold them, and a user replays one session at a time.
+    """
+    recordings = group_recordings(files)
+    if not recordings:
+        raise ReplayError("no recording given")
+    if len(recordings) > 1:
+        names = ", ".join(r.files[0].name for r in recordings[:3]) + (", ..." if len(recordings) > 3 else "")
+        raise MixedRecordingsError(
+            f"the files hold {len(recordings)} recordings ({names}): dive replay shows one at a time "
+            "(a file, or the parts of a split one)")
+    return recordings[0]
+
+
+def header_items(parts: Parts) -> list[Item]:
+    """The parameter table the first file's header carries, as the view takes it (a later part holds no PARAM_VALUE
+    of its own: without these its value and policy heatmaps would take the default grid)."""
+    items: list[Item] = []
+    for name, text in (parts.header.get("parameters") or [{}])[-1].items():
+        try:
+            value = float(text)
+        except ValueError:
+            continue
+        message = m.ParamValue(index=0, count=0, param_type=5, value=value, minimum=value, maximum=value, name=name)
+        items.append(Item(0, None, None, _feeder(message), setup=True))
+    return items
+
+
+def _feeder(message: Message) -> Callable[[ViewModel], None]:
+    def feed(model: ViewModel) -> None:
+        model.feed(message, 0)
+
+    return feed
+
+
+def read_parts(parts: Parts, infos: list[RecordingContents]) -> Iterator[Item]:
+    """The header's items, then every file's items in play order (infos: one per file, filled as they are read)."""
+    yield from header_items(parts)
+    for path, info in zip(parts.files, infos, strict=True):
+        yield from read_items(path, info)
+
+
+def convert_parts(parts: Parts, infos: list[RecordingContents],
+                  progress: Callable[[int], None] | None = None) -> tuple[Batch, int]:
+    """convert_recording over every part into one model: one timeline, the view's state carried across parts."""
+    model = ViewModel()
+    for item in header_items(parts):
+        item.feed(model)
+    count = 0
+    for path, info in zip(parts.files, infos, strict=True):
+        count = _convert_into(model, path, info, progress, count)
+    return model.take(), count

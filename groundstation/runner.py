@@ -214,7 +214,7 @@ def run(config: RunConfig, on_progress: Callable[[RunStatus], None] | None = Non
     `listeners` get the session's traffic too (the live Rerun view is one).
     """
     stop = stop or threading.Event()
-    target = config.recorder.path
+    target = config.recorder.first_file
     if target is not None and target.exists():  # before connecting: the agent is not started for nothing
         raise RecordingExistsError(f"{one_line(target)} exists; a recording is never overwritten: give another name "
                                    "or a directory")

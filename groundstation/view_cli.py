@@ -111,7 +111,9 @@ def _progress_items(items: Iterator[rp.Item], progress: Progress, task: object) 
 
 
 def replay(
-    file: Annotated[Path, typer.Argument(help="An MCAP recording made by `dive run` (a truncated one too).")],
+    files: Annotated[list[Path], typer.Argument(
+        help="An MCAP recording made by `dive run` (a truncated one too), the parts of a split one, or their folder.",
+        show_default=False)],
     speed: Annotated[str, typer.Option("--speed", help="Play in agent time: 1, 10, ... or max.")] = "max",
     rrd: Annotated[Path | None, typer.Option("--rrd", help="Convert to this .rrd file (no viewer needed).")] = None,
     start: Annotated[str | None, typer.Option("--from", help="First episode (12) or time since start (90s, 5m).")]
@@ -121,7 +123,10 @@ def replay(
     web_port: WebPortOption = 9090,
     grpc_port: GrpcPortOption = 9876,
 ) -> None:
-    """Show a recording in the live view's layout, or convert it to .rrd with --rrd."""
+    """Show a recording in the live view's layout, or convert it to .rrd with --rrd.
+
+    The parts of a split recording (several files, or their folder) play as one timeline of agent time.
+    """
     signal.signal(signal.SIGTERM, _interrupt)  # a service manager's stop is a Ctrl-C: clean shutdown
     stopped = False
     try:
@@ -129,40 +134,50 @@ def replay(
 
         from groundstation import replay as rp
         from groundstation.mcap_io import RecordingContents
+        from groundstation.recording_files import expand
         from groundstation.rerun_view import RerunView, ViewConfig
 
         factor = parse_speed(speed)
         try:
             bounds = (rp.parse_bound(start) if start else None, rp.parse_bound(end) if end else None)
             rp.check_order(*bounds)
-        except ViewError as e:
+            parts = rp.plan(expand(files))  # every file's header read: a missing or non-MCAP one stops us here
+        except ViewError as e:  # a bad bound, a reversed window, files of two recordings: bad usage
             raise UsageError(str(e)) from None
-        if not file.is_file():
-            raise ViewError(f"no such recording: {file}")
+        if parts.missing:
+            typer.echo(f"warning: part(s) {', '.join(map(str, parts.missing))} of {one_line(parts.name)} not given; "
+                       "the timeline has a hole there", err=True)
         config = ViewConfig(viewer=default_viewer(viewer, rrd), rrd=rrd, web_port=web_port, grpc_port=grpc_port)
         check_viewer_ports(config.viewer, web_port, grpc_port)
-        status = RecordingContents()
-        items = rp.select(rp.read_items(file, status), *bounds)
+        statuses = [RecordingContents() for _ in parts.files]
+        items = rp.select(rp.read_parts(parts, statuses), *bounds)
+        shown = parts.files[0].name if len(parts.files) == 1 else f"{parts.name} ({len(parts.files)} parts)"
         began = time.perf_counter()
         partial = rrd if rrd is not None and not rrd.exists() else None  # removed again if nothing is shown
-        with _removed_on_error(partial), RerunView.open(config, name=file.stem) as view:
+        with _removed_on_error(partial), RerunView.open(config, name=parts.files[0].stem
+                                                         if len(parts.files) == 1 else parts.name) as view:
             if view.address and factor is not None:
                 typer.echo(f"Rerun web viewer: {view.address}")
             if factor is None:
                 with Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.completed} frames"),
                               TimeElapsedColumn(), transient=True, disable=not sys.stderr.isatty()) as progress:
-                    task = progress.add_task(f"reading {in_markup(file.name)}", total=None)
-                    if bounds == (None, None):  # the whole file: SAMPLEs in columns
-                        batch, count = rp.convert_recording(
-                            file, status, lambda done: progress.update(task, completed=done))  # type: ignore[arg-type]
+                    task = progress.add_task(f"reading {in_markup(shown)}", total=None)
+                    if bounds == (None, None):  # the whole recording: SAMPLEs in columns
+                        batch, count = rp.convert_parts(
+                            parts, statuses, lambda done: progress.update(task, completed=done))  # type: ignore[arg-type]
                     else:
                         batch, count = rp.convert(_progress_items(items, progress, task))
                 view.send(batch)
             else:
                 count = rp.play(items, view.feed_model, factor)
-            rp.check_nonempty(count, file, status)
-            if status.truncated:
-                typer.echo(f"warning: {one_line(file)} was cut short (no footer); showing what was complete", err=True)
+            rp.check_nonempty(count, parts.files[0] if len(parts.files) == 1 else shown, statuses[0])
+            for path, status in zip(parts.files, statuses, strict=True):
+                if status.truncated:
+                    typer.echo(f"warning: {one_line(path)} was cut short (no footer); showing what was complete",
+                               err=True)
+                if status.damaged_chunks:
+                    typer.echo(f"warning: {one_line(path)}: {status.damaged_chunks} damaged chunk(s) skipped",
+                               err=True)
             if rrd is not None:
                 view.flush()
                 typer.echo(f"wrote {one_line(rrd)}: {count} frames in {time.perf_counter() - began:.2f} s")

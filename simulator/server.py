@@ -107,6 +107,7 @@ class AgentServer:
             self.out_delay.put(time.monotonic(), wire)
         elif self.config.speed is not None and len(transport.outbuf) > HIGH_WATER_BYTES:
             self.dropped_full += 1  # like a UART FIFO: the agent does not wait for a slow reader
+            self._log_lost(wire)  # a loss the ground sees as a seq gap, as a fault's is
         else:
             transport.outbuf += wire
 

@@ -37,10 +37,10 @@ def test_the_main_job_survives_the_fault_and_records_every_sample(case: str, tmp
     faults, speed = CASES[case]
     run = run_against_faults(tmp_path, faults, speed=speed, episodes=2)
     link, injected = run.final_link, run.report["out"]
-    if speed == "100" or "--blackout-below" in faults:
-        # At 100x, and once in a full CI run with the blackout at 50x (3 584 against 3 263; it passed alone 4 times
-        # of 4), the ground counts more seq gaps than the agent's report logs as lost to faults (3 398 against 2 046
-        # in one 100x run); not yet explained (docs/reliability.md, "Limits found"). Completeness is exact below.
+    if speed == "100":
+        # All faults at once at 100x: about one run in ten the ground counts one seq gap more than the agent's report
+        # logs as lost (2 131 against 2 130); not yet explained (docs/reliability.md, "Limits found"). Completeness
+        # is exact below.
         assert link["rx_lost"] >= visible_losses(run)
     else:
         assert link["rx_lost"] == visible_losses(run)
