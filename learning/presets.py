@@ -33,6 +33,11 @@ _PRESETS: dict[str, LearnerConfig] = {
     "shared-bins7-diff8-term100-vpen1": replace(
         _SHARED, actuator_bins=7, velocity_diff_steps=8, terminal_reward=-100.0, velocity_penalty=1.0
     ),
+    # The same with 20 depth cells of 1 cm (region 0.1): the shared model learns them for free (it pools over
+    # depth); a finer cell tells the agent better when to brake.
+    "shared-z20-bins7-diff8-term100-vpen1": replace(
+        _SHARED, z_cells=20, actuator_bins=7, velocity_diff_steps=8, terminal_reward=-100.0, velocity_penalty=1.0
+    ),
     # Per-state counts as well, the shared histogram their Dirichlet prior worth 10 transitions: keeps
     # working where dynamics depend on depth.
     "shared-dirichlet": replace(_SHARED, dirichlet_weight=10.0),

@@ -212,7 +212,7 @@ def test_state_index_and_reward_match(ctl: ctypes.CDLL) -> None:
 # LearnerConfig fields of learners the firmware does not have yet (the shared-model family of
 # learning/shared.py, ties drawn per step, the k-step velocity difference): at their defaults, the paper's.
 NOT_ON_FIRMWARE = {"ties_per_step": False, "shared_model": False, "dirichlet_weight": 0.0, "count_bonus": 0.0,
-                   "velocity_diff_steps": 0}
+                   "velocity_diff_steps": 0, "velocity_penalty": 0.0}
 
 
 def test_field_names_cover_python_config() -> None:

@@ -154,3 +154,10 @@ def test_the_hardware_preset_learner_is_what_its_name_says() -> None:
     assert config.shared_model and config.p_explore_start == 0.0
     # 7 bins: 140 types x 40 B + 701 float32 values, well inside the 16 KB goal.
     assert model_memory_bytes(config) == 140 * 40 + 701 * 4 == 8404
+
+
+def test_finer_depth_cells_cost_only_values() -> None:
+    config = learner_preset("shared-z20-bins7-diff8-term100-vpen1")
+    assert config.z_cells == 20
+    # The types do not depend on depth: 140 x 40 B as with 10 cells, and 1 401 float32 values.
+    assert model_memory_bytes(config) == 140 * 40 + 1401 * 4 == 11204
