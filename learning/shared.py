@@ -18,8 +18,9 @@ Model, for porting (the C twin keeps exactly this layout; `shared_memory_bytes` 
 - Shifting: the successor of s = (b, z, v) under code (dz, dv, db) is (clip(b + db), z + dz, v + dv);
   z + dz outside 0..Z-1, or v + dv outside 0..V-1 (unless depth_only_terminal, which clips v), is the
   terminal state.
-- Reward from the cell, no reward table: r(s') = -|centre of s' depth cell - z_d|, the terminal reward
-  (-10) for the terminal state.
+- Reward from the cell, no reward table: r(s') = -|centre of s' depth cell - z_d|
+  - velocity_penalty * |centre of s' velocity cell| (the second term only when velocity_penalty > 0),
+  the terminal reward (-10; -100 in the bins7 presets) for the terminal state.
 - No Q table, no policy table: Q(s, a) = sum_k c_k / total * (r(s'_k) + gamma v(s'_k)) (+ count bonus)
   from V and the type's slots when acting or planning; a type with total < known_count has Q =
   untried_q_value (0: optimistic). Values: float32 per state, terminal included (always 0).
