@@ -1,16 +1,19 @@
 """Firmware resources: the Teensy build's flash and RAM per learner; instructions per step on the emulated M4.
 
-Run: .venv/bin/python benchmarks/firmware_bench.py [--episodes N]
+Run: .venv/bin/python benchmarks/firmware_bench.py [--episodes N] [--learner NAME ...]
 
-Flash and RAM: the two variants of `make -C firmware teensy`, whose learner storage fits the paper
-learner (S = 101) and the actuator-state learner (S = 301), read with arm-none-eabi-size; RAM = .data +
+Flash and RAM: the variants of `make -C firmware teensy`, whose learner storage fits the paper
+learner (S = 101), the actuator-state learner (S = 301) and the shared-model learner with 13 actuator bins
+(S = 1301), read with arm-none-eabi-size; RAM = .data +
 .bss, which holds the linker script's stack reserve; the stack peak measured on the emulated board (the
 same core, painted stack) shows whether the reserve suffices.
 
 Instructions: the QEMU build runs under `-icount shift=0` (one instruction = 1 ns of virtual time) and
 times each agent step on the 25 MHz APB timer (40 instructions per tick); a calibration loop of a known
 instruction count is the anchor, measured in the same run. `dive run` drives the learning episodes.
-Shares of a period assume one instruction per cycle at 72 MHz (the MK20DX256's clock).
+Shares of a period assume one instruction per cycle at 72 MHz (the MK20DX256's clock). Per episode: the
+instructions of the steps that ran planning (recovery controller included), and the steps longer than
+their period at 72 MHz ("late", counted by the board), which must stay 0.
 """
 
 from __future__ import annotations
@@ -29,7 +32,7 @@ from rich.console import Console
 from learning import LearnerConfig, learner_memory_bytes, n_states
 from learning.presets import learner_preset
 from protocol import Mode
-from protocol.parameters import SNAPSHOT_BYTES_PER_STATE, SNAPSHOTS_HELD
+from protocol.parameters import snapshot_ram_bytes
 from simulator.firmware_qemu import FIRMWARE_DIR, QemuAgent, QemuConfig, build_elf
 
 CPU_HZ = 72e6
@@ -42,15 +45,23 @@ PERIOD_S = {Mode.LEARNING: 0.1, Mode.RECOVERING: 0.025, Mode.IDLE: 0.1, Mode.SUR
 LEARNERS: dict[str, tuple[LearnerConfig, list[str], str]] = {
     "paper (S = 101)": (LearnerConfig(), [], "paper"),
     "actuator3 (S = 301)": (learner_preset("actuator3"), ["--param", "act_bins=3"], "actuator3"),
+    # Set in this order: shared_model first, so that every intermediate learner fits the arena.
+    "shared-bins13-diff4 (S = 1301)": (learner_preset("shared-bins13-diff4"), [
+        "--param", "shared_model=1", "--param", "in_place_sweeps=1", "--param", "p_explore_start=0",
+        "--param", "vel_diff_steps=4", "--param", "act_bins=13"], "shared-bins13"),
 }
+POLICY_BITS_PER_STATE = 2  # the shared learner's policy (firmware/src/shared.c), in whole words
 _FIELDS = re.compile(r"(\w+)=(\d+)")
 
 
 def arena_flags(config: LearnerConfig) -> str:
     """The learner's and the snapshot store's arenas sized for this learner (what its build would hold)."""
     s = n_states(config)
-    learner_bytes = learner_memory_bytes(config) + 4 * s  # + the Jacobi sweep buffer
-    dumps_bytes = SNAPSHOTS_HELD * SNAPSHOT_BYTES_PER_STATE * s
+    if config.shared_model:  # in-place sweeps: no sweep buffer; the policy bits on top
+        learner_bytes = learner_memory_bytes(config) + (-(-s * POLICY_BITS_PER_STATE // 8) + 3) // 4 * 4
+    else:
+        learner_bytes = learner_memory_bytes(config) + 4 * s  # + the Jacobi sweep buffer
+    dumps_bytes = snapshot_ram_bytes(s, config.shared_model)
     return f"-DLEARNER_ARENA_BYTES={learner_bytes}u -DDUMPS_ARENA_BYTES={dumps_bytes}u"
 
 
@@ -93,6 +104,11 @@ class QemuRun:
     stack_peak_bytes: int
     learner_bytes: int
     episodes: int
+    late_steps: int
+    plan_waits: int
+    forced_plans: int
+    plan_ticks: list[int]  # per episode: ticks of the steps that ran its planning
+    sweeps: list[int]  # per episode
 
 
 def qemu_run(config: LearnerConfig, run_args: list[str], episodes: int, work: Path) -> QemuRun:
@@ -110,6 +126,8 @@ def qemu_run(config: LearnerConfig, run_args: list[str], episodes: int, work: Pa
     cal = dict(_FIELDS.findall(next(x for x in lines if x.startswith("CAL"))))
     steps: dict[tuple[int, int], StepStats] = {}
     sweeps: dict[str, str] = {}
+    plan_ticks: list[int] = []
+    per_episode: list[int] = []
     for line in lines:
         fields = dict(_FIELDS.findall(line))
         if line.startswith("BENCH"):
@@ -117,10 +135,15 @@ def qemu_run(config: LearnerConfig, run_args: list[str], episodes: int, work: Pa
             steps[key] = StepStats(int(fields["steps"]), int(fields["sum_ticks"]), int(fields["max_ticks"]))
         elif line.startswith("SWEEPS"):
             sweeps = fields
+            if int(fields["episode"]) > 0:  # episode 0: the plan on the empty model at boot
+                plan_ticks.append(int(fields["plan_ticks"]))
+                per_episode.append(int(fields["last"]))
     if not sweeps:
         raise SystemExit("the firmware printed no counters (no episode ended)")
     return QemuRun(int(cal["instructions"]) / int(cal["ticks"]), int(cal["ticks"]), steps, int(sweeps["max"]),
-                   int(sweeps["stack_peak_bytes"]), int(sweeps["learner_bytes"]), int(sweeps["episode"]))
+                   int(sweeps["stack_peak_bytes"]), int(sweeps["learner_bytes"]), int(sweeps["episode"]),
+                   int(sweeps["late_steps"]), int(sweeps["plan_waits"]), int(sweeps["forced_plans"]), plan_ticks,
+                   per_episode)
 
 
 def share(instructions: float, period_s: float) -> float:
@@ -130,17 +153,21 @@ def share(instructions: float, period_s: float) -> float:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--episodes", type=int, default=8, help="learning episodes per learner on QEMU")
+    parser.add_argument("--learner", action="append", choices=[n.split()[0] for n in LEARNERS],
+                        help="only these learners (repeatable; default all)")
     args = parser.parse_args()
+    chosen = {n: v for n, v in LEARNERS.items() if not args.learner or n.split()[0] in args.learner}
     for tool in ("arm-none-eabi-gcc", "arm-none-eabi-size", "qemu-system-arm", "make"):
         if shutil.which(tool) is None:
             raise SystemExit(f"{tool} not found: the firmware benchmark needs it")
     console = Console(stderr=True)
     rows: list[str] = []
     step_rows: list[str] = []
+    plan_rows: list[str] = []
     with tempfile.TemporaryDirectory(prefix="firmware-bench-") as scratch:
         with console.status("make -C firmware teensy"):
             teensy_sizes = teensy_builds(Path(scratch) / "teensy-build")
-        for name, (config, run_args, variant) in LEARNERS.items():
+        for name, (config, run_args, variant) in chosen.items():
             work = Path(scratch) / name.split()[0]
             work.mkdir()
             teensy = teensy_sizes if isinstance(teensy_sizes, str) else teensy_sizes.get(variant, "no such variant")
@@ -168,12 +195,24 @@ def main() -> None:
                     f"| {name} | {what} | {st.steps} | {mean:,.0f} | {peak:,.0f} | {period * 1e3:.0f} ms | "
                     f"{share(mean, period):.2%} | {share(peak, period):.2%} |")
             step_rows.append(f"| {name} | most sweeps in one planning run | {run.max_sweeps} | | | | | |")
+            instr = [t * ipt for t in run.plan_ticks]
+            mean_instr = sum(instr) / len(instr) if instr else 0.0
+            mean_sweeps = sum(run.sweeps) / max(len(run.sweeps), 1)
+            plan_rows.append(
+                f"| {name} | {run.episodes} | {mean_sweeps:.1f} / {max(run.sweeps, default=0)} | "
+                f"{mean_instr:,.0f} / {max(instr, default=0):,.0f} | {mean_instr / CPU_HZ:.2f} s / "
+                f"{max(instr, default=0) / CPU_HZ:.2f} s | {run.plan_waits} | {run.forced_plans} | "
+                f"**{run.late_steps}** |")
     # Plain prints: the tables go into docs/firmware.md as they are (rich would wrap them).
     print("\n| Teensy build | flash B | RAM B | stack peak B (QEMU) | learner arrays B |\n|---|---|---|---|---|")
     print("\n".join(rows))
     print("\n| learner | step | steps | instructions mean | instructions max | period | mean share at 72 MHz | "
           "max share |\n|---|---|---|---|---|---|---|---|")
     print("\n".join(step_rows))
+    print("\n| learner | episodes | sweeps per plan mean / max | instructions of the planning steps per episode mean "
+          "/ max | at 72 MHz | recovery steps waiting for a plan | forced plans | late steps |\n"
+          "|---|---|---|---|---|---|---|---|")
+    print("\n".join(plan_rows))
 
 
 if __name__ == "__main__":

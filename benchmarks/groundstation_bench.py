@@ -1,5 +1,9 @@
 """Ground-station speed: frames/s through decode + record vs the mcap writer alone; command RTT vs a raw echo.
 
+Command round trip: PARAM_GET -> ACK through a Session to the virtual agent (`sim://?speed=1`: idle, stepping in
+real time), against a 20-byte frame echoed by another process and received by a reader thread. The agent's
+reply time seen by a bare client (no session) is printed too, to show which side the time is on.
+
 Run: .venv/bin/python benchmarks/groundstation_bench.py
 """
 
@@ -19,10 +23,11 @@ from mcap.writer import CompressionType, Writer
 
 from groundstation.events import Received
 from groundstation.links import open_link
+from groundstation.links.sim import SimLink
 from groundstation.recorder import Recorder, RecorderConfig, message_json, message_schema
 from groundstation.session import Session, SessionConfig
 from groundstation.stats import percentile
-from protocol import StreamDecoder, compiled
+from protocol import FrameEncoder, StreamDecoder, compiled
 from protocol import messages as m
 
 CAPTURE_S = 6.0
@@ -93,12 +98,34 @@ def writer_alone(wire: bytes, path: Path) -> tuple[float, int]:
     return time.process_time() - start, len(bodies)
 
 
-def command_rtts(n: int = 300) -> list[float]:
-    with Session(open_link("sim://?speed=1&seed=1"), SessionConfig(fetch_params=False)) as s:
+def command_rtts(n: int = 300) -> tuple[list[float], list[float]]:
+    """PARAM_GET -> ACK through a Session, to the virtual agent at --speed 1 (idle, stepping in real time as a
+    diving agent does), then the same command from a bare client on the same agent (no session, no reader thread:
+    the agent's own reply time, for the breakdown). Returns (session RTTs, bare-client RTTs)."""
+    link = open_link("sim://?speed=1&seed=1")
+    with Session(link, SessionConfig(fetch_params=False, reconnect=False)) as s:
         rtts = []
         for _ in range(n):
             t = time.perf_counter()
             s.command(m.ParamGet(index=0, name=""))
+            rtts.append(time.perf_counter() - t)
+        assert isinstance(link, SimLink) and link.agent_url is not None
+        return rtts, bare_rtts(link.agent_url, n)  # the agent serves one client: this connection replaces the session's
+
+
+def bare_rtts(url: str, n: int) -> list[float]:
+    """PARAM_GET -> ACK on a plain socket, read in the sending thread."""
+    host, port = url.removeprefix("tcp://").rsplit(":", 1)
+    encoder, decoder = FrameEncoder(), StreamDecoder()
+    with socket.create_connection((host, int(port))) as sock:
+        sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        rtts = []
+        for _ in range(n):
+            wire = encoder.encode(m.ParamGet(index=0, name="")).wire
+            t = time.perf_counter()
+            sock.sendall(wire)
+            while not any(isinstance(f.message, m.Ack) for f in decoder.feed(sock.recv(65536))):
+                pass
             rtts.append(time.perf_counter() - t)
     return rtts
 
@@ -168,13 +195,19 @@ def main() -> None:
             print(f"round {round_ + 1}: decode + record (StreamDecoder + Recorder) {full_fps:10,.0f} frames/s; "
                   f"mcap Writer alone, same frames {alone_fps:10,.0f} frames/s; ratio {ratios[-1]:.2f}")
     print(f"ratio decode+record / writer alone: median {statistics.median(ratios):.2f} of {ROUNDS} (goal >= 1.0)")
-    # Three rounds in turn; medians over all round trips of each kind.
+    # Three rounds in turn (a change of load falls on both); each round's ratio, then medians over all round trips.
     cmd: list[float] = []
+    bare: list[float] = []
     echo: list[float] = []
-    for _ in range(ROUNDS):
-        cmd += command_rtts()
-        echo += echo_rtts()
+    for round_ in range(ROUNDS):
+        cmd_round, bare_round = command_rtts()
+        echo_round = echo_rtts()
+        cmd, bare, echo = cmd + cmd_round, bare + bare_round, echo + echo_round
+        print(f"round {round_ + 1}: command round trip {statistics.median(cmd_round) * 1e3:.3f} ms; "
+              f"echo {statistics.median(echo_round) * 1e3:.3f} ms; ratio "
+              f"{statistics.median(cmd_round) / statistics.median(echo_round):.2f}")
     for name, values in (("command round trip (PARAM_GET -> ACK)", cmd),
+                         ("  the agent's reply alone (bare client)", bare),
                          ("echo via another process + reader thread", echo)):
         print(f"{name:42s} median {statistics.median(values) * 1e3:7.3f} ms   "
               f"p95 {percentile(values, 0.95) * 1e3:7.3f} ms")

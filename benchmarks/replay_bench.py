@@ -32,7 +32,7 @@ from groundstation.events import Received  # noqa: E402
 from groundstation.links import make_link  # noqa: E402
 from groundstation.mcap_io import RecordingContents, iter_messages  # noqa: E402
 from groundstation.recorder import Recorder, RecorderConfig  # noqa: E402
-from groundstation.rerun_view import new_recording, send_batch, send_styles  # noqa: E402
+from groundstation.rerun_view import log_frame, new_recording, send_batch, send_styles  # noqa: E402
 from groundstation.session import Session, SessionConfig  # noqa: E402
 from groundstation.view_model import ENTITIES, Batch, Kind  # noqa: E402
 from protocol import Mode  # noqa: E402
@@ -79,6 +79,8 @@ def convert_rows(mcap: Path, rrd: Path) -> tuple[float, int]:
                 rec.log(path, rr.TextLog(value[0], level=value[1]))
             elif kind == Kind.BOX:
                 rec.log(path, rr.Boxes2D(centers=[value[:2]], half_sizes=[(0.5, 0.5)], labels=[value[2]]))
+            elif kind == Kind.FRAME:
+                log_frame(rec, path, value)  # logged row by row by the view too
             else:
                 rec.log(path, rr.Image(value, color_model="RGB"))
     rec.flush()

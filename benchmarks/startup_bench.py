@@ -15,9 +15,9 @@ import subprocess
 import sys
 import time
 
-COMMANDS = [["--help"], ["run", "-h"], ["view", "-h"], ["replay", "-h"], ["status", "-h"], ["params", "-h"],
-            ["surface", "-h"], ["hover", "-h"], ["dump", "-h"], ["mark", "-h"], ["log", "info", "-h"],
-            ["log", "export", "-h"], ["keygen", "-h"]]
+COMMANDS = [["--help"], ["run", "-h"], ["view", "-h"], ["replay", "-h"], ["record", "-h"], ["status", "-h"],
+            ["params", "-h"], ["surface", "-h"], ["hover", "-h"], ["dump", "-h"], ["mark", "-h"], ["check", "-h"],
+            ["log", "info", "-h"], ["log", "export", "-h"], ["log", "recover", "-h"], ["keygen", "-h"]]
 
 
 def _time(argv: list[str], repeat: int) -> tuple[float, float]:

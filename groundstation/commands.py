@@ -10,6 +10,40 @@ from protocol import AckResult, Message
 from protocol import messages as m
 
 
+class Latch:
+    """A one-shot event: set() once from any thread, wait() returns at once after it.
+
+    A command's wake-up is on its round trip: threading.Event builds a Condition (5-6 us) and its set() and
+    wait() each take the condition's lock and juggle a waiter lock in Python; this is one lock, taken at
+    creation and released by set(), the waiter's acquire() returning in C.
+    """
+
+    __slots__ = ("_lock", "_unreleased")
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._lock.acquire()
+        self._unreleased = [self._lock]  # list.pop is atomic: of two threads setting at once, one releases
+
+    def set(self) -> None:
+        try:
+            lock = self._unreleased.pop()
+        except IndexError:
+            return
+        lock.release()
+
+    def is_set(self) -> bool:
+        return not self._unreleased
+
+    def wait(self, timeout_s: float) -> bool:
+        if not self._unreleased:
+            return True
+        if self._lock.acquire(timeout=max(0.0, timeout_s)):
+            self._lock.release()  # for any later waiter
+            return True
+        return not self._unreleased
+
+
 @dataclass
 class PendingCommand:
     message: Message
@@ -20,7 +54,7 @@ class PendingCommand:
     attempts: int = 1
     give_up_s: float | None = None  # retried (same seq) until then, however many tries; None: `retries` tries
     ack: m.Ack | None = None
-    done: threading.Event = field(default_factory=threading.Event)
+    done: Latch = field(default_factory=Latch)
 
 
 class PendingCommands:

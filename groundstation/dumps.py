@@ -64,7 +64,9 @@ class _Partial:
 # byte is allocated. S = z_cells * zdot_cells * act_bins + 1 comes from the agent's parameters (PARAM_VALUE) when
 # they have been seen; until then S is taken as at most UNKNOWN_GRID_STATES, the most any agent can hold.
 HELD_SNAPSHOTS = 4  # the agent keeps the newest 4 snapshots (SPEC.md 1.1); an older one can never be completed
-UNKNOWN_GRID_STATES = 319  # SPEC.md s. 10/13: the agent's RAM budget allows S <= 319 (COUNTS: 407 044 bytes)
+# SPEC.md s. 10/13: the largest S the RAM budget admits: 316 for the paper's model, 2 071 for the shared model
+# (z_cells 46, zdot_cells 45), whose COUNTS is then 17 156 164 bytes; a test derives it from the RAM formula.
+UNKNOWN_GRID_STATES = 2071
 _GRID_PARAMETERS = ("z_cells", "zdot_cells", "act_bins")
 
 

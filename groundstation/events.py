@@ -6,7 +6,7 @@ import time
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from enum import StrEnum
-from typing import Any, Protocol
+from typing import Any, NamedTuple, Protocol
 
 from protocol import Frame, Message
 
@@ -22,9 +22,12 @@ class EventKind(StrEnum):
     STATS = "stats"  # 1 Hz link statistics (data: LinkStats.snapshot(), clock model)
 
 
-@dataclass(frozen=True, slots=True)
-class Received:
-    """One frame from the agent as the session saw it."""
+class Received(NamedTuple):
+    """One frame from the agent as the session saw it.
+
+    A named tuple (immutable, as a frozen dataclass) because one is built for every frame received: a frozen
+    dataclass's __init__ sets each field through object.__setattr__ and costs about 1 us more per frame.
+    """
 
     frame: Frame
     host_time_ns: int  # host clock when the frame arrived

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import os
-import secrets
 from pathlib import Path
 from typing import Annotated
 
@@ -30,7 +29,9 @@ def write_key_file(path: Path, force: bool = False) -> Path:
                            ) from e
     except OSError as e:
         raise KeyFileError(f"cannot write key file {path}: {e.strerror or e}") from e
-    from protocol.signing import KEY_SIZE, format_key  # here: `dive --help` does not load the protocol
+    import secrets  # here, with the protocol: `dive --help` needs neither
+
+    from protocol.signing import KEY_SIZE, format_key
 
     with os.fdopen(fd, "w", encoding="ascii") as f:
         os.fchmod(f.fileno(), 0o600)  # O_TRUNC on an existing file keeps its old mode

@@ -59,7 +59,7 @@ class McapFileWriter:
         self._writer = Writer(self._file, chunk_size=256 * 1024, compression=CompressionType.ZSTD)
         self._writer.start(profile=PROFILE, library=f"dive (mcap {mcap_library_version()})")
         self._file.flush()  # the magic and header on disk at once: a kill in the first second leaves no 0-byte file
-        self._add = _message_adder(self._writer)
+        self._add, self._add_pair = _message_adders(self._writer)
         self._pending = _pending_chunk_bytes(self._writer)
         self._schemas: dict[str, int] = {}
         self._summary_bytes = 0  # what close() writes again after the data: schemas and channels (size_on_disk)
@@ -103,6 +103,16 @@ class McapFileWriter:
         self.bytes_written += written
         self.messages += len(messages)
         if time.monotonic() - self._last_flush_s >= self._flush_period_s:  # maybe_flush, inlined: once per frame
+            self.flush()
+
+    def write_frame(self, channel_id: int, data: bytes, raw_channel_id: int, raw: bytes, log_time_ns: int,
+                    publish_time_ns: int | None = None) -> None:
+        """write_many of a frame's two messages (JSON body, raw bytes) without building tuples: every frame's path."""
+        self._add_pair(channel_id, data, raw_channel_id, raw, log_time_ns,
+                       log_time_ns if publish_time_ns is None else publish_time_ns)
+        self.bytes_written += len(data) + len(raw) + 80  # as write_many counts them
+        self.messages += 2
+        if time.monotonic() - self._last_flush_s >= self._flush_period_s:
             self.flush()
 
     def size_on_disk(self) -> int:
@@ -173,7 +183,7 @@ _RATIO_KNOWN_BYTES = 64 * 1024  # message bytes on disk before their compression
 
 
 def _pending_chunk_bytes(writer: Writer) -> Callable[[], int]:
-    """The uncompressed bytes of the chunk the Writer is building (the same internals _message_adder uses);
+    """The uncompressed bytes of the chunk the Writer is building (the same internals _message_adders uses);
     always 0 if this mcap version lays its Writer out differently (the size on disk is then a chunk low)."""
     builder = getattr(writer, "_Writer__chunk_builder", None)
 
@@ -185,10 +195,12 @@ def _pending_chunk_bytes(writer: Writer) -> Callable[[], int]:
 
 
 _Adder = Callable[[tuple[tuple[int, bytes], ...], int, int], None]
+_PairAdder = Callable[[int, bytes, int, bytes, int, int], None]
 
 
-def _message_adder(writer: Writer) -> _Adder:
-    """`add(((channel_id, data), ...), log_time, publish_time)`: what Writer.add_message does for each message.
+def _message_adders(writer: Writer) -> tuple[_Adder, _PairAdder]:
+    """`add(((channel_id, data), ...), log_time, publish_time)`: what Writer.add_message does for each message,
+    and `add_pair(channel_id, data, channel_id, data, log_time, publish_time)`, the same for two messages.
 
     Writer.add_message builds a Message record object and writes it field by field (eight small writes
     and two seeks), more than a frame costs us to decode and encode as JSON; a recorder writes two per
@@ -208,13 +220,20 @@ def _message_adder(writer: Writer) -> _Adder:
         def add_messages(messages: tuple[tuple[int, bytes], ...], log_time: int, publish_time: int) -> None:
             for channel_id, data in messages:
                 writer.add_message(channel_id, log_time=log_time, data=data, publish_time=publish_time)
-        return add_messages
+
+        def add_two(first: int, data: bytes, second: int, raw: bytes, log_time: int, publish_time: int) -> None:
+            add_messages(((first, data), (second, raw)), log_time, publish_time)
+        return add_messages, add_two
     assert builder is not None and records is not None
     channel_counts = statistics.channel_message_counts
     indices = builder.message_indices
     pack = _MESSAGE_HEAD.pack
 
-    def add(messages: tuple[tuple[int, bytes], ...], log_time: int, publish_time: int) -> None:
+    head_size = _MESSAGE_HEAD.size
+    message_op = int(Opcode.MESSAGE)  # an IntEnum member costs struct.pack a call to __index__
+
+    def add_each(messages: tuple[tuple[int, bytes], ...], log_time: int, publish_time: int) -> None:
+        """Message by message, closing the chunk as soon as it is full (as add_message does)."""
         stats = statistics
         chunk = builder
         buffer = records._buffer  # a new BytesIO after every chunk
@@ -237,11 +256,60 @@ def _message_adder(writer: Writer) -> _Adder:
             chunk.num_messages += 1
             buffer.write(pack(Opcode.MESSAGE, _MESSAGE_FIELDS + len(data), channel_id, 0, log_time, publish_time))
             buffer.write(data)
-            if position + _MESSAGE_HEAD.size + len(data) > chunk_size:  # Writer.__maybe_finalize_chunk
+            if position + head_size + len(data) > chunk_size:  # Writer.__maybe_finalize_chunk
                 finalize()
                 buffer = records._buffer
 
-    return add
+    def add(messages: tuple[tuple[int, bytes], ...], log_time: int, publish_time: int) -> None:
+        """A frame's two messages (its JSON body and its raw bytes) with the bookkeeping done once, one write.
+
+        The result is add_each's: both have the same times, so the start and end times can change only at the
+        first; a chunk that fills at the first goes through add_each, which closes it in between.
+        """
+        if len(messages) != 2:
+            add_each(messages, log_time, publish_time)
+            return
+        (first, data), (second, raw) = messages
+        add_pair(first, data, second, raw, log_time, publish_time)
+
+    def add_pair(first: int, data: bytes, second: int, raw: bytes, log_time: int, publish_time: int) -> None:
+        buffer = records._buffer
+        position = buffer.tell()
+        data_size, raw_size = len(data), len(raw)
+        middle = position + head_size + data_size
+        if middle > chunk_size:
+            add_each(((first, data), (second, raw)), log_time, publish_time)
+            return
+        stats = statistics
+        chunk = builder
+        count = stats.message_count
+        if log_time < stats.message_start_time or count == 0:
+            stats.message_start_time = log_time
+        if log_time > stats.message_end_time:
+            stats.message_end_time = log_time
+        stats.message_count = count + 2
+        count = chunk.num_messages
+        if log_time < chunk.message_start_time or count == 0:
+            chunk.message_start_time = log_time
+        if log_time > chunk.message_end_time:
+            chunk.message_end_time = log_time
+        chunk.num_messages = count + 2
+        channel_counts[first] += 1
+        channel_counts[second] += 1
+        try:  # after the first frame of a chunk both channels have their index
+            indices[first].records.append((log_time, position))
+        except KeyError:
+            indices[first] = _MessageIndex(channel_id=first, records=[(log_time, position)])
+        try:
+            indices[second].records.append((log_time, middle))
+        except KeyError:
+            indices[second] = _MessageIndex(channel_id=second, records=[(log_time, middle)])
+        buffer.write(b"".join((pack(message_op, _MESSAGE_FIELDS + data_size, first, 0, log_time, publish_time), data,
+                               pack(message_op, _MESSAGE_FIELDS + raw_size, second, 0, log_time, publish_time), raw)))
+        if middle + head_size + raw_size > chunk_size:
+            finalize()
+
+    return add, add_pair
 
 
 @dataclass(frozen=True, slots=True)

@@ -77,6 +77,7 @@ def message_json(message: Message, seq: int, flags: int, backfilled: bool) -> by
 
 # Messages orjson can serialise from their fields as the recording wants them (not empty, no bytes to hex).
 _DIRECT = frozenset(cls for cls in message_classes().values() if cls._names and not cls._bytes_names)
+_NOTED = frozenset((messages.ParamValue, messages.DumpChunk, messages.Hello))  # see Recorder._note
 
 
 @dataclass(frozen=True, slots=True)
@@ -152,8 +153,22 @@ class Recorder:
         return self.paths[-1] if self.paths else None
 
     # ------------------------------------------------------------------ listener
-    @_guarded
     def on_received(self, received: Received) -> None:
+        # _guarded written out: this runs for every frame, and the decorator's extra call is a tenth of its cost.
+        with self._lock:
+            if self.failure is not None:
+                return
+            try:
+                if self._writer is None or self._splits:
+                    self._first_or_rotate(received)
+                    if self._writer is None:
+                        return
+                self._write_received(received)
+            except OSError as e:  # RecordingError is an OSError too
+                self._fail(e)
+
+    def _first_or_rotate(self, received: Received) -> None:
+        """Open the file at the agent's HELLO (keeping what came before it), or start the next part when due."""
         msg = received.frame.message
         if self._writer is None and isinstance(msg, messages.Hello):
             self._hello = msg.to_dict()
@@ -161,10 +176,8 @@ class Recorder:
             self._open()
         if self._writer is None:
             self._early.append(("rx", received))
-            return
-        if self._splits:
+        elif self._splits:
             self._rotate_if_due()
-        self._write_received(received)
 
     @_guarded
     def on_sent(self, sent: Sent) -> None:
@@ -281,17 +294,26 @@ class Recorder:
     def _write_received(self, received: Received) -> None:
         w = self._writer
         assert w is not None
-        frame = received.frame
-        msg = frame.message
-        host_ns, agent_ns = received.host_time_ns, received.agent_time_ns
-        if received.after_end:  # from after the run's end: the raw frame only (Session.request_backfill)
+        frame, host_ns, agent_ns, backfilled, after_end = received
+        if after_end:  # from after the run's end: the raw frame only (Session.request_backfill)
             w.write(self._raw_rx, frame.inner, host_ns, agent_ns)
             return
-        channel = self._rx_channels.get(msg.__class__)
+        msg = frame.message
+        cls = msg.__class__
+        channel = self._rx_channels.get(cls)
         if channel is None:
-            channel = self._rx_channels[msg.__class__] = self._message_channel(w, "/agent", msg.__class__)
-        body = message_json(msg, frame.seq, frame.flags, received.backfilled)
-        w.write_many(((channel, body), (self._raw_rx, frame.inner)), host_ns, agent_ns)
+            channel = self._rx_channels[cls] = self._message_channel(w, "/agent", cls)
+        w.write_frame(channel, message_json(msg, frame.seq, frame.flags, backfilled), self._raw_rx, frame.inner,
+                      host_ns, agent_ns)
+        if cls in _NOTED:
+            self._note(msg, host_ns)
+
+    def _note(self, msg: Message, host_ns: int) -> None:
+        """What the recorder keeps of a few messages: a parameter (it bounds a dump's size, and the next part's
+        header carries the table), a dump's chunks (the last one completes it: the dump goes to /dump/<kind>),
+        a HELLO (the next part's header names the agent's boot)."""
+        w = self._writer
+        assert w is not None
         if isinstance(msg, messages.ParamValue):
             self._dumps.saw_parameter(msg.name, msg.value)
             if self._parameters:  # the table the next part's header carries stays current (a tool's `params set`)
@@ -301,7 +323,7 @@ class Recorder:
             if dump is not None:
                 topic = f"/dump/{dump.kind.name}"
                 body = _compact_json(dump.as_dict()).encode()
-                w.write(w.channel(topic, "json", "diving_agent.dump", DUMP_SCHEMA), body, received.host_time_ns)
+                w.write(w.channel(topic, "json", "diving_agent.dump", DUMP_SCHEMA), body, host_ns)
         elif isinstance(msg, messages.Hello):  # after a reboot the next part's header names the new boot
             self._hello = msg.to_dict()
 

@@ -19,6 +19,7 @@ import rerun as rr
 import rerun.blueprint as rrb
 
 from groundstation.events import LinkEvent, Received, Sent
+from groundstation.heatmap import AXIS_COLOUR, DEFAULT_GRID, SWATCH_RADIUS, Bounds, Frame, bounds, default_grid
 from groundstation.view_errors import ViewError
 from groundstation.view_model import ENTITIES, Batch, Kind, Rows, ViewModel
 from groundstation.view_options import Viewer
@@ -58,29 +59,63 @@ class ViewConfig:
         return self.viewer != Viewer.NONE or self.rrd is not None
 
 
-def blueprint() -> rrb.Blueprint:
-    """The shipped layout: time series on the left, heatmaps, learning curve and logs on the right."""
+def _f32_free(value: float) -> float:
+    """The value as written (0.04, not the f32 0.03999999910593033 the wire gives): layouts compare equal."""
+    return float(f"{value:.6g}")
+
+
+@dataclass(frozen=True)
+class Layout:
+    """What the layout's scales are made for: the agent's velocity bound and the heatmaps' extent."""
+
+    zdot_tol_mps: float = _f32_free(DEFAULT_GRID["zdot_tol_mps"])
+    heatmap: Bounds = bounds(default_grid())
+
+    def velocity_range_mps(self) -> tuple[float, float]:
+        """Three times the learning region's bound: the bounds sit a third of the way out, and the plot's ticks
+        (powers of ten) get room for a labelled value either side of zero (at +-1 bound: zero alone)."""
+        return (-3.0 * self.zdot_tol_mps, 3.0 * self.zdot_tol_mps)
+
+    def followed(self, batch: Batch) -> Layout:
+        """This layout made for what `batch` shows (the agent's bound, a dump's grid)."""
+        bound = batch.get("velocity/bound_max_mps")
+        zdot_tol_mps = _f32_free(bound.values[-1]) if bound else self.zdot_tol_mps
+        frames = batch.get("value_function/frame") or batch.get("policy/frame")
+        return Layout(zdot_tol_mps, frames.values[-1].bounds if frames else self.heatmap)
+
+
+def _heatmap_view(origin: str, name: str, layout: Layout) -> rrb.Spatial2DView:
+    b = layout.heatmap
+    return rrb.Spatial2DView(origin=origin, name=name,
+                             visual_bounds=rrb.VisualBounds2D(x_range=(b.x_min, b.x_max), y_range=(b.y_min, b.y_max)))
+
+
+def blueprint(layout: Layout | None = None) -> rrb.Blueprint:
+    """The shipped layout: time series on the left; learning curve, heatmaps (the most room) and logs on the right."""
+    layout = layout or Layout()
     series = rrb.Vertical(
         rrb.TimeSeriesView(origin="depth", name="Depth [m] (z down), target, learning region, episodes"),
-        rrb.TimeSeriesView(origin="velocity", name="Velocity [m/s] and bounds"),
+        rrb.TimeSeriesView(origin="velocity", name="Velocity [m/s] and bounds",
+                           axis_y=rrb.ScalarAxis(range=layout.velocity_range_mps())),
         rrb.TimeSeriesView(origin="actuator", name="Actuator [deg]"),
         rrb.TimeSeriesView(origin="action", name="Action"),
         rrb.TimeSeriesView(origin="reward", name="Reward"),
+        rrb.TimeSeriesView(origin="link", name="Link: loss, RTT [s], backfilled samples"),
     )
     right = rrb.Vertical(
         rrb.TimeSeriesView(origin="learning_curve", name="Learning curve: duration per episode [s]"),
         rrb.Horizontal(
-            rrb.Spatial2DView(origin="value_function", name="Value function v(depth, velocity)"),
-            rrb.Spatial2DView(origin="policy", name="Policy (orange sink, blue rise, grey untried)"),
+            _heatmap_view("value_function", "Value function v(depth, velocity)", layout),
+            _heatmap_view("policy", "Policy: greedy action per cell", layout),
         ),
-        rrb.TimeSeriesView(origin="link", name="Link: loss, RTT [s], backfilled samples"),
         rrb.Tabs(
             rrb.TextLogView(origin="log/agent", name="Agent log"),
             rrb.TextLogView(origin="log/events", name="Episodes and link events"),
         ),
+        row_shares=[1, 2, 1],
     )
     return rrb.Blueprint(
-        rrb.Horizontal(series, right, column_shares=[3, 2]),
+        rrb.Horizontal(series, right, column_shares=[1, 1]),
         rrb.TimePanel(timeline="agent_time", expanded=False),
         collapse_panels=True,
     )
@@ -138,11 +173,29 @@ def send_batch(rec: rr.RecordingStream, batch: Batch) -> None:
             centres = np.column_stack((np.asarray(xs, np.float32), np.asarray(ys, np.float32)))
             rec.send_columns(path, indexes=_indexes(rows), columns=rr.Boxes2D.columns(
                 centers=centres, half_sizes=np.full_like(centres, 0.5), labels=list(labels)))
-        else:  # images: one per dump, a handful per episode, so row logging costs nothing here
-            for i, image in enumerate(rows.values):
+        else:  # images and their frames: one per dump, a handful per episode, so row logging costs nothing here
+            for i, value in enumerate(rows.values):
                 _set_row_time(rec, rows, i)
-                rec.log(path, rr.Image(image, color_model="RGB", magnification_filter="Nearest"))
+                if kind == Kind.FRAME:
+                    log_frame(rec, path, value)
+                else:
+                    rec.log(path, rr.Image(value, color_model="RGB", magnification_filter="Nearest"))
             rec.reset_time()
+
+
+def log_frame(rec: rr.RecordingStream, path: str, frame: Frame) -> None:
+    """A heatmap's axes and legend in the heatmap's own plane (one unit per cell), beside its image.
+
+    Rerun draws a label centred under its point, in the point's colour: the texts are points of no size in the
+    axis grey; the swatches carry their meaning as labels too (shown on hover), drawn by the texts under them.
+    """
+    texts, swatches = frame.texts, frame.swatches
+    rec.log(f"{path}/axes", rr.LineStrips2D(frame.lines, colors=[AXIS_COLOUR], radii=rr.Radius.ui_points(1.0)))
+    rec.log(f"{path}/texts", rr.Points2D([(t.x, t.y) for t in texts], radii=0.0, colors=[t.colour for t in texts],
+                                          labels=[t.text for t in texts], show_labels=True))
+    rec.log(f"{path}/legend", rr.Points2D([(s.x, s.y) for s in swatches], radii=SWATCH_RADIUS,
+                                           colors=[s.colour for s in swatches], labels=[s.text for s in swatches],
+                                           show_labels=False))  # a swatch of the colour, one cell across
 
 
 def _has_display() -> bool:
@@ -196,6 +249,7 @@ class RerunView:
         # replay or a backfill burst would otherwise spend its time in per-frame sends.
         self._flush_interval_s = flush_interval_s
         self._last_send_s = 0.0
+        self._layout = Layout()  # what the blueprint sent last was made for
         self.address = address
 
     @classmethod
@@ -208,7 +262,7 @@ class RerunView:
         now_s = time.monotonic()
         if now_s - self._last_send_s >= self._flush_interval_s:
             self._last_send_s = now_s
-            send_batch(self._rec, self._model.take())
+            self._log(self._model.take())
 
     def on_received(self, received: Received) -> None:
         frame = received.frame
@@ -234,11 +288,20 @@ class RerunView:
     def send(self, batch: Batch) -> None:
         """Log rows made elsewhere (a whole converted recording) in columns."""
         with self._lock:
-            send_batch(self._rec, batch)
+            self._log(batch)
+
+    def _log(self, batch: Batch) -> None:
+        layout = self._layout.followed(batch)
+        if layout != self._layout:
+            # The velocity scale and the heatmaps' bounds follow the agent's bound and grid. A new layout replaces
+            # one the user rearranged, so it is sent only when they change (the agent's defaults need none).
+            self._layout = layout
+            self._rec.send_blueprint(blueprint(layout), make_active=True)
+        send_batch(self._rec, batch)
 
     def flush(self) -> None:
         with self._lock:
-            send_batch(self._rec, self._model.take())
+            self._log(self._model.take())
         self._rec.flush()
 
     def close(self) -> None:

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-import ctypes
+import functools
 import os
 import signal
 import subprocess
@@ -18,16 +18,16 @@ def simulator_command(args: Sequence[str]) -> list[str]:
     return [sys.executable, "-m", "simulator", *args]
 
 
-def _die_with_parent() -> None:
+def _die_with_parent(libc: Any) -> None:
     """In the child, before exec: SIGTERM when the parent dies, even by kill -9 (Linux prctl PR_SET_PDEATHSIG).
 
     So a killed `dive sim` or `dive run` never leaves a virtual agent running and holding its port. Elsewhere
     (no prctl) the parent's signal handlers are the only guard.
     """
     try:
-        libc = ctypes.CDLL(None, use_errno=True)
-        libc.prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
-    except (OSError, AttributeError):
+        if libc is not None:
+            libc.prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
+    except AttributeError:
         pass
     if os.getppid() == 1:  # the parent died before prctl took effect
         os._exit(1)
@@ -38,7 +38,17 @@ PR_SET_PDEATHSIG = 1
 
 def child_options() -> dict[str, Any]:
     """Popen options for a simulator child: it stops when this process dies (see _die_with_parent)."""
-    return {"preexec_fn": _die_with_parent} if sys.platform.startswith("linux") else {}
+    if not sys.platform.startswith("linux"):
+        return {}
+    # ctypes is loaded here, in the parent: not at import (`dive --help` needs none of it), and not in the child,
+    # which must not import between fork and exec (another thread may have held the import lock at the fork).
+    import ctypes
+
+    try:
+        libc: Any = ctypes.CDLL(None, use_errno=True)
+    except OSError:
+        libc = None
+    return {"preexec_fn": functools.partial(_die_with_parent, libc)}
 
 
 def run_simulator_command(args: Sequence[str]) -> int:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import bisect
 import statistics
 import threading
 from collections import deque
@@ -29,6 +30,9 @@ class LinkStats:
         self.backfilled = 0
         self.reconnects = 0
         self._rtts_s: deque[float] = deque(maxlen=rtt_window)
+        # The same window kept sorted: every command's ACK timeout needs the median, and sorting 200 values
+        # on the send path cost more than the rest of sending a command.
+        self._rtts_sorted: list[float] = []
 
     def sent(self, nbytes: int, retry: bool = False) -> None:
         with self._lock:
@@ -38,11 +42,22 @@ class LinkStats:
 
     def round_trip(self, seconds: float) -> None:
         with self._lock:
-            self._rtts_s.append(seconds)
+            window = self._rtts_s
+            ordered = self._rtts_sorted
+            if len(window) == window.maxlen:
+                del ordered[bisect.bisect_left(ordered, window[0])]  # the one the append below drops
+            window.append(seconds)
+            bisect.insort(ordered, seconds)
 
     def rtt_median_s(self) -> float | None:
+        """statistics.median of the window, read from the sorted copy."""
         with self._lock:
-            return statistics.median(self._rtts_s) if self._rtts_s else None
+            ordered = self._rtts_sorted
+            n = len(ordered)
+            if not n:
+                return None
+            middle = n // 2
+            return ordered[middle] if n % 2 else (ordered[middle - 1] + ordered[middle]) / 2
 
     def snapshot(self, rx: DecoderStats) -> dict[str, Any]:
         with self._lock:

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import errno
-import socket
 
 from groundstation.errors import GroundStationError
 
@@ -14,6 +13,7 @@ class UsageError(GroundStationError, ValueError):
 
 def check_port_free(port: int, option: str) -> None:
     """Fail at once when another process listens on `port` (its viewer would show that process's data)."""
+    import socket  # here: `dive --help` does not need it
     with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
         try:
             probe.bind(("0.0.0.0", port))

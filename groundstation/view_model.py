@@ -12,12 +12,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from groundstation.dumps import DumpAssembler
+from groundstation.heatmap import DEFAULT_GRID, Grid, policy_frame, policy_image, value_frame, value_image, value_range
 from protocol import Action, DumpKind, EndReason, FrameFlag, Message, Severity
 from protocol import messages as m
 
 SUCCESS_TIME_S = 300.0  # an episode that lasts this long is a success (paper V-A)
 MOVING_AVERAGE_EPISODES = 50
-DEFAULT_ZDOT_CELLS = 10  # velocity cells per grid row until the agent's parameters or a dump say otherwise
 
 
 class Kind(Enum):
@@ -26,6 +26,7 @@ class Kind(Enum):
     TEXT = "text"  # (text, level) per row
     IMAGE = "image"  # HxWx3 uint8 per row
     BOX = "box"  # (center_x, center_y, label) per row: the agent's cell on a heatmap
+    FRAME = "frame"  # heatmap.Frame per row: a heatmap's axes, tick values and colour legend
 
 
 # Entity path -> (kind, legend name). The blueprint groups them by their first path component.
@@ -50,8 +51,10 @@ ENTITIES: dict[str, tuple[Kind, str]] = {
     "learning_curve/success_line_s": (Kind.SCALAR, f"{SUCCESS_TIME_S:.0f} s"),
     "value_function/image": (Kind.IMAGE, "v(s)"),
     "value_function/current_cell": (Kind.BOX, "agent"),
+    "value_function/frame": (Kind.FRAME, "axes and legend"),
     "policy/image": (Kind.IMAGE, "policy"),
     "policy/current_cell": (Kind.BOX, "agent"),
+    "policy/frame": (Kind.FRAME, "axes and legend"),
     "link/loss_ratio": (Kind.SCALAR, "loss"),
     "link/rtt_s": (Kind.SCALAR, "RTT [s]"),
     "link/backfilled_samples": (Kind.SCALAR, "backfilled samples"),
@@ -90,36 +93,6 @@ class Region:
     zdot_tol_mps: float
 
 
-def _colormap(unit: NDArray[np.float64]) -> NDArray[np.uint8]:
-    """Viridis-like colours for values in 0..1 (five anchors, linear in between)."""
-    anchors = np.array([[68, 1, 84], [59, 82, 139], [33, 145, 140], [94, 201, 98], [253, 231, 37]], float)
-    pos = np.clip(unit, 0.0, 1.0) * (len(anchors) - 1)
-    low = np.minimum(pos.astype(int), len(anchors) - 2)
-    frac = (pos - low)[..., None]
-    return (anchors[low] * (1 - frac) + anchors[low + 1] * frac).astype(np.uint8)
-
-
-_POLICY_COLOURS = {0: (230, 120, 30), 1: (40, 120, 220)}  # decrease volume (sink) / increase (rise)
-_UNTRIED = (90, 90, 90)
-
-
-def value_image(values: NDArray[np.float32], zdot_cells: int) -> NDArray[np.uint8]:
-    """v(s) over the grid (rows: depth cells, shallow on top; columns: velocity cells, rising on the left)."""
-    cells = values[: (len(values) - 1) // zdot_cells * zdot_cells].astype(np.float64)  # drop the terminal state
-    low, high = float(np.min(cells)), float(np.max(cells))
-    unit = (cells - low) / (high - low) if high > low else np.zeros_like(cells)
-    return _colormap(unit.reshape(-1, zdot_cells))
-
-
-def policy_image(actions: NDArray[np.uint8], zdot_cells: int) -> NDArray[np.uint8]:
-    cells = actions[: (len(actions) - 1) // zdot_cells * zdot_cells]
-    image = np.empty((len(cells), 3), np.uint8)
-    image[:] = _UNTRIED
-    for action, colour in _POLICY_COLOURS.items():
-        image[cells == action] = colour
-    return image.reshape(-1, zdot_cells, 3)
-
-
 class ViewModel:
     """Turns the agent's messages into rows per entity; `take()` hands over what accumulated since the last call.
 
@@ -136,7 +109,8 @@ class ViewModel:
         self._step = 0
         self._depth_m = 0.0
         self._region: Region | None = None
-        self._zdot_cells = DEFAULT_ZDOT_CELLS
+        self._grid_params = dict(DEFAULT_GRID)  # the agent's defaults until its PARAM_VALUEs say otherwise
+        self._zdot_cells = int(DEFAULT_GRID["zdot_cells"])
         self._grid_cells: int | None = None  # known from the first dump
         self._durations: deque[float] = deque(maxlen=MOVING_AVERAGE_EPISODES)
         self._dumps = DumpAssembler()
@@ -175,8 +149,10 @@ class ViewModel:
             self._row("log/agent", (message.text, level), host_time_ns)
         elif isinstance(message, m.ParamValue):
             self._dumps.saw_parameter(message.name, message.value)  # the grid bounds a dump's size
-            if message.name == "zdot_cells" and message.value >= 1:
-                self._zdot_cells = int(message.value)
+            if message.name in self._grid_params and math.isfinite(message.value) and message.value > 0:
+                self._grid_params[message.name] = message.value
+                if message.name == "zdot_cells":
+                    self._zdot_cells = int(message.value)
 
     def event(self, kind: str, host_time_ns: int, detail: str = "", data: dict[str, Any] | None = None) -> None:
         """A link life-cycle event or a user marker (live: LinkEvent; replay: the /event and /marker topics)."""
@@ -292,16 +268,15 @@ class ViewModel:
         if cells is not None:
             outside = np.flatnonzero(state >= cells).tolist()
             for i in outside:
-                x[i], y[i], labels[i] = zdot / 2, cells // zdot + 1.0, "outside"
+                x[i], y[i], labels[i] = zdot / 2, -1.0, "outside"
         return list(zip(x, y, labels, strict=True))
 
     def _cell(self, state: int) -> tuple[float, float, str]:
-        """Centre of the state's cell in heatmap pixels; the terminal state sits under the grid."""
+        """Centre of the state's cell in heatmap pixels; the terminal state sits above the grid (below: the axis)."""
         zdot = self._zdot_cells
         cells = self._grid_cells
         if cells is not None and state >= cells:
-            rows = cells // zdot
-            return (zdot / 2, rows + 1.0, "outside")
+            return (zdot / 2, -1.0, "outside")
         return (state % zdot + 0.5, state // zdot + 0.5, "agent")
 
     def _episode_start(self, e: m.EpisodeStart, host_time_ns: int) -> None:
@@ -333,9 +308,32 @@ class ViewModel:
             return
         if dump.kind == DumpKind.VALUES:
             values = np.frombuffer(dump.data, "<f4")
+            grid = self._grid(len(values))
+            if grid is None:
+                return
             self._grid_cells = len(values) - 1
             self._row("value_function/image", value_image(values, self._zdot_cells), host_time_ns)
+            self._row("value_function/frame", value_frame(grid, *value_range(values, self._zdot_cells)), host_time_ns)
         elif dump.kind == DumpKind.POLICY:
             actions = np.frombuffer(dump.data, np.uint8)
+            grid = self._grid(len(actions))
+            if grid is None:
+                return
             self._grid_cells = len(actions) - 1
             self._row("policy/image", policy_image(actions, self._zdot_cells), host_time_ns)
+            self._row("policy/frame", policy_frame(grid), host_time_ns)
+
+    def _grid(self, states: int) -> Grid | None:
+        """The grid a dump of `states` states covers; None when it holds not one row of cells."""
+        zdot = self._zdot_cells
+        rows = (states - 1) // zdot
+        if rows < 1:
+            return None
+        z_cells = int(self._grid_params["z_cells"])
+        if rows % z_cells:  # parameters not seen, or another grid than they say: the dump's own rows count
+            z_cells = rows
+        region = self._region
+        if region is None:
+            params = self._grid_params
+            region = Region(params["target_depth_m"], params["z_tol_m"], params["zdot_tol_mps"])
+        return Grid(region.target_depth_m, region.z_tol_m, region.zdot_tol_mps, z_cells, zdot, rows // z_cells)

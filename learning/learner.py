@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -16,10 +18,12 @@ from learning.shared import (
     n_types,
     plan_shared_kernel,
     record_shared,
+    shared_dense_counts,
     shared_memory_bytes,
+    shared_q_kernel,
     state_cell_code,
 )
-from learning.spec import direct_entry
+from learning.spec import KernelSpec, direct_entry
 
 _REWARD_SUM_BYTES = 4  # float32 per (s, a) on the Teensy
 _COUNT_BYTES = 2  # uint16
@@ -69,6 +73,21 @@ def learner_memory_bytes(config: LearnerConfig) -> int:
     if config.shared_model:
         return model_memory_bytes(config)
     return model_memory_bytes(config) + n_states(config) * (_VALUE_BYTES + _POLICY_BYTES)
+
+
+class LearnerArrays(NamedTuple):
+    """A learner's live state as its kernels take it, for compiled loops that act and observe many steps at once."""
+
+    spec: KernelSpec
+    policy: NDArray[np.int8]
+    rng_state: NDArray[np.uint64]
+    succ_idx: NDArray[np.uint16]
+    succ_cnt: NDArray[np.uint16]
+    reward_sum: NDArray[np.float32]
+    codes: NDArray[np.uint8]
+    type_counts: NDArray[np.uint16]
+    totals: NDArray[np.uint16]
+    type_evictions: NDArray[np.uint16]
 
 
 class Learner:
@@ -128,6 +147,13 @@ class Learner:
         return self._config
 
     @property
+    def arrays(self) -> LearnerArrays:
+        """The live arrays act() and observe() use (replaced by reset()); a loop that acts and observes with
+        select_action_kernel, record_transition and record_shared on them adds its evictions to `evictions`."""
+        return LearnerArrays(self._spec, self._policy, self._rng_state, self._succ_idx, self._succ_cnt,
+                             self._reward_sum, self._codes, self._type_counts, self._totals, self._type_evictions)
+
+    @property
     def episode(self) -> int:
         """Completed episodes."""
         return self._episode
@@ -185,6 +211,14 @@ class Learner:
         """Q[s, a] of the last value iteration; a copy."""
         return self._q.copy()
 
+    def live_q_values(self) -> NDArray[np.float64]:
+        """Q[s, a] from the model as it is now and the current values (the shared model: computed, as its
+        firmware does; the per-state learners: the last value iteration's, their Q table)."""
+        if self._shared:
+            return shared_q_kernel(self._codes, self._type_counts, self._totals, self._succ_idx, self._succ_cnt,
+                                   self._values, self._spec)
+        return self.q_values
+
     @property
     def policy(self) -> NDArray[np.int64]:
         """Greedy action per state (2 = tied, drawn at every step, with ties_per_step); a copy."""
@@ -192,7 +226,10 @@ class Learner:
 
     @property
     def counts(self) -> NDArray[np.uint16]:
-        """Transition counts C[s, s', a] (uint16), exported from whichever form is stored."""
+        """Transition counts C[s, s', a] (uint16), exported from whichever form is stored (the shared
+        model's: its histograms shifted to each state, see learning.shared.shared_dense_counts)."""
+        if self._shared:
+            return shared_dense_counts(self._codes, self._type_counts, self._succ_idx, self._succ_cnt, self._spec)
         return dense_counts(self._succ_idx, self._succ_cnt)
 
     def export_model(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:

@@ -42,7 +42,7 @@ from numba import njit
 from numpy.typing import NDArray
 
 from learning.model import COUNT_MAX, N_ACTIONS
-from learning.planning import plan_rows
+from learning.planning import _action_value, plan_rows
 from learning.spec import KernelSpec
 
 DZ_MAX, DV_MAX, DB_MAX = 2, 8, 1  # offsets a code can hold; beyond them a successor is FAR (terminal)
@@ -219,6 +219,33 @@ def cell_reward(state: int, spec: KernelSpec) -> float:
 
 
 @njit(cache=True, error_model="numpy")
+def shared_dense_counts(
+    codes: NDArray[np.uint8],
+    counts: NDArray[np.uint16],
+    succ_idx: NDArray[np.uint16],
+    succ_cnt: NDArray[np.uint16],
+    spec: KernelSpec,
+) -> NDArray[np.uint16]:
+    """C[s, s', a] as the model holds it: each type's slots shifted to s (successors that leave the region
+    on the terminal state), plus the local counts of the Dirichlet blend; saturating at COUNT_MAX. What
+    an agent's COUNTS snapshot shows for a shared model (SPEC.md section 10; the firmware's learner_count)."""
+    n_states = spec.z_cells * spec.zdot_cells * spec.actuator_bins + 1
+    out = np.zeros((n_states, n_states, N_ACTIONS), dtype=np.uint32)
+    local = succ_cnt.shape[0] == n_states
+    for s in range(n_states - 1):
+        for a in range(N_ACTIONS):
+            t = type_of(s, a, spec)
+            for k in range(counts.shape[1]):
+                if counts[t, k] > 0:
+                    out[s, _shift(s, int(codes[t, k]), spec), a] += counts[t, k]
+            if local:
+                for k in range(succ_cnt.shape[2]):
+                    if succ_cnt[s, a, k] > 0:
+                        out[s, int(succ_idx[s, a, k]), a] += succ_cnt[s, a, k]
+    return np.minimum(out, COUNT_MAX).astype(np.uint16)
+
+
+@njit(cache=True, error_model="numpy")
 def compile_shared_rows(
     codes: NDArray[np.uint8],
     counts: NDArray[np.uint16],
@@ -282,6 +309,27 @@ def compile_shared_rows(
             mean_reward[row] = r
             row_start[row + 1] = j
     return row_start, succ[:j], prob[:j], mean_reward, known
+
+
+@njit(cache=True, error_model="numpy")
+def shared_q_kernel(
+    codes: NDArray[np.uint8],
+    counts: NDArray[np.uint16],
+    totals: NDArray[np.uint16],
+    succ_idx: NDArray[np.uint16],
+    succ_cnt: NDArray[np.uint16],
+    values: NDArray[np.float64],
+    spec: KernelSpec,
+) -> NDArray[np.float64]:
+    """Q[s, a] from the live model and the current values (no planning): what a shared model's Q_VALUES
+    snapshot shows, as the firmware computes it (it keeps no Q table)."""
+    row_start, succ, prob, mean_reward, known = compile_shared_rows(codes, counts, totals, succ_idx, succ_cnt, spec)
+    n_states = values.shape[0]
+    q = np.zeros((n_states, N_ACTIONS))
+    for s in range(n_states - 1):
+        for a in range(N_ACTIONS):
+            q[s, a] = _action_value(s * N_ACTIONS + a, row_start, succ, prob, mean_reward, known, values, spec)
+    return q
 
 
 @njit(cache=True, error_model="numpy")

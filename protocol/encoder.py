@@ -45,6 +45,12 @@ class FrameEncoder:
     def next_seq(self) -> int:
         return self._seq
 
+    def take_seqs(self, count: int) -> int:
+        """Reserve the seqs of `count` frames framed elsewhere (a compiled batch of SAMPLEs); returns the first."""
+        seq = self._seq
+        self._seq = (seq + count) & 0xFFFF
+        return seq
+
     def encode(self, message: Message, flags: int = 0) -> EncodedFrame:
         """Encode a message; commands get the ACK-requested flag set."""
         if message.DEFINITION.needs_ack:

@@ -26,6 +26,8 @@ def files(params: ModuleType, f32_literal: Callable[[float], str], banner: str) 
         f"#define PARAM_RAM_BUDGET_BYTES {int(params.RAM_BUDGET_BYTES)}u  /* learner model + snapshot copies */",
         f"#define PARAM_SNAPSHOTS_HELD {int(params.SNAPSHOTS_HELD)}u",
         f"#define PARAM_SNAPSHOT_BYTES_PER_STATE {int(params.SNAPSHOT_BYTES_PER_STATE)}u",
+        f"#define PARAM_SHARED_SNAPSHOT_BYTES_PER_STATE {int(params.SHARED_SNAPSHOT_BYTES_PER_STATE)}u"
+        "  /* Q_VALUES rendered live */",
         "",
         "typedef enum {",
         *[f"    PARAM_{d.name.upper()} = {d.index}," for d in defs],

@@ -21,6 +21,9 @@ RAM_BUDGET_BYTES = 44 * 1024
 SNAPSHOTS_HELD = 4  # snapshots an agent keeps (any kind); older ids are STALE
 # The largest snapshot an agent copies is Q_VALUES, f32[S][2] = 8 S bytes (COUNTS is rendered from the live model).
 SNAPSHOT_BYTES_PER_STATE = 8
+# A shared-model learner keeps no Q table (Q comes from the values and the pooled histograms): its Q_VALUES
+# snapshot is rendered live like COUNTS, so the largest copy is VALUES, f32[S] = 4 S bytes.
+SHARED_SNAPSHOT_BYTES_PER_STATE = 4
 
 
 def f32(value: float) -> float:
@@ -30,9 +33,14 @@ def f32(value: float) -> float:
     return float(_F32.unpack(_F32.pack(value))[0])
 
 
-def snapshot_ram_bytes(states: int) -> int:
-    """RAM for the held snapshot copies: SNAPSHOTS_HELD slots of the largest copied kind (SPEC.md section 13)."""
-    return SNAPSHOTS_HELD * SNAPSHOT_BYTES_PER_STATE * states
+def snapshot_ram_bytes(states: int, shared_model: bool = False) -> int:
+    """RAM for the held snapshot copies: SNAPSHOTS_HELD slots of the largest copied kind (SPEC.md section 13).
+
+    Q_VALUES (8 S) for the per-state learners; VALUES (4 S) for a shared-model learner, whose Q_VALUES is
+    rendered from the live model and values.
+    """
+    per_state = SHARED_SNAPSHOT_BYTES_PER_STATE if shared_model else SNAPSHOT_BYTES_PER_STATE
+    return SNAPSHOTS_HELD * per_state * states
 
 
 @dataclass(frozen=True)

@@ -20,7 +20,7 @@ def snapshot_bytes(learner: Learner, kind: DumpKind) -> bytes:
     if kind == DumpKind.VALUES:
         return learner.values.astype("<f4").tobytes()
     if kind == DumpKind.Q_VALUES:
-        return learner.q_values.astype("<f4").tobytes()
+        return learner.live_q_values().astype("<f4").tobytes()
     counts = learner.counts  # C[s, s', a]
     if kind == DumpKind.POLICY:
         policy = learner.policy.astype(np.uint8)
@@ -39,36 +39,46 @@ class Snapshot:
     data: bytes
 
 
+def rendered_live(learner: Learner, kind: DumpKind) -> bool:
+    """Snapshots an agent renders from its live learner instead of copying (SPEC.md sections 10 and 13): COUNTS,
+    and Q_VALUES of a shared-model learner (it keeps no Q table: Q comes from its values and histograms)."""
+    return kind == DumpKind.COUNTS or (kind == DumpKind.Q_VALUES and learner.config.shared_model)
+
+
 class DumpStore:
     """Takes snapshots with fresh ids (never 0) and keeps the last SNAPSHOTS_HELD (4) of them (SPEC s. 10).
 
-    A real agent renders a COUNTS snapshot from its live model instead of copying 4 S^2 bytes, so one goes STALE
-    when the model changes; this store copies it (the same bytes) and forgets it at the same moment.
+    A real agent renders a COUNTS snapshot (and a shared model's Q_VALUES) from its live learner instead of
+    copying it, so one goes STALE when the model changes; this store copies it (the same bytes) and forgets it
+    at the same moment. (This agent plans at once at the end of an episode, right after the model changed, so
+    a live snapshot taken after that stays valid until the next change.)
     """
 
     def __init__(self) -> None:
         self._held: OrderedDict[int, Snapshot] = OrderedDict()
         self._next_id = 1
-        self._counts_held = False  # checked on every learner step, so model_changed() costs nothing usually
+        self._live_ids: set[int] = set()  # checked on every learner step, so model_changed() costs nothing usually
 
     def take(self, learner: Learner, kind: DumpKind) -> Snapshot:
         snap = Snapshot(self._next_id, kind, learner.episode, snapshot_bytes(learner, kind))
         self._next_id = self._next_id % 0xFFFFFFFF + 1
         self._held[snap.dump_id] = snap
-        self._counts_held = self._counts_held or kind == DumpKind.COUNTS
+        if rendered_live(learner, kind):
+            self._live_ids.add(snap.dump_id)
         while len(self._held) > SNAPSHOTS_HELD:
-            self._held.popitem(last=False)
+            dropped, _ = self._held.popitem(last=False)
+            self._live_ids.discard(dropped)
         return snap
 
     def get(self, dump_id: int) -> Snapshot | None:
         return self._held.get(dump_id)
 
     def model_changed(self) -> None:
-        """Forget COUNTS snapshots: the live model they stand for has changed."""
-        if self._counts_held:
-            for dump_id in [i for i, snap in self._held.items() if snap.kind == DumpKind.COUNTS]:
-                del self._held[dump_id]
-            self._counts_held = False
+        """Forget the snapshots rendered live: the model they stand for has changed."""
+        if self._live_ids:
+            for dump_id in self._live_ids:
+                self._held.pop(dump_id, None)
+            self._live_ids.clear()
 
 
 def chunks(snap: Snapshot, offset: int, length: int) -> Iterator[messages.DumpChunk]:

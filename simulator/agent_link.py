@@ -92,6 +92,26 @@ class AgentLink:
     def next_seq(self) -> int:
         return self._encoder.next_seq
 
+    @property
+    def encoder(self) -> FrameEncoder:
+        """The agent's frame encoder (its seq counter), for compiled batches that frame SAMPLEs themselves."""
+        return self._encoder
+
+    @property
+    def heartbeat_due_us(self) -> int:
+        """Agent time from which the next tick() sends a HEARTBEAT."""
+        return self._next_heartbeat_us
+
+    @property
+    def uses_agent_clock(self) -> bool:
+        """The link clock is the agent's own (real-time speeds), not the wall clock."""
+        return self.link_clock_s == self._agent_clock_s
+
+    @property
+    def last_ground_rx_s(self) -> float:
+        """Link-clock time of the last sign of life from the ground."""
+        return self._last_ground_rx_s
+
     def attach(self, program: OnboardProgram) -> None:
         self.program = program
         self._last_ground_rx_s = self.link_clock_s()

@@ -134,6 +134,10 @@ class OnboardProgram:
             if self.hw.t_us >= self._next_idle_sample_us:
                 self._next_idle_sample_us = self.hw.t_us + int(self.mission.idle_sample_period_s * 1e6)
                 self._sample(Action.NONE, 0.0, 0)
+        self.finish_step(dt)
+
+    def finish_step(self, dt: float) -> None:
+        """The end of every step: the dive limits, then dt of agent time passes (also after a compiled batch)."""
         if self.mode in _DIVING:
             self._check_limits()
         self.hw.advance(dt)
@@ -203,6 +207,10 @@ class OnboardProgram:
         )
         self.hw.set_actuator_cmd_deg(cmd)
         self._sample(Action.NONE, 0.0, 0)
+        self.held_sampled(settled, gave_up)
+
+    def held_sampled(self, settled: bool, gave_up: bool) -> None:
+        """What a held step does after its SAMPLE: RECOVERING hands over to the learner or gives up."""
         if self.mode == Mode.RECOVERING:
             if settled:
                 self._begin_episode(self.recovery.alpha_avg_deg + self.params.start_trim_error_deg)
@@ -273,7 +281,7 @@ class OnboardProgram:
         limit = round(self.params.episode_limit_s / self.params.control_period_s)
         if state == self._terminal or self._steps >= limit:
             self._sample(Action.NONE, reward, state)
-            self._end_episode(EndReason.FAILURE if state == self._terminal else EndReason.SUCCESS, state)
+            self.learning_over(state)
             return
         action = self.learner.act(state)
         step = self.params.action_step_deg if action == Action.INCREASE_VOLUME else -self.params.action_step_deg
@@ -283,6 +291,10 @@ class OnboardProgram:
         self._prev_state, self._prev_action = state, action
         self._sample(action, reward, state)
         self._steps += 1
+
+    def learning_over(self, state: int) -> None:
+        """After the last SAMPLE of an episode: it failed (left the region) or succeeded (lasted its time)."""
+        self._end_episode(EndReason.FAILURE if state == self._terminal else EndReason.SUCCESS, state)
 
     def _end_episode(self, reason: EndReason, state: int) -> None:
         self.learner.end_episode()
@@ -382,7 +394,7 @@ class OnboardProgram:
 def check_ram(config: LearnerConfig) -> None:
     """ParamsError naming the bytes if the learner and its snapshots would not fit the RAM budget (SPEC s. 13)."""
     states = n_states(config)
-    need = learner_memory_bytes(config) + snapshot_ram_bytes(states)
+    need = learner_memory_bytes(config) + snapshot_ram_bytes(states, config.shared_model)
     if need > RAM_BUDGET_BYTES:
         raise ParamsError(
             f"{states} states need {need} bytes of RAM (learner and snapshots), the budget is {RAM_BUDGET_BYTES}"

@@ -16,6 +16,7 @@ from learning import LearnerConfig
 from simulator.agent_link import AgentLink
 from simulator.agent_mission import MissionConfig
 from simulator.onboard import OnboardProgram
+from simulator.onboard_batch import StepBatcher
 from simulator.onboard_hw import SimulatedHardware
 from simulator.parameters import PlantParams
 
@@ -66,6 +67,7 @@ class PythonAgent:
         self.hw = SimulatedHardware(plant, rng)
         self.program = OnboardProgram(plant, learner, mission, self.hw, rng, self.link)
         self.link.attach(self.program)
+        self._batcher = StepBatcher(self.program, self.link)
 
     @property
     def t_us(self) -> int:
@@ -82,6 +84,13 @@ class PythonAgent:
     def step(self) -> None:
         self.program.step()
         self.link.tick()
+
+    def run(self, max_steps: int, until_us: int) -> int:
+        """Up to max_steps steps until agent time reaches until_us, in compiled batches; their frames in few writes.
+
+        Frame for frame what as many step() calls would send and log; `write` gets several frames per call.
+        """
+        return self._batcher.run(max_steps, until_us)
 
     def receive(self, data: bytes) -> None:
         self.link.receive(data)

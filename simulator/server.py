@@ -15,6 +15,7 @@ from learning import LearnerConfig
 from simulator.agent_mission import MissionConfig
 from simulator.faults import MAX_LOGGED_SEQS, DelayLine, FaultConfig, FrameFaults, frame_seq
 from simulator.onboard_agent import OnboardAgent, PythonAgent
+from simulator.onboard_batch_kernel import SAMPLE_WIRE
 from simulator.parameters import PlantParams
 from simulator.server_transport import PtyTransport, TcpTransport, Transport
 
@@ -25,6 +26,7 @@ HIGH_WATER_BYTES = 256 * 1024  # real time drops frames above this (a UART FIFO 
 # command's ACK is never behind seconds of backlog (flow control from the send side; issue 14).
 MAX_SPEED_QUEUE_BYTES = 2 * 1024
 STEPS_PER_CLOCK_READ = 8
+BATCH_STEPS = 256  # steps of one compiled batch between clock reads at a set speed (well under SLICE_S)
 # --firmware: the Python reference, the C firmware's host build, the C firmware on an emulated Cortex-M4
 FIRMWARES = ("python", "c", "qemu")
 
@@ -73,6 +75,13 @@ class AgentServer:
         self._logged = 0
         self._connected_wall_s = 0.0
         self.agent = _onboard_agent(config, rng, self._write, node_id=0x5100_0000 | (seed & 0xFFFF), seed=seed)
+        # Compiled batches of steps (onboard_batch.py) where nothing acts per frame or per step: with faults, each
+        # frame is dropped, corrupted, delayed or blacked out on its own, and a disconnect falls between two steps.
+        self._batches: PythonAgent | None = None
+        if isinstance(self.agent, PythonAgent) and not (
+            faults.active or faults.delay_ms or faults.disconnect_every_s or faults.blackout_below_m is not None
+        ):
+            self._batches = self.agent
         self.transport.on_connect = self._connected
         self.transport.on_data = self._received
         self.transport.on_disconnect = self._disconnected
@@ -106,8 +115,11 @@ class AgentServer:
         if self.out_delay.delay_s:
             self.out_delay.put(time.monotonic(), wire)
         elif self.config.speed is not None and len(transport.outbuf) > HIGH_WATER_BYTES:
-            self.dropped_full += 1  # like a UART FIFO: the agent does not wait for a slow reader
-            self._log_lost(wire)  # a loss the ground sees as a seq gap, as a fault's is
+            # Like a UART FIFO: the agent does not wait for a slow reader. Each frame lost (a batch writes several)
+            # is logged as a fault's is: the ground sees it as a seq gap.
+            for frame in wire.split(b"\x00")[:-1]:
+                self.dropped_full += 1
+                self._log_lost(frame + b"\x00")
         else:
             transport.outbuf += wire
 
@@ -195,6 +207,9 @@ class AgentServer:
                 blocked = False
             deadline = now + SLICE_S
             steps = 0
+            if self._batches is not None and not blocked:
+                steps = self._run_batches(speed, due_us, deadline)
+                blocked = True  # the batches ran to the slice's end or the queue's limit
             while not blocked and agent.t_us < due_us:
                 agent.step()
                 steps += 1
@@ -211,6 +226,28 @@ class AgentServer:
                 # Cannot keep up with the requested speed: do not try to catch up in a burst later.
                 wall0, agent0_us = time.monotonic(), agent.t_us
             self._io(self._wait_s(speed, due_us))
+
+    def _run_batches(self, speed: float | None, due_us: int, deadline: float) -> int:
+        """Compiled batches of steps until the slice ends, agent time is due or (--speed max) the queue is full.
+
+        At --speed max a batch is sized to the room left in the out buffer and flushed at once, so the queue to
+        the client never holds more than MAX_SPEED_QUEUE_BYTES and a SAMPLE of frames.
+        """
+        agent, transport = self._batches, self.transport
+        assert agent is not None
+        steps = 0
+        while agent.t_us < due_us:
+            if speed is None:
+                room = MAX_SPEED_QUEUE_BYTES - len(transport.outbuf)
+                if room < 0 or not transport.connected:
+                    break
+                steps += agent.run(room // SAMPLE_WIRE + 1, due_us)
+                transport.flush()
+            else:
+                steps += agent.run(BATCH_STEPS, due_us)
+            if time.monotonic() >= deadline:
+                break
+        return steps
 
     def _wait_s(self, speed: float | None, due_us: int) -> float:
         if speed is None:
@@ -230,6 +267,9 @@ class AgentServer:
         transport.poll()
         self.agent.service()
         transport.flush()
+        if self.config.speed is None and timeout_s and transport.connected and \
+                len(transport.outbuf) <= MAX_SPEED_QUEUE_BYTES:
+            timeout_s = 0.0  # the flush made room: the program runs again at once (only reads are waited for)
         for key, mask in self.selector.select(timeout_s):
             key.data(mask)
         now = time.monotonic()

@@ -14,9 +14,12 @@ from collections.abc import Callable
 from simulator.errors import SimulatorError
 
 READ_BYTES = 65536
-# The kernel's send buffer for a client: small and fixed (no autotuning to megabytes), so bytes the ground has not
-# taken wait in our out buffer, where the server sees them and paces the program (server.py), not in the kernel.
-SEND_BUFFER_BYTES = 4 * 1024
+# Bytes the kernel may hold unsent for a client (TCP_NOTSENT_LOWAT): few, so bytes the ground has not taken wait in
+# our out buffer, where the server sees them and paces the program (server.py), not in the kernel. Not a small
+# SO_SNDBUF: that also counts bytes sent but not yet acknowledged, so with a reader that delays its ACKs (40 ms,
+# as Linux does for a peer that sends little) the agent could send one segment per delayed ACK.
+UNSENT_BYTES = 4 * 1024
+SEND_BUFFER_BYTES = 4 * 1024  # where TCP_NOTSENT_LOWAT does not exist: the send buffer itself, as small
 
 
 class TransportError(SimulatorError, OSError):
@@ -90,7 +93,11 @@ class TcpTransport(Transport):
         self.drop_client()
         sock.setblocking(False)
         sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-        sock.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, SEND_BUFFER_BYTES)
+        notsent_lowat = getattr(socket, "TCP_NOTSENT_LOWAT", None)
+        if notsent_lowat is not None:
+            sock.setsockopt(socket.IPPROTO_TCP, notsent_lowat, UNSENT_BYTES)
+        else:
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, SEND_BUFFER_BYTES)
         self.client = sock
         self.selector.register(sock, selectors.EVENT_READ, self._ready)
         self.on_connect()

@@ -10,6 +10,7 @@
 #define PARAM_RAM_BUDGET_BYTES 45056u  /* learner model + snapshot copies */
 #define PARAM_SNAPSHOTS_HELD 4u
 #define PARAM_SNAPSHOT_BYTES_PER_STATE 8u
+#define PARAM_SHARED_SNAPSHOT_BYTES_PER_STATE 4u  /* Q_VALUES rendered live */
 
 typedef enum {
     PARAM_TARGET_DEPTH_M = 0,

@@ -75,8 +75,15 @@ static bool pump_one(void) {
     return false;
 }
 
+static uint32_t reply_cost(void) {
+    bool live_q = g_reply.kind == REPLY_DUMP && g_reply.dump_kind == DUMP_KIND_Q_VALUES && dumps_live(g_reply.dump_id);
+    return live_q ? COMMANDS_LIVE_Q_CHUNK_COST : 1u;
+}
+
 bool commands_pump(uint32_t budget) {
-    while (budget-- > 0u) {
+    while (budget > 0u) {
+        uint32_t cost = reply_cost();
+        budget = budget > cost ? budget - cost : 0u;
         if (!pump_one()) { return false; }
     }
     return g_reply.kind != REPLY_NONE;

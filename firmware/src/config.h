@@ -18,7 +18,13 @@
 #define CFG_SURFACE_DEPTH_M 0.02f        /* SURFACING ends shallower than this */
 #define CFG_START_DEPTH_FRACTION 0.95f   /* recovery start depth ~ U(+/- 0.95 z_tol) around the target */
 #define CFG_HOVER_MAX_DEPTH_M 2.5f
-#define CFG_PLAN_SWEEPS_PER_STEP 2u      /* value iteration sweeps per recovery period (~2.6 ms each) */
+/* Value iteration per step (recovery period 25 ms): the per-state learners run whole sweeps (~60 000
+   instructions each at S = 101); the shared model runs state backups (a sweep is S - 1 of them, up to ~9 000
+   instructions each with every slot of both types filled), so a step's planning is bounded whatever S is
+   (docs/firmware.md: measured in QEMU). */
+#define CFG_PLAN_SWEEPS_PER_STEP 2u
+#define CFG_PLAN_BACKUPS_PER_STEP 100u
+#define CFG_VEL_DIFF_MAX_STEPS 16u       /* depth history for the k-step velocity (vel_diff_steps <= 16) */
 
 #define CFG_OBSERVER_RHO_MPS 2.5f
 #define CFG_OBSERVER_TAU_S 0.2f

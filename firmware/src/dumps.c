@@ -1,4 +1,5 @@
-/* Snapshot store: 4 slots; VALUES / POLICY / Q_VALUES are copies in one arena, COUNTS is read live. */
+/* Snapshot store: 4 slots; VALUES / POLICY / Q_VALUES are copies in one arena, COUNTS is read live, and so is
+   Q_VALUES of a shared-model learner (computed from its values and histograms: SPEC.md s. 10 and 13). */
 #include "dumps.h"
 
 #include <string.h>
@@ -13,7 +14,8 @@ typedef struct {
     uint32_t total_bytes;
     uint32_t age;       /* higher = newer */
     uint8_t kind;
-    bool stale;         /* COUNTS after the model changed */
+    bool live;          /* rendered from the learner when read: COUNTS, a shared model's Q_VALUES */
+    bool stale;         /* a live one after the model (or a shared model's values) changed */
 } slot_t;
 
 static uint8_t g_arena[DUMPS_ARENA_BYTES];
@@ -23,7 +25,9 @@ static uint32_t g_age;
 
 #define SLOT_BYTES (DUMPS_ARENA_BYTES / PARAM_SNAPSHOTS_HELD)
 
-uint32_t dumps_max_states(void) { return SLOT_BYTES / PARAM_SNAPSHOT_BYTES_PER_STATE; }
+uint32_t dumps_max_states(bool shared_model) {
+    return SLOT_BYTES / (shared_model ? PARAM_SHARED_SNAPSHOT_BYTES_PER_STATE : PARAM_SNAPSHOT_BYTES_PER_STATE);
+}
 
 void dumps_init(void) {
     memset(g_slots, 0, sizeof g_slots);
@@ -33,7 +37,7 @@ void dumps_init(void) {
 
 void dumps_model_changed(void) {
     for (unsigned i = 0; i < PARAM_SNAPSHOTS_HELD; i++) {
-        if (g_slots[i].kind == DUMP_KIND_COUNTS) { g_slots[i].stale = true; }
+        if (g_slots[i].live) { g_slots[i].stale = true; }
     }
 }
 
@@ -47,13 +51,8 @@ static uint32_t snapshot_bytes(uint8_t kind, uint32_t states) {
 }
 
 /* Policy byte of state s: 255 where the state was never left (untried), as simulator/agent_dumps.py. */
-static uint8_t policy_byte(uint16_t s, uint16_t states) {
-    for (uint8_t a = 0; a < LEARNER_ACTIONS; a++) {
-        for (uint16_t t = 0; t < states; t++) {
-            if (learner_count(a, s, t) != 0u) { return learner_policy(s); }
-        }
-    }
-    return ACTION_NONE;
+static uint8_t policy_byte(uint16_t s) {
+    return learner_tried(s) ? learner_policy(s) : ACTION_NONE;
 }
 
 static void render(uint8_t kind, uint8_t *out, uint16_t states) {
@@ -61,7 +60,7 @@ static void render(uint8_t kind, uint8_t *out, uint16_t states) {
         if (kind == DUMP_KIND_VALUES) {
             wire_put_f32(out + 4u * s, learner_value(s));
         } else if (kind == DUMP_KIND_POLICY) {
-            out[s] = policy_byte(s, states);
+            out[s] = policy_byte(s);
         } else {
             wire_put_f32(out + 8u * s, learner_q(s, 0));
             wire_put_f32(out + 8u * s + 4u, learner_q(s, 1));
@@ -83,7 +82,8 @@ uint32_t dumps_take(uint8_t kind) {
     slot->total_bytes = snapshot_bytes(kind, states);
     slot->age = ++g_age;
     slot->stale = false;
-    if (kind != DUMP_KIND_COUNTS && slot->total_bytes <= SLOT_BYTES) {
+    slot->live = kind == DUMP_KIND_COUNTS || (kind == DUMP_KIND_Q_VALUES && learner_config()->shared_model);
+    if (!slot->live && slot->total_bytes <= SLOT_BYTES) {
         render(kind, g_arena + (uint32_t)(slot - g_slots) * SLOT_BYTES, states);
     }
     return slot->dump_id;
@@ -95,6 +95,13 @@ static const slot_t *find(uint32_t dump_id, uint8_t kind) {
         if (dump_id != 0u && slot->dump_id == dump_id && slot->kind == kind && !slot->stale) { return slot; }
     }
     return NULL;
+}
+
+bool dumps_live(uint32_t dump_id) {
+    for (unsigned i = 0; i < PARAM_SNAPSHOTS_HELD; i++) {
+        if (g_slots[i].dump_id == dump_id) { return g_slots[i].live; }
+    }
+    return false;
 }
 
 bool dumps_find(uint32_t dump_id, uint8_t kind, uint32_t *total_bytes, uint32_t *episode) {
@@ -111,8 +118,22 @@ void dumps_read(uint32_t dump_id, uint32_t offset, uint8_t *out, uint32_t n) {
         if (g_slots[i].dump_id == dump_id) { slot = &g_slots[i]; }
     }
     if (slot == NULL) { return; }
-    if (slot->kind != DUMP_KIND_COUNTS) {
+    if (!slot->live) {
         memcpy(out, g_arena + (uint32_t)(slot - g_slots) * SLOT_BYTES + offset, n);
+        return;
+    }
+    if (slot->kind == DUMP_KIND_Q_VALUES) {
+        /* f32 q[S][2], little-endian, from the live values and histograms: each Q computed once. */
+        uint8_t word[4];
+        uint32_t word_at = 0xFFFFFFFFu;
+        for (uint32_t i = 0; i < n; i++) {
+            uint32_t pos = offset + i;
+            if (pos / 4u != word_at) {
+                word_at = pos / 4u;
+                wire_put_f32(word, learner_q((uint16_t)(word_at / 2u), (uint8_t)(word_at % 2u)));
+            }
+            out[i] = word[pos % 4u];
+        }
         return;
     }
     /* u16 count[2][S][S] little-endian, rendered from the live model byte by byte. */

@@ -9,13 +9,15 @@
      uint8_t  succ_idx[P][slots]     successor state per slot (uint16_t past 256 states)
      uint8_t  policy[S]
    reward_sum, succ_cnt and succ_idx are the model (learning's model_memory_bytes); with values and
-   policy they make learning's learner_memory_bytes; the sweep buffer comes on top. */
+   policy they make learning's learner_memory_bytes; the sweep buffer comes on top. With shared_model the
+   arena holds shared.c's arrays instead (and every model, planning and inspection call goes there). */
 #include "learner.h"
 
 #include <math.h>
 #include <string.h>
 
 #include "rng.h"
+#include "shared.h"
 
 #define STATE_INDEX_U8_LIMIT 256u  /* successor indices fit one byte up to this many states */
 #define MAX_STATES 65535u          /* successor indices are uint16 */
@@ -81,11 +83,17 @@ static uint32_t model_bytes(const learner_config_t *c)
 
 uint32_t learner_memory_bytes(const learner_config_t *c)
 {
+    if (c->shared_model) {
+        return shared_memory_bytes(c);
+    }
     return model_bytes(c) + states_of(c) * ((uint32_t)sizeof(float) + (uint32_t)sizeof(uint8_t));
 }
 
 uint32_t learner_total_bytes(const learner_config_t *c)
 {
+    if (c->shared_model) {
+        return shared_total_bytes(c);
+    }
     return learner_memory_bytes(c) + (c->in_place_sweeps ? 0u : states_of(c) * (uint32_t)sizeof(float));
 }
 
@@ -105,6 +113,13 @@ static bool config_valid(const learner_config_t *c)
         return false;
     }
     if (states_of(c) > MAX_STATES || c->explore_decay_episodes < 1u || c->max_sweeps < 1u) {
+        return false;
+    }
+    if (c->shared_model && (c->slots != SHARED_SLOTS || c->z_cells > SHARED_MAX_Z_CELLS)) {
+        return false;  /* the shared layout has SHARED_SLOTS slots per type, a reward per depth cell */
+    }
+    if (!(c->dirichlet_w >= 0.0f) || !(c->count_bonus >= 0.0f) || !isfinite(c->dirichlet_w)
+        || !isfinite(c->count_bonus)) {
         return false;
     }
     /* Written so that NaN fails every test. */
@@ -162,7 +177,12 @@ bool learner_configure(const learner_config_t *c)
     L.n_states = (uint16_t)states_of(c);
     L.n_pairs = (uint32_t)L.n_states * LEARNER_ACTIONS;
     L.wide_index = L.n_states > STATE_INDEX_U8_LIMIT;
-    carve_arena();
+    if (c->shared_model) {
+        shared_carve((uint8_t *)arena_words, c);
+        L.used_bytes = shared_total_bytes(c);
+    } else {
+        carve_arena();
+    }
     learner_reset();
     return true;
 }
@@ -203,9 +223,36 @@ static uint32_t row_total(uint32_t row)
     return total;
 }
 
+uint32_t learner_cell(float depth_m, float velocity_mps, float target_m, float actuator_fraction)
+{
+    return L.cfg.shared_model ? shared_raw_cell(depth_m, velocity_mps, target_m, actuator_fraction) : 0u;
+}
+
+uint32_t learner_evictions(void)
+{
+    return L.cfg.shared_model && L.n_states != 0u ? shared_evictions() : 0u;
+}
+
+void learner_observe_cell(uint16_t s, uint8_t a, float reward, uint16_t s_next, uint32_t next_cell)
+{
+    if (L.n_states == 0u || s >= learner_terminal() || a >= LEARNER_ACTIONS || s_next >= L.n_states) {
+        return;
+    }
+    if (L.cfg.shared_model) {
+        shared_observe(s, a, s_next, next_cell);
+        return;
+    }
+    learner_observe(s, a, reward, s_next);
+}
+
 void learner_observe(uint16_t s, uint8_t a, float reward, uint16_t s_next)
 {
     if (L.n_states == 0u || s >= learner_terminal() || a >= LEARNER_ACTIONS || s_next >= L.n_states) {
+        return;
+    }
+    if (L.cfg.shared_model) {
+        /* the cell of a live successor is its own; a terminal one lies out of reach */
+        shared_observe(s, a, s_next, s_next == learner_terminal() ? SHARED_FAR_CELL : shared_state_cell(s_next));
         return;
     }
     uint32_t row = (uint32_t)s * LEARNER_ACTIONS + a;
@@ -257,6 +304,9 @@ uint16_t learner_count(uint8_t a, uint16_t s, uint16_t s_next)
     if (s >= L.n_states || a >= LEARNER_ACTIONS) {
         return 0u;
     }
+    if (L.cfg.shared_model) {
+        return s < learner_terminal() && s_next < L.n_states ? shared_count(a, s, s_next) : 0u;
+    }
     uint32_t first = ((uint32_t)s * LEARNER_ACTIONS + a) * L.cfg.slots;
     for (uint32_t k = 0u; k < L.cfg.slots; k++) {
         if (L.succ_cnt[first + k] > 0u && succ_get(first + k) == s_next) {
@@ -264,6 +314,17 @@ uint16_t learner_count(uint8_t a, uint16_t s, uint16_t s_next)
         }
     }
     return 0u;
+}
+
+bool learner_tried(uint16_t s)
+{
+    if (s >= learner_terminal()) {
+        return false;
+    }
+    if (L.cfg.shared_model) {
+        return shared_tried(s);
+    }
+    return row_total((uint32_t)s * LEARNER_ACTIONS) > 0u || row_total((uint32_t)s * LEARNER_ACTIONS + 1u) > 0u;
 }
 
 /* ------------------------------------------------------------------ planning (Alg. 4, fixed), sliced */
@@ -295,6 +356,11 @@ static void start_planning(void)
 {
     if (L.n_states == 0u) {
         return;  /* never configured */
+    }
+    if (L.cfg.shared_model) {
+        shared_start_planning();
+        L.planning = true;
+        return;
     }
     uint16_t terminal = learner_terminal();
     L.values[terminal] = 0.0f;
@@ -342,6 +408,8 @@ static void finish_planning(void)
             L.policy[s] = 1u;
         } else if (d < 0.0f) {
             L.policy[s] = 0u;
+        } else if (L.cfg.random_ties && L.cfg.ties_per_step) {
+            L.policy[s] = (uint8_t)SHARED_TIED;  /* drawn at every step by learner_act */
         } else {
             L.policy[s] = (uint8_t)(L.cfg.random_ties && rng_coin(&L.rng) ? 1u : 0u);
         }
@@ -350,10 +418,28 @@ static void finish_planning(void)
     L.planning = false;
 }
 
+static bool shared_done(bool done)
+{
+    if (done) {
+        L.planning = false;
+        L.last_sweeps = shared_sweeps();
+    }
+    return done;
+}
+
 bool learner_plan_slice(uint32_t max_sweeps)
 {
     if (!L.planning) {
         return true;
+    }
+    if (L.cfg.shared_model) {
+        uint32_t sweep = learner_terminal();
+        for (uint32_t i = 0u; i < max_sweeps; i++) {
+            if (shared_done(shared_plan_backups(sweep, &L.rng))) {
+                return true;
+            }
+        }
+        return false;
     }
     for (uint32_t i = 0u; i < max_sweeps; i++) {
         if (sweep() || L.sweeps >= L.cfg.max_sweeps) {
@@ -362,6 +448,18 @@ bool learner_plan_slice(uint32_t max_sweeps)
         }
     }
     return false;
+}
+
+bool learner_plan_backups(uint32_t max_backups)
+{
+    if (!L.planning) {
+        return true;
+    }
+    if (L.cfg.shared_model) {
+        return shared_done(shared_plan_backups(max_backups, &L.rng));
+    }
+    uint32_t sweep = learner_terminal() > 0u ? learner_terminal() : 1u;
+    return learner_plan_slice((max_backups + sweep - 1u) / sweep);
 }
 
 bool learner_planning(void)
@@ -389,6 +487,9 @@ void learner_reset(void)
         return;  /* never configured: nothing to forget */
     }
     memset(arena_words, 0, sizeof(arena_words));
+    if (L.cfg.shared_model) {
+        shared_reset();
+    }
     L.episode = 0u;
     L.p_explore = explore_probability(0u);
     L.last_sweeps = 0u;
@@ -461,7 +562,10 @@ float learner_reward(float depth_m, float target_m, uint16_t s_next)
 
 uint8_t learner_act(uint16_t s)
 {
-    uint8_t action = s < L.n_states ? L.policy[s] : 0u;
+    uint8_t action = learner_policy(s);
+    if (action == SHARED_TIED) {
+        action = rng_coin(&L.rng) ? 1u : 0u;  /* ties_per_step: this draw comes first, as in Python */
+    }
     uint64_t draw = rng_draw53(&L.rng);
     uint64_t threshold = rng_scale53(L.p_explore);
     bool explore = L.cfg.explore_literal_gt ? draw > threshold : draw < threshold;
@@ -472,11 +576,17 @@ uint8_t learner_act(uint16_t s)
 
 float learner_value(uint16_t s)
 {
+    if (L.cfg.shared_model) {
+        return shared_value(s);
+    }
     return s < L.n_states ? L.values[s] : 0.0f;
 }
 
 uint8_t learner_policy(uint16_t s)
 {
+    if (L.cfg.shared_model) {
+        return shared_policy(s);
+    }
     return s < L.n_states ? L.policy[s] : 0u;
 }
 
@@ -484,6 +594,9 @@ float learner_q(uint16_t s, uint8_t a)
 {
     if (L.n_states == 0u || s >= learner_terminal() || a >= LEARNER_ACTIONS) {
         return 0.0f;
+    }
+    if (L.cfg.shared_model) {
+        return shared_q(s, a);
     }
     return action_value((uint32_t)s * LEARNER_ACTIONS + a, L.values);
 }

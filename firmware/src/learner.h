@@ -43,6 +43,12 @@ typedef struct {
     bool     policy_argmin;
     bool     alg4_printed;
     uint32_t max_sweeps;               /* safety stop of one planning run */
+    /* The shared-model learners (learning/shared.py, shared.c). */
+    bool     shared_model;             /* one offset histogram per (velocity cell, actuator bin, action) */
+    bool     ties_per_step;            /* shared model: a tied state's action drawn at every step */
+    float    dirichlet_w;              /* shared model: per-state counts too, this prior weight (0 = off) */
+    float    count_bonus;              /* shared model: beta / sqrt(n) added to a pair's reward (0 = off) */
+    uint8_t  vel_diff_steps;           /* the agent's velocity input: k-step depth difference (0 = observer) */
 } learner_config_t;
 
 /* The defaults of learning/config.py LearnerConfig (the paper's simulation values). */
@@ -75,11 +81,22 @@ float    learner_reward(float depth_m, float target_m, uint16_t s_next);
 /* The policy's action, flipped with the exploration probability of the current episode. */
 uint8_t  learner_act(uint16_t s);
 void     learner_observe(uint16_t s, uint8_t a, float reward, uint16_t s_next);
+/* The raw (unclipped) grid cell of a measurement, which the shared model records for a successor
+   (inside the region or not); 0 for the per-state learners, which do not need it. */
+uint32_t learner_cell(float depth_m, float velocity_mps, float target_m, float actuator_fraction);
+/* learner_observe with the successor's raw cell (learner_cell); learner_observe uses the cell of s_next,
+   and for a terminal successor an offset beyond the codable ones (also terminal). */
+void     learner_observe_cell(uint16_t s, uint8_t a, float reward, uint16_t s_next, uint32_t next_cell);
+uint32_t learner_evictions(void);    /* shared model: slots evicted so far (saturating per type) */
 
 /* Episode over: the episode count advances, planning starts (learner_plan_slice finishes it). */
 void     learner_end_episode(void);
 /* Up to max_sweeps value iteration sweeps; true when planning is done (then the policy is new). */
 bool     learner_plan_slice(uint32_t max_sweeps);
+/* Up to max_backups state backups (a sweep is S - 1 of them): a bounded slice whatever S is. The
+   shared model resumes a sweep where the last slice stopped; the per-state learners round up to whole
+   sweeps. True when planning is done. */
+bool     learner_plan_backups(uint32_t max_backups);
 bool     learner_planning(void);
 uint32_t learner_last_sweeps(void);  /* sweeps of the last completed planning run */
 
@@ -90,5 +107,7 @@ uint8_t  learner_policy(uint16_t s);
 /* Q(s, a) from the model and the current values (computed, not stored: 0 for the terminal state). */
 float    learner_q(uint16_t s, uint8_t a);
 uint16_t learner_count(uint8_t a, uint16_t s, uint16_t s_next);
+/* True if s was ever left (a transition counted from it, either action): what POLICY's 255 "untried" tells. */
+bool     learner_tried(uint16_t s);
 
 #endif

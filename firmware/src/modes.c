@@ -3,8 +3,9 @@
 | mode       | period     | each step                                    | leaves to (when)                          |
 |------------|------------|----------------------------------------------|-------------------------------------------|
 | IDLE       | control    | actuator at neutral; SAMPLE at 1 Hz          | RECOVERING (CMD_START); HOVER (CMD_HOVER)  |
-| RECOVERING | recovery   | recovery controller to a random start depth; | LEARNING (settled: EPISODE_START);         |
-|            |            | a slice of the learner's planning            | SURFACING (not settled after give_up_s)    |
+| RECOVERING | recovery   | recovery controller to a random start depth; | LEARNING (settled and planning done:       |
+|            |            | a slice of the learner's planning            |   EPISODE_START);                          |
+|            |            |                                              | SURFACING (not settled after give_up_s)    |
 | LEARNING   | control    | the learner acts, observes, is rewarded      | RECOVERING (failure or success);           |
 |            |            |                                              | SURFACING (episode limit); PAUSED          |
 | HOVER      | recovery   | recovery controller holds the hover depth    | RECOVERING (CMD_START); SURFACING (STOP)   |
@@ -56,6 +57,11 @@ typedef struct {
     uint32_t successes;
     uint32_t episodes_left;  /* 0 = no limit */
     bool dumps_after_planning;
+    float last_dt_s;         /* agent time between the last two measurements */
+    float depth_ring[CFG_VEL_DIFF_MAX_STEPS];  /* the last k measured depths (vel_diff_steps = k) */
+    uint8_t ring_pos;
+    uint32_t plan_waits;     /* recovery steps settled but waiting for planning to finish */
+    uint32_t forced_plans;   /* episode starts that had to finish planning in one step (a late step) */
     smo_state_t observer;
     recovery_state_t recovery;
     rng_t rng;
@@ -76,15 +82,33 @@ static void set_cmd(float deg) {
 static void measure(void) {
     uint64_t now = hal_time_us();
     float dt_s = (float)(uint32_t)(now - g.last_measure_us) * 1e-6f;
+    g.last_dt_s = dt_s;
     g.last_measure_us = now;
     g.pressure_pa = hal_pressure_pa();
     g.depth_m = (g.pressure_pa - g.surface_pa) / (CFG_WATER_DENSITY_KGPM3 * CFG_GRAVITY_MPS2);
     g.velocity_mps = smo_update(&g.observer, &OBSERVER_GAINS, g.depth_m, dt_s);
 }
 
+static float actuator_fraction(void) { return (g.cmd_deg - g.center_deg) / params_get(PARAM_ACTION_WIN_DEG); }
+
 static uint16_t state_now(void) {
-    float fraction = (g.cmd_deg - g.center_deg) / params_get(PARAM_ACTION_WIN_DEG);
-    return learner_state(g.depth_m, g.velocity_mps, params_get(PARAM_TARGET_DEPTH_M), fraction);
+    return learner_state(g.depth_m, g.velocity_mps, params_get(PARAM_TARGET_DEPTH_M), actuator_fraction());
+}
+
+static uint32_t vel_diff_steps(void) { return (uint32_t)params_get(PARAM_VEL_DIFF_STEPS); }
+
+/* simulator/observer.py DepthDifference: a flat history at the current depth (it was measured all along). */
+static void depth_ring_reset(void) {
+    for (uint32_t i = 0; i < CFG_VEL_DIFF_MAX_STEPS; i++) { g.depth_ring[i] = g.depth_m; }
+    g.ring_pos = 0;
+}
+
+/* The learner's velocity (z_t - z_{t-k}) / (k dt) over its own measured depths. */
+static float depth_difference(uint32_t k) {
+    float oldest = g.depth_ring[g.ring_pos];
+    g.depth_ring[g.ring_pos] = g.depth_m;
+    g.ring_pos = (uint8_t)((g.ring_pos + 1u) % k);
+    return (g.depth_m - oldest) / ((float)k * g.last_dt_s);
 }
 
 static void sample(uint8_t action, float reward, uint16_t state) {
@@ -173,8 +197,18 @@ static void surface(const char *why) {
 }
 
 /* Planning of the last episode, a few sweeps per call; the episode dumps wait for the new values. */
-static void plan(uint32_t sweeps) {
-    if (learner_planning()) { (void)learner_plan_slice(sweeps); }
+static void plan(bool to_completion) {
+    if (learner_planning()) {
+        if (to_completion) {
+            (void)learner_plan_slice(0xFFFFFFFFu);
+        } else if (learner_config()->shared_model) {
+            (void)learner_plan_backups(CFG_PLAN_BACKUPS_PER_STEP);
+        } else {
+            (void)learner_plan_slice(CFG_PLAN_SWEEPS_PER_STEP);
+        }
+        /* A shared model's Q_VALUES snapshot is rendered from the values, which planning changes. */
+        if (learner_config()->shared_model) { dumps_model_changed(); }
+    }
     if (!learner_planning() && g.dumps_after_planning) {
         g.dumps_after_planning = false;
         commands_episode_dumps();
@@ -182,8 +216,13 @@ static void plan(uint32_t sweeps) {
 }
 
 static void begin_episode(float center_deg) {
-    plan(0xFFFFFFFFu);  /* the next episode acts on the finished plan */
+    if (learner_planning()) {
+        g.forced_plans++;  /* not reached: RECOVERING waits for planning (controller_step) */
+        plan(true);  /* the next episode acts on the finished plan */
+    }
     reset_episode();
+    depth_ring_reset();
+    if (vel_diff_steps() > 0u) { g.velocity_mps = 0.0f; }  /* as simulator/onboard.py: a flat history */
     g.episode = learner_episode() + 1u;
     g.center_deg = center_deg;
     set_cmd(center_deg);
@@ -201,12 +240,16 @@ static void begin_episode(float center_deg) {
 
 static void learning_step(void) {
     measure();
+    uint32_t k = vel_diff_steps();
+    if (k > 0u) { g.velocity_mps = depth_difference(k); }
     uint16_t state = state_now();
     float reward = 0.0f;
     if (g.prev_state >= 0) {
-        reward = learner_reward(g.depth_m, params_get(PARAM_TARGET_DEPTH_M), state);
+        float target_m = params_get(PARAM_TARGET_DEPTH_M);
+        reward = learner_reward(g.depth_m, target_m, state);
         g.episode_return += reward;
-        learner_observe((uint16_t)g.prev_state, g.prev_action, reward, state);
+        uint32_t cell = learner_cell(g.depth_m, g.velocity_mps, target_m, actuator_fraction());
+        learner_observe_cell((uint16_t)g.prev_state, g.prev_action, reward, state, cell);
         dumps_model_changed();
     }
     float limit = params_get(PARAM_SUCCESS_TIME_S) / params_get(PARAM_CONTROL_DT_S);
@@ -235,10 +278,12 @@ static void controller_step(float dt_s) {
     set_cmd(cmd);
     sample(ACTION_NONE, 0.0f, 0);
     if (g.mode == MODE_RECOVERING) {
-        plan(CFG_PLAN_SWEEPS_PER_STEP);
-        if (settled) {
+        plan(false);
+        if (settled && learner_planning()) {
+            g.plan_waits++;  /* hold the start depth a step longer: planning never runs late */
+        } else if (settled) {
             begin_episode(recovery_alpha_avg_deg(&g.recovery));
-        } else if (gave_up) {
+        } else if (gave_up && !learner_planning()) {  /* unsettled while waiting for a long plan: hold on */
             enter(MODE_SURFACING, "recovery did not settle");
         }
     }
@@ -298,7 +343,7 @@ uint32_t modes_step(void) {
             sample(ACTION_NONE, 0.0f, 0);
         }
     }
-    if (g.mode != MODE_RECOVERING) { plan(CFG_PLAN_SWEEPS_PER_STEP); }  /* RECOVERING planned above */
+    if (g.mode != MODE_RECOVERING) { plan(false); }  /* RECOVERING planned above */
     if (diving(g.mode)) { check_limits(); }
     return period_us;
 }
@@ -306,6 +351,8 @@ uint32_t modes_step(void) {
 uint8_t modes_mode(void) { return g.mode; }
 uint32_t modes_episode(void) { return g.episode; }
 uint32_t modes_next_sample(void) { return g.next_sample; }
+uint32_t modes_plan_waits(void) { return g.plan_waits; }
+uint32_t modes_forced_plans(void) { return g.forced_plans; }
 
 static void not_allowed(verdict_t *v) {
     char line[PARAMS_REASON_BYTES];

@@ -13,6 +13,10 @@ uint32_t modes_step(void);
 uint8_t  modes_mode(void);
 uint32_t modes_episode(void);
 uint32_t modes_next_sample(void);
+/* Recovery steps that held the start depth because the last episode's planning was not done yet. */
+uint32_t modes_plan_waits(void);
+/* Episode starts that finished planning inside one step, making it late: 0 by construction (counted). */
+uint32_t modes_forced_plans(void);
 
 /* Commands: the verdict (value checks before mode checks); with apply set, also carried out. */
 void modes_cmd_start(uint32_t max_episodes, bool apply, verdict_t *v);

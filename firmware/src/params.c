@@ -9,12 +9,6 @@
 
 static float g_values[PARAM_COUNT];
 
-/* Learner options of the Python learners the C learner does not have (yet): only their defaults are accepted,
-   so a ground never believes the agent runs something it does not. */
-static const param_index_t NOT_IN_THIS_FIRMWARE[] = {
-    PARAM_SHARED_MODEL, PARAM_DIRICHLET_W, PARAM_COUNT_BONUS, PARAM_VEL_DIFF_STEPS, PARAM_TIES_PER_STEP,
-};
-
 void verdict_ok(verdict_t *v) {
     v->result = ACK_RESULT_ACCEPTED;
     v->reason[0] = '\0';
@@ -77,28 +71,22 @@ void params_learner_config(learner_config_t *c) {
     c->random_ties = g_values[PARAM_RANDOM_TIES] != 0.0f;
     c->max_sweeps = (uint32_t)g_values[PARAM_MAX_SWEEPS];
     c->in_place_sweeps = g_values[PARAM_IN_PLACE_SWEEPS] != 0.0f;
-}
-
-static bool supported(uint16_t index, float stored, verdict_t *v) {
-    for (size_t i = 0; i < sizeof NOT_IN_THIS_FIRMWARE / sizeof NOT_IN_THIS_FIRMWARE[0]; i++) {
-        if (NOT_IN_THIS_FIRMWARE[i] == index && stored != param_defs[index].default_value) {
-            text_buffer_t t;
-            text_start(&t, v->reason, sizeof v->reason);
-            text_add_n(&t, param_defs[index].name, PARAM_NAME_BYTES);
-            text_add(&t, ": not in this firmware (only its default)");
-            v->result = ACK_RESULT_BAD_VALUE;
-            return false;
-        }
-    }
-    return true;
+    c->shared_model = g_values[PARAM_SHARED_MODEL] != 0.0f;
+    c->dirichlet_w = g_values[PARAM_DIRICHLET_W];
+    c->count_bonus = g_values[PARAM_COUNT_BONUS];
+    c->vel_diff_steps = (uint8_t)g_values[PARAM_VEL_DIFF_STEPS];
+    c->ties_per_step = g_values[PARAM_TIES_PER_STEP] != 0.0f;
 }
 
 static uint32_t n_states(const learner_config_t *c) {
     return (uint32_t)c->z_cells * c->zdot_cells * c->act_bins + 1u;
 }
 
+/* SPEC.md s. 13: the learner plus 4 copies of the largest copied snapshot (Q_VALUES; VALUES for a shared model,
+   whose Q_VALUES is rendered live). */
 uint32_t params_ram_bytes(const learner_config_t *c) {
-    return learner_memory_bytes(c) + PARAM_SNAPSHOTS_HELD * PARAM_SNAPSHOT_BYTES_PER_STATE * n_states(c);
+    uint32_t per_state = c->shared_model ? PARAM_SHARED_SNAPSHOT_BYTES_PER_STATE : PARAM_SNAPSHOT_BYTES_PER_STATE;
+    return learner_memory_bytes(c) + PARAM_SNAPSHOTS_HELD * per_state * n_states(c);
 }
 
 /* BAD_VALUE reasons: not finite, not integral, outside [min, max], a model too big for the RAM. */
@@ -152,7 +140,7 @@ static bool check_ram(uint16_t index, float stored, verdict_t *v) {
     g_values[index] = old;
     uint32_t need = params_ram_bytes(&c);
     uint32_t states = n_states(&c);
-    if (need <= PARAM_RAM_BUDGET_BYTES && states <= dumps_max_states() &&
+    if (need <= PARAM_RAM_BUDGET_BYTES && states <= dumps_max_states(c.shared_model) &&
         learner_total_bytes(&c) <= learner_arena_bytes()) {
         return true;
     }
@@ -173,7 +161,7 @@ static bool check_ram(uint16_t index, float stored, verdict_t *v) {
 void params_set(uint16_t index, uint64_t value_bits, uint8_t mode, bool apply, verdict_t *v) {
     const param_def_t *d = &param_defs[index];
     float stored = 0.0f;
-    if (!check_value(d, value_bits, &stored, v) || !supported(index, stored, v)) { return; }
+    if (!check_value(d, value_bits, &stored, v)) { return; }
     if (d->learner && !check_ram(index, stored, v)) { return; }
     if (d->refused_in_modes & (1u << mode)) {
         text_buffer_t t;

@@ -174,7 +174,9 @@ def refused_in_mode(probe: Probe) -> str:
 
 @check("params.ram_budget", SECTION, """An agent refuses (BAD_VALUE, the reason naming the bytes) a learner
        parameter change whose learner would not fit its RAM budget. S = 320 needs 45 120 and is refused, and so is
-       z_cells = zdot_cells = 50, act_bins = 9 (S = 22 501).""", motion=True)
+       z_cells = zdot_cells = 50, act_bins = 9 (S = 22 501). With `shared_model` = 1 [...] the snapshot line becomes
+       4 × 4S [...] `shared-bins13` (S = 1 301) needs 15 604 + 20 816 = 36 420 bytes and fits; z_cells = 20 with
+       it (S = 2 601) needs 20 804 + 41 616 = 62 420 and is refused.""", motion=True)
 def ram_budget(probe: Probe) -> str:
     reach(probe, Mode.IDLE)
     names = ("z_cells", "zdot_cells", "act_bins")
@@ -196,4 +198,29 @@ def ram_budget(probe: Probe) -> str:
         for name in ("zdot_cells", "z_cells", "act_bins"):
             set_param(probe, name, old[name])
     expect(count < MAX_STATES_REFUSED, f"the agent holds {count} states after the refusals")
-    return "S = 291 accepted, S = 320 and 50 x 50 cells refused"
+    done = "S = 291 accepted, S = 320 and 50 x 50 cells refused"
+    shared = param_table(probe).get("shared_model")
+    if shared is None or shared.maximum < 1.0:
+        return done + "; no shared-model learner (shared_model fixed at 0)"
+    return done + "; " + _shared_ram_budget(probe)
+
+
+def _shared_ram_budget(probe: Probe) -> str:
+    """The shared model's budget: shared-bins13 (S = 1 301) accepted, z_cells = 20 with it refused."""
+    names = ("shared_model", "in_place_sweeps", "act_bins", "z_cells")
+    old = {n: get_param(probe, n).value for n in names}
+    # shared_model first: every learner on the way fits (act_bins = 13 alone is a per-state S = 1 301).
+    steps = (("shared_model", 1.0, False), ("in_place_sweeps", 1.0, False), ("act_bins", 13.0, False),
+             ("z_cells", 20.0, True))
+    try:
+        for name, value, refused in steps:
+            ex, _ = set_param(probe, name, value)
+            wanted = AckResult.BAD_VALUE if refused else AckResult.ACCEPTED
+            expect(ex.result == wanted, f"shared model, {name} = {value:g}: {result_name(ex.result)}, "
+                   f"wanted {wanted.name}")
+        count = states(probe)
+    finally:
+        for name in ("z_cells", "act_bins", "in_place_sweeps", "shared_model"):
+            set_param(probe, name, old[name])
+    expect(count == 1301, f"the agent holds {count} states with shared-bins13, wanted 1301")
+    return "shared model: S = 1301 accepted (36 420 B), S = 2601 refused"

@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 FIRMWARE = Path(__file__).resolve().parents[2] / "firmware"
-SOURCES = ("observer", "recovery", "rng", "learner", "plant", "sensor")
+SOURCES = ("observer", "recovery", "rng", "learner", "shared", "shared_plan", "plant", "sensor")
 
 
 class SmoState(ctypes.Structure):
@@ -43,6 +43,8 @@ class LearnerConfigC(ctypes.Structure):
         ("depth_only_terminal", ctypes.c_bool), ("in_place_sweeps", ctypes.c_bool),
         ("explore_literal_gt", ctypes.c_bool), ("policy_argmin", ctypes.c_bool),
         ("alg4_printed", ctypes.c_bool), ("max_sweeps", ctypes.c_uint32),
+        ("shared_model", ctypes.c_bool), ("ties_per_step", ctypes.c_bool), ("dirichlet_w", ctypes.c_float),
+        ("count_bonus", ctypes.c_float), ("vel_diff_steps", ctypes.c_uint8),
     ]
 
 
@@ -93,7 +95,18 @@ _SIGNATURES: dict[str, tuple[object, list[object]]] = {
     "learner_reward": (ctypes.c_float, [ctypes.c_float, ctypes.c_float, ctypes.c_uint16]),
     "learner_act": (ctypes.c_uint8, [ctypes.c_uint16]),
     "learner_observe": (None, [ctypes.c_uint16, ctypes.c_uint8, ctypes.c_float, ctypes.c_uint16]),
+    "learner_observe_cell": (None, [ctypes.c_uint16, ctypes.c_uint8, ctypes.c_float, ctypes.c_uint16,
+                                    ctypes.c_uint32]),
+    "learner_cell": (ctypes.c_uint32, [ctypes.c_float] * 4),
+    "learner_evictions": (ctypes.c_uint32, []),
+    "learner_plan_backups": (ctypes.c_bool, [ctypes.c_uint32]),
+    "learner_planning": (ctypes.c_bool, []),
     "learner_end_episode": (None, []),
+    "shared_slot": (ctypes.c_uint16, [ctypes.c_uint32, ctypes.c_uint32, ctypes.POINTER(ctypes.c_uint8)]),
+    "shared_type_total": (ctypes.c_uint16, [ctypes.c_uint32]),
+    "shared_type_evictions": (ctypes.c_uint16, [ctypes.c_uint32]),
+    "shared_memory_bytes": (ctypes.c_uint32, [ctypes.POINTER(LearnerConfigC)]),
+    "shared_total_bytes": (ctypes.c_uint32, [ctypes.POINTER(LearnerConfigC)]),
     "learner_plan_slice": (ctypes.c_bool, [ctypes.c_uint32]),
     "learner_last_sweeps": (ctypes.c_uint32, []),
     "learner_episode": (ctypes.c_uint32, []),

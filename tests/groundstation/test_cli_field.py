@@ -72,8 +72,24 @@ def test_help_imports_neither_rerun_nor_numba_nor_matplotlib() -> None:
                           capture_output=True, text=True, timeout=60)
     assert done.returncode == 0
     imported = {line.split("|")[-1].strip() for line in done.stderr.splitlines() if line.startswith("import time")}
-    for heavy in ("rerun", "numba", "matplotlib", "mcap", "numpy", "simulator", "learning"):
+    for heavy in ("rerun", "numba", "matplotlib", "mcap", "numpy", "simulator", "learning",
+                  # deferred to where they are used (issue 14 item 5: `dive --help` under 0.3 s):
+                  "rich.markdown", "markdown_it", "rich.traceback", "pygments", "ctypes", "socket", "secrets"):
         assert heavy not in imported, heavy
+
+
+@pytest.mark.parametrize("argv", [["--help"], ["run", "-h"], ["log", "export", "-h"], ["params", "-h"]])
+def test_help_without_the_markdown_renderer_is_the_help_typer_prints(argv: list[str]) -> None:
+    """main() loads Typer's help with stand-ins for the renderers dive never uses: the text must not change."""
+    def help_text(entry: str) -> str:
+        code = f"import sys; sys.argv[0] = 'dive'; from groundstation import cli; cli.{entry}"
+        done = subprocess.run([sys.executable, "-c", code, *argv], capture_output=True, text=True, timeout=60,
+                              env={**os.environ, "COLUMNS": "100"})
+        assert done.returncode == 0, done.stderr
+        return done.stdout
+
+    deferred, typer_alone = help_text("main()"), help_text("app()")
+    assert deferred == typer_alone and "Usage: dive" in deferred
 
 
 def test_not_on_a_terminal_dive_run_prints_one_line_per_episode(tmp_path: Path) -> None:

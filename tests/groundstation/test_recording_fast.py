@@ -24,7 +24,10 @@ def _write(path: Path, fast: bool) -> bytes:
             def add(messages: tuple[tuple[int, bytes], ...], log_time: int, publish_time: int) -> None:
                 for channel, data in messages:
                     writer.add_message(channel, log_time=log_time, data=data, publish_time=publish_time)
-            w._add = add
+
+            def add_pair(first: int, data: bytes, second: int, raw: bytes, log_time: int, publish_time: int) -> None:
+                add(((first, data), (second, raw)), log_time, publish_time)
+            w._add, w._add_pair = add, add_pair
         channels = [w.channel(f"/topic/{i}", "json", f"schema{i}", {"type": "object"}) for i in range(3)]
         channels.append(w.channel("/raw/rx", "diving-agent-frame-v1"))
         for i in range(30_000):  # several 256 KiB chunks; times out of order now and then
@@ -32,8 +35,10 @@ def _write(path: Path, fast: bool) -> bytes:
             data = rng.randbytes(rng.randrange(0, 90))
             if i % 2:
                 w.write(rng.choice(channels), data, log_time, None if i % 3 else log_time + 7)
-            else:
+            elif i % 4:
                 w.write_many(((rng.choice(channels), data), (channels[-1], data[:9])), log_time, log_time + 3)
+            else:  # the recorder's path for every frame
+                w.write_frame(rng.choice(channels), data, channels[-1], data[:9], log_time, log_time + 3)
     return path.read_bytes()
 
 

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import dataclasses
 from pathlib import Path
 
 import pytest
@@ -18,7 +17,7 @@ SPEED = 100  # the agent's clock runs 100x the host's, as with `dive run --speed
 def fast_recording(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, int]:
     """150 s of agent time recorded in 1.5 s of host time."""
     traffic = generate(duration_s=150.0)
-    squeezed = Traffic([dataclasses.replace(r, host_time_ns=START_NS + (r.host_time_ns - START_NS) // SPEED)
+    squeezed = Traffic([r._replace(host_time_ns=START_NS + (r.host_time_ns - START_NS) // SPEED)
                         for r in traffic.frames],
                        [(START_NS + (t - START_NS) // SPEED, body) for t, body in traffic.link])
     return record(squeezed, tmp_path_factory.mktemp("rec") / "fast.mcap"), len(traffic.frames)

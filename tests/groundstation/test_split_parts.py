@@ -199,7 +199,7 @@ def test_a_reboot_inside_a_later_part_is_a_new_boot(tmp_path: Path) -> None:
             hello = dataclasses.replace(frame.message, boot_id=12)
             frame = Frame(frame.flags, frame.seq, frame.msg_id, hello, build_inner(frame.flags, frame.seq,
                                                                                    frame.msg_id, hello.pack()))
-        rebooted.append(dataclasses.replace(received, frame=frame, host_time_ns=received.host_time_ns + shift_ns))
+        rebooted.append(received._replace(frame=frame, host_time_ns=received.host_time_ns + shift_ns))
     paths = _record(Traffic([*before.frames, *rebooted], []), RecorderConfig(directory=tmp_path, split_bytes=40_000))
     [holding] = [p for p in paths[1:] if any(True for _ in iter_messages(p, {"/agent/HELLO"}))]
     done = CliRunner().invoke(app, ["log", "info", str(holding), "--json"])

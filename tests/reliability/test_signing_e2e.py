@@ -91,7 +91,7 @@ def test_signed_commands_run_and_unsigned_replayed_forged_ones_are_refused_and_c
         session.add_listener(sent)
         session.connect()
         assert session.command(m.SetTarget(target_depth_m=1.25)).result == AckResult.ACCEPTED
-        assert session.get_param("target_depth_m").value == pytest.approx(1.25)
+        assert session.get_param("target_depth_m").value == 1.25  # exact in f32
     signed_set_target = next(s.wire for s in sent.sent if isinstance(s.message, m.SetTarget))
 
     attacker = AgentClient.tcp(agent)
@@ -120,7 +120,7 @@ def test_signed_commands_run_and_unsigned_replayed_forged_ones_are_refused_and_c
 
     with _session(agent, key) as session:  # nothing the attacker sent was executed
         session.connect()
-        assert session.get_param("target_depth_m").value == pytest.approx(1.25)
+        assert session.get_param("target_depth_m").value == 1.25  # exact in f32
         assert session.last_heartbeat is None or session.last_heartbeat.mode != 4  # not surfacing
 
 

@@ -5,7 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from learning import learner_preset
+from learning import Learner, learner_preset
+from protocol import DumpKind
+from simulator.agent_dumps import DumpStore, snapshot_bytes
 from simulator.agent_mission import MissionConfig
 from simulator.onboard import OnboardProgram
 from simulator.onboard_hw import SimulatedHardware
@@ -41,3 +43,20 @@ def test_the_agent_learns_with_the_shared_model(learner: str) -> None:
         np.testing.assert_allclose(got, expected, atol=1e-12)
     values = program.learner.values
     assert np.any(values[:-1] != 0.0)  # planning ran on what the shared model learnt
+
+
+def test_shared_model_q_values_snapshot_is_rendered_live() -> None:
+    """SPEC.md 10/13: a shared model's Q_VALUES goes STALE when the model changes (it is not a copy); the
+    per-state learners' Q_VALUES is a copy and stays."""
+    for name, live in (("shared", True), ("paper", False)):
+        learner = Learner(learner_preset(name), np.random.default_rng(0))
+        learner.observe(5, 1, -0.05, 6)
+        store = DumpStore()
+        q = store.take(learner, DumpKind.Q_VALUES)
+        values = store.take(learner, DumpKind.VALUES)
+        # Live: Q from the model as it is now (one transition, not yet planned): the firmware's rendering.
+        expected = learner.live_q_values() if live else learner.q_values
+        assert q.data == expected.astype("<f4").tobytes() == snapshot_bytes(learner, DumpKind.Q_VALUES)
+        store.model_changed()
+        assert (store.get(q.dump_id) is None) == live
+        assert store.get(values.dump_id) is not None

@@ -19,7 +19,8 @@ def test_bytes_used_is_one_length_byte_plus_the_inner_frame_per_record_and_whole
     ring = LogRing(capacity_bytes=10 * 56)
     assert ring.first_sample == ring.next_sample == 0  # empty: first = next
     _fill(ring, 12)
-    assert ring.bytes_used <= ring.capacity_bytes and ring.bytes_used == sum(len(r.inner) + 1 for r in ring._records)
+    held = ring.records(0, 2**32)
+    assert ring.bytes_used <= ring.capacity_bytes and ring.bytes_used == sum(len(r.inner) + 1 for r in held)
     assert ring.next_sample == 12 and ring.first_sample > 0
 
 

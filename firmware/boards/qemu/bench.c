@@ -2,6 +2,7 @@
 #include "bench.h"
 
 #include "learner.h"
+#include "modes.h"
 #include "timer.h"
 #include "uart.h"
 
@@ -10,6 +11,8 @@
 #define DECIMAL_DIGITS 21u
 #define STACK_PAINT_BYTES 16384u  /* painted below the stack top at boot; the untouched rest shows the peak */
 #define STACK_PAINT_WORD 0xA5C3A5C3u
+#define INSTRUCTIONS_PER_TICK 40u  /* -icount shift=0 (1 ns each) on the 25 MHz timer; the CAL line checks it */
+#define CPU_MHZ 72u                /* the MK20DX256's clock, one instruction per cycle assumed */
 
 extern uint32_t _stack_top;
 
@@ -22,6 +25,9 @@ typedef struct {
 static step_stats_t stats[MODES][2];
 static uint32_t printed_episode;
 static uint32_t max_sweeps_per_episode;
+static uint32_t late_steps;          /* steps longer than their period at 72 MHz, since boot */
+static uint64_t plan_ticks;          /* ticks of the steps that ran planning, since the last print */
+static uint32_t plan_steps;
 
 static void put_u64(uint64_t v)
 {
@@ -101,11 +107,25 @@ static void print_stats(void)
     put_field("states", learner_n_states());
     put_field("learner_bytes", learner_used_bytes());
     put_field("stack_peak_bytes", stack_peak_bytes());
+    put_field("late_steps", late_steps);
+    put_field("plan_ticks", plan_ticks);
+    put_field("plan_steps", plan_steps);
+    put_field("plan_waits", modes_plan_waits());
+    put_field("forced_plans", modes_forced_plans());
     uart1_write_text("\n");
+    plan_ticks = 0u;
+    plan_steps = 0u;
 }
 
-void bench_record(uint8_t mode, bool planning, uint32_t ticks)
+void bench_record(uint8_t mode, bool planning, uint32_t ticks, uint32_t period_us)
 {
+    if ((uint64_t)ticks * INSTRUCTIONS_PER_TICK > (uint64_t)period_us * CPU_MHZ) {
+        late_steps++;
+    }
+    if (planning) {
+        plan_ticks += ticks;
+        plan_steps++;
+    }
     step_stats_t *s = &stats[mode < MODES ? mode : MODES - 1u][planning ? 1u : 0u];
     s->count++;
     s->sum_ticks += ticks;

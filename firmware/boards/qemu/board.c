@@ -202,7 +202,7 @@ int main(void)
         uint32_t start = timer_raw();
         uint32_t dt_us = agent_step();
         if (args->bench != 0u) {
-            bench_record(mode, planning, timer_raw() - start);
+            bench_record(mode, planning, timer_raw() - start, dt_us);
         }
         advance(dt_us);
         if (args->speed_milli != 0u) {

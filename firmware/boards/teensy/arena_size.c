@@ -1,5 +1,7 @@
 /* Host tool of the Teensy build: the static RAM a learner needs, so each Teensy variant reserves exactly that.
-   Usage: arena_size Z_CELLS ZDOT_CELLS ACT_BINS -> "LEARNER_BYTES DUMPS_BYTES" */
+   Usage: arena_size Z_CELLS ZDOT_CELLS ACT_BINS [SHARED] -> "LEARNER_BYTES DUMPS_BYTES"
+   SHARED 1: the shared-model learner (in-place sweeps, as its presets), whose snapshot copies are at most
+   VALUES (4 S bytes; its Q_VALUES is rendered live, SPEC.md s. 13). */
 #include <stdio.h>
 #include <stdlib.h>
 
@@ -7,8 +9,8 @@
 #include "proto_params.h"
 
 int main(int argc, char **argv) {
-    if (argc != 4) {
-        fprintf(stderr, "usage: arena_size Z_CELLS ZDOT_CELLS ACT_BINS\n");
+    if (argc != 4 && argc != 5) {
+        fprintf(stderr, "usage: arena_size Z_CELLS ZDOT_CELLS ACT_BINS [SHARED]\n");
         return 2;
     }
     learner_config_t c;
@@ -16,7 +18,10 @@ int main(int argc, char **argv) {
     c.z_cells = (uint8_t)atoi(argv[1]);
     c.zdot_cells = (uint8_t)atoi(argv[2]);
     c.act_bins = (uint8_t)atoi(argv[3]);
+    c.shared_model = argc == 5 && atoi(argv[4]) != 0;
+    c.in_place_sweeps = c.shared_model;
     unsigned states = (unsigned)c.z_cells * c.zdot_cells * c.act_bins + 1u;
-    printf("%u %u\n", (unsigned)learner_total_bytes(&c), PARAM_SNAPSHOTS_HELD * PARAM_SNAPSHOT_BYTES_PER_STATE * states);
+    unsigned per_state = c.shared_model ? PARAM_SHARED_SNAPSHOT_BYTES_PER_STATE : PARAM_SNAPSHOT_BYTES_PER_STATE;
+    printf("%u %u\n", (unsigned)learner_total_bytes(&c), PARAM_SNAPSHOTS_HELD * per_state * states);
     return 0;
 }

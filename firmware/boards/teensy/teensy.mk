@@ -1,8 +1,10 @@
 # The Teensy 3.2 build (MK20DX256: Cortex-M4 without FPU, 256 KB flash, 64 KB RAM), included by firmware/Makefile.
 #   make -C firmware teensy         -> the core + the sketch's glue, compiled with arm-none-eabi-gcc and linked
 #                                      against compile_check/ (declarations and empty stubs of the Arduino calls),
-#                                      in two variants whose learner storage fits the paper learner (S = 101) and
-#                                      the actuator-state learner (actuator3, S = 301); prints arm-none-eabi-size
+#                                      in three variants whose learner storage fits the paper learner (S = 101),
+#                                      the actuator-state learner (actuator3, S = 301) and the shared-model
+#                                      learner with 13 actuator bins (shared-bins13, S = 1301); prints
+#                                      arm-none-eabi-size
 #   make -C firmware teensy-sketch  -> copies the core into boards/teensy/diving_agent/src/core for Teensyduino
 #                                      (Arduino IDE or platformio, boards/teensy/platformio.ini)
 
@@ -19,21 +21,21 @@ TEENSY_LDFLAGS := $(TEENSY_ARCH) -T $(TEENSY_DIR)/mk20dx256.ld -nostartfiles --s
 	-Wl,--gc-sections
 TEENSY_CORE := $(filter-out %/learner.c,$(CORE_SRC)) $(FIRMWARE)/src/learner.c
 ARENA_TOOL := $(BUILD)/host/arena_size
-# name z_cells zdot_cells act_bins
-TEENSY_VARIANTS := paper:10:10:1 actuator3:10:10:3
+# name z_cells zdot_cells act_bins shared_model
+TEENSY_VARIANTS := paper:10:10:1:0 actuator3:10:10:3:0 shared-bins13:10:10:13:1
 SKETCH_DIR ?= $(TEENSY_DIR)/diving_agent
 SKETCH_CORE = $(SKETCH_DIR)/src/core
 
 .PHONY: teensy teensy-sketch teensy-variant
 
-$(ARENA_TOOL): $(TEENSY_DIR)/arena_size.c $(FIRMWARE)/src/learner.c $(FIRMWARE)/src/rng.c $(FIRMWARE)/src/learner.h
+$(ARENA_TOOL): $(TEENSY_DIR)/arena_size.c $(FIRMWARE)/src/learner.c $(FIRMWARE)/src/shared.c $(FIRMWARE)/src/shared_plan.c $(FIRMWARE)/src/rng.c $(FIRMWARE)/src/learner.h
 	@mkdir -p $(dir $@)
-	$(HOST_CC) -std=c99 -O1 $(INCLUDES) $(TEENSY_DIR)/arena_size.c $(FIRMWARE)/src/learner.c $(FIRMWARE)/src/rng.c -lm -o $@
+	$(HOST_CC) -std=c99 -O1 $(INCLUDES) $(TEENSY_DIR)/arena_size.c $(FIRMWARE)/src/learner.c $(FIRMWARE)/src/shared.c $(FIRMWARE)/src/shared_plan.c $(FIRMWARE)/src/rng.c -lm -o $@
 
 teensy: $(ARENA_TOOL)
 	@for v in $(TEENSY_VARIANTS); do \
 	    set -- $$(echo $$v | tr ':' ' '); \
-	    sizes=$$($(ARENA_TOOL) $$2 $$3 $$4) || exit 1; set -- $$1 $$sizes; \
+	    sizes=$$($(ARENA_TOOL) $$2 $$3 $$4 $$5) || exit 1; set -- $$1 $$sizes; \
 	    $(MAKE) --no-print-directory -f $(FIRMWARE)/Makefile teensy-variant VARIANT=$$1 LEARNER_BYTES=$$2 \
 	        DUMPS_BYTES=$$3 || exit 1; \
 	done

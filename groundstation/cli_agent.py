@@ -1,0 +1,173 @@
+"""The commands that talk to an agent: status, params, surface, hover, dump, and mark (to the running run)."""
+
+from __future__ import annotations
+
+import json
+import time
+from enum import StrEnum
+from pathlib import Path
+from typing import TYPE_CHECKING, Annotated
+
+import typer
+
+from groundstation.cli_common import UrlArg, agent_session, one_line_errors, out, split_url
+from groundstation.errors import GroundStationError
+from groundstation.keys import KeyFileOption
+from groundstation.safe_output import one_line
+from groundstation.validate import UsageError
+
+if TYPE_CHECKING:
+    from groundstation.session import Session
+
+
+@one_line_errors
+def status(url: UrlArg = None, key_file: KeyFileOption = None) -> None:
+    """Show the agent's identity, mode, battery, on-board log and link quality."""
+    with agent_session(url, key_file) as s:
+        deadline = time.monotonic() + 2.5
+        while s.last_heartbeat is None and time.monotonic() < deadline:
+            time.sleep(0.05)
+        hello, hb = s.agent_hello, s.last_heartbeat
+        assert hello is not None
+        out.print(f"agent {one_line(repr(hello.name))} id {hello.node_id:08x} firmware "
+                  f"{hello.firmware_major}.{hello.firmware_minor}.{hello.firmware_patch} boot {hello.boot_id:08x}")
+        if hb is not None:
+            from protocol import Mode
+
+            mode = Mode(hb.mode).name if hb.mode in Mode._value2member_map_ else str(hb.mode)
+            out.print(f"mode {mode}, battery {hb.battery_mv / 1000:.2f} V, uptime {hb.uptime_ms / 1000:.0f} s, "
+                      f"episode {hb.episode}, log samples [{hb.log_first_sample}, {hb.log_next_sample})")
+        snap = s.stats.snapshot(s.decoder.stats)
+        rtt = snap["rtt_median_ms"]
+        out.print(f"{len(s.params)} parameters; link: {snap['rx_frames']} frames, {snap['rx_lost']} lost, "
+                  f"{snap['rx_rejects']} rejected" + (f", rtt {rtt:.1f} ms" if rtt is not None else ""))
+
+
+_PARAM_ACTIONS = ("get", "set", "save", "diff", "load")
+HOVER_RANGE_M = (0.0, 2.5)
+
+
+@one_line_errors
+def params_command(
+    args: Annotated[list[str] | None, typer.Argument(
+        help="[URL] [get NAME | set NAME VALUE | save FILE | diff FILE | load FILE]", show_default=False)] = None,
+    key_file: KeyFileOption = None,
+) -> None:
+    """List the agent's parameters, get / set one, or save, compare with or load a TOML file of them."""
+    from groundstation.paramfile import read_params, write_params
+
+    url, words = split_url(list(args or []), _PARAM_ACTIONS)
+    action, rest = (words[0], words[1:]) if words else (None, [])
+    wanted = {"get": 1, "set": 2, "save": 1, "diff": 1, "load": 1}
+    if action is not None and action not in wanted:
+        raise UsageError(f"unknown params action {action!r}: use get NAME, set NAME VALUE, save/diff/load FILE")
+    if action is not None and len(rest) != wanted[action]:
+        shape = {"get": "get NAME", "set": "set NAME VALUE"}.get(action, f"{action} FILE")
+        raise UsageError(f"expected `dive params [URL] {shape}`")
+    from_file = read_params(Path(rest[0])) if action in ("diff", "load") else {}
+    with agent_session(url, key_file) as s:
+        if action is None:
+            for p in s.params:
+                name_shown = one_line(p.name)
+                out.print(f"{p.index:3d} {name_shown:24s} {p.display_value:>12s}   [{p.minimum:g} .. {p.maximum:g}]")
+        elif action == "get":
+            p = s.get_param(rest[0])
+            out.print(f"{p.name} = {p.display_value}")
+        elif action == "set":
+            p = s.set_param(rest[0], rest[1])
+            out.print(f"{p.name} = {p.display_value}")
+        elif action == "save":
+            write_params(Path(rest[0]), s.params)
+            out.print(f"{rest[0]}: {len(s.params)} parameters")
+        elif action == "diff":
+            differ = [(n, s.params.get(n), v) for n, v in from_file.items()
+                      if _param_number(s, n, str(s.params.get(n).value)) != _param_number(s, n, v)]
+            for name, p, v in differ:
+                out.print(f"{name}: agent {p.display_value}, file {v}")
+            out.print(f"{len(differ)} of {len(from_file)} differ")
+        else:
+            for name in from_file:
+                s.params.get(name)  # every name checked (with did-you-mean) before the first is set
+            for name, value in from_file.items():
+                p = s.set_param(name, value)
+                out.print(f"{p.name} = {p.display_value}")
+
+
+def _param_number(s: Session, name: str, text: str) -> float:
+    """A value as the agent stores it (F32 parameters as f32), to compare a file's value with the agent's."""
+    import struct
+
+    from groundstation.params import ParamType, parse_value
+
+    p = s.params.get(name)
+    value = parse_value(p, text)
+    return struct.unpack("<f", struct.pack("<f", value))[0] if p.param_type == ParamType.F32 else value
+
+
+@one_line_errors
+def surface(url: UrlArg = None, key_file: KeyFileOption = None) -> None:
+    """Emergency surface: maximum volume now, in any mode."""
+    from protocol import messages as m
+
+    with agent_session(url, key_file) as s:
+        s.command(m.Surface())
+        name = s.link.url
+    out.print(f"surfacing ({name})")
+
+
+@one_line_errors
+def hover(args: Annotated[list[str], typer.Argument(help="[URL] DEPTH: the depth to hold \\[m]",
+                                                    show_default=False)],
+          key_file: KeyFileOption = None) -> None:
+    """Hold a depth with the recovery controller (no learning)."""
+    url, words = split_url(args)
+    if len(words) != 1:
+        raise UsageError("expected `dive hover [URL] DEPTH`")
+    try:
+        depth = float(words[0])
+    except ValueError:
+        raise UsageError(f"DEPTH must be a number of metres, not {words[0]!r}") from None
+    if not HOVER_RANGE_M[0] <= depth <= HOVER_RANGE_M[1]:  # the agent refuses it too (SPEC: CMD_HOVER)
+        raise GroundStationError(f"hover depth {depth:g} m is outside [{HOVER_RANGE_M[0]:g}, {HOVER_RANGE_M[1]:g}] m")
+    from protocol import messages as m
+
+    with agent_session(url, key_file) as s:
+        s.command(m.Hover(depth_m=depth))
+        name = s.link.url
+    out.print(f"hovering at {depth:g} m ({name})")
+
+
+class DumpChoice(StrEnum):
+    values = "values"
+    policy = "policy"
+    q = "q"
+    counts = "counts"
+
+
+_DUMP_KINDS = {DumpChoice.values: "VALUES", DumpChoice.policy: "POLICY", DumpChoice.q: "Q_VALUES",
+               DumpChoice.counts: "COUNTS"}  # DumpKind names (protocol is imported by the command)
+
+
+@one_line_errors
+def dump(url: UrlArg = None, kind: Annotated[DumpChoice, typer.Option(help="what to dump")] = DumpChoice.values,
+         key_file: KeyFileOption = None) -> None:
+    """Fetch the value function, policy, Q values or model counts and print them as JSON."""
+    with agent_session(url, key_file) as s:
+        from protocol import DumpKind
+
+        snapshot = s.dump(DumpKind[_DUMP_KINDS[kind]], timeout_s=10.0)
+    out.print_json(json.dumps(snapshot.as_dict()))
+
+
+@one_line_errors
+def mark(text: Annotated[str, typer.Argument(help="what happened (recorded on /marker by the run)")],
+         run: Annotated[str | None, typer.Option(help="the run (hub://RUN's RUN) when several are running")] = None,
+         ) -> None:
+    """Put a marker into the recording of the `dive run` running on this machine (the one named with --run)."""
+    from groundstation.marker import send_marker
+    from groundstation.runs import find_run
+
+    info = find_run(run.removeprefix("hub://") if run else None)
+    send_marker(info, text)
+    where = f" ({info.recording})" if info.recording else ""
+    out.print(f"marked in run {info.run}{where}")

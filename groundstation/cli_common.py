@@ -1,0 +1,78 @@
+"""What every `dive` command shares: the consoles, errors as one line and an exit code, the agent's session."""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import TYPE_CHECKING, Annotated, Any, TypeVar
+
+import typer
+from rich.text import Text
+
+from groundstation.errors import GroundStationError
+from groundstation.keys import resolve_key
+from groundstation.safe_output import SafeConsole, one_line
+from groundstation.validate import UsageError
+
+if TYPE_CHECKING:  # the session (mcap, numpy) is imported by the commands that open one
+    from groundstation.session import Session
+
+F = TypeVar("F", bound=Callable[..., Any])
+err = SafeConsole(stderr=True)  # agent text and file names are data: no markup, control characters escaped
+out = SafeConsole()
+
+
+def one_line_errors(func: F) -> F:
+    """Our errors (and a bad file) become one line on stderr and exit code 1 (a bad value: 2); Ctrl-C exits 130."""
+
+    @functools.wraps(func)
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
+        try:
+            return func(*args, **kwargs)
+        except UsageError as e:
+            err.print(Text.assemble(("dive:", "bold red"), " ", one_line(str(e))), soft_wrap=True)
+            raise typer.Exit(2) from None
+        except (GroundStationError, OSError) as e:
+            message = str(e).replace("\n", " ") or type(e).__name__
+            err.print(Text.assemble(("dive:", "bold red"), " ", one_line(message)), soft_wrap=True)
+            raise typer.Exit(1) from None
+        except KeyboardInterrupt:
+            raise typer.Exit(130) from None
+
+    return wrapper  # type: ignore[return-value]
+
+
+@contextmanager
+def agent_session(url: str | None, key_file: Path | None = None) -> Iterator[Session]:
+    """A session with *the* agent: the URL given, else $DIVE_URL, else the running `dive run` (never a new sim)."""
+    from groundstation.links import make_link
+    from groundstation.runs import attach_url
+    from groundstation.session import Session, SessionConfig
+
+    session = Session(make_link(attach_url(url)),
+                      SessionConfig(reconnect=False, backfill=False, key=resolve_key(key_file)))
+    with session:
+        yield session
+
+
+_URL_HELP = ("tcp://HOST:PORT, serial:///dev/ttyUSB0?baud=115200, sim://?speed=max, hub://RUN "
+             "(default: $DIVE_URL, else the running `dive run`)")
+UrlArg = Annotated[str | None, typer.Argument(help=_URL_HELP, show_default=False)]
+
+TAKES_NEGATIVE = {"ignore_unknown_options": True}  # `-5` is a value, not an unknown option
+
+
+def split_url(args: list[str], actions: tuple[str, ...] = ()) -> tuple[str | None, list[str]]:
+    """An optional URL first (it has `://` or is a /dev path), then the command's own words."""
+    if args and ("://" in args[0] or args[0].startswith("/dev/")) and args[0] not in actions:
+        return args[0], args[1:]
+    return None, args
+
+
+def existing(path: Path) -> Path:
+    if not path.is_file():
+        raise GroundStationError(f"no such recording: {path}")
+    return path
+

@@ -1,0 +1,113 @@
+"""`dive log`: inspect, export and repair recordings."""
+
+from __future__ import annotations
+
+import json
+from enum import StrEnum
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from groundstation.cli_common import existing, one_line_errors, out
+from groundstation.errors import GroundStationError
+from groundstation.safe_files import replaced_atomically, unused_name
+from groundstation.validate import UsageError
+
+log_app = typer.Typer(help="Inspect, export and repair recordings.", no_args_is_help=True,
+                      context_settings={"help_option_names": ["-h", "--help"]})
+
+
+@log_app.command("info")
+@one_line_errors
+def log_info(files: Annotated[list[Path], typer.Argument(help="recordings, or folders of them")],
+             as_json: Annotated[bool, typer.Option("--json", help="machine-readable")] = False) -> None:
+    """Sessions, duration, episodes with outcome and length, samples, loss, backfill and missing samples."""
+    from groundstation.loginfo import format_summary, summarize
+    from groundstation.recording_files import being_recorded, expand, json_summary
+
+    summaries = []
+    for path in expand(files):
+        summary = summarize(path)
+        writer = None if summary.complete else being_recorded(path)
+        summaries.append((summary, writer))
+    if as_json:
+        rows = [{**json_summary(s.as_dict()), "being_recorded_by": w} for s, w in summaries]
+        out.print_json(json.dumps(rows[0] if len(rows) == 1 else rows))
+        return
+    for summary, writer in summaries:
+        text = format_summary(summary)
+        if writer is not None:  # no footer yet because it is still being written, not because it was cut short
+            text = text.replace("  (truncated: run `dive log recover`)", f"  (being recorded by {writer})", 1)
+        out.print(text)
+
+
+class ExportFormat(StrEnum):
+    csv = "csv"
+    npz = "npz"
+    minari = "minari"
+
+
+@log_app.command("export")
+@one_line_errors
+def log_export(files: Annotated[list[Path], typer.Argument(help="recordings, or folders of them")],
+               format: Annotated[ExportFormat, typer.Option(
+                   help="csv: samples; npz: offline-RL transitions; minari: a Minari dataset (FILE may be a folder)")]
+               = ExportFormat.csv,
+               out_path: Annotated[Path | None, typer.Option(
+                   "--out", help="output file (one recording only); for minari the datasets folder "
+                   "(default: Minari's own)")] = None,
+               ) -> None:
+    """Export samples as CSV, (s, a, r, s', terminated, truncated) transitions as .npz, or a Minari dataset.
+
+    Several recordings (or a folder) give one output file each, beside each recording; the parts of a split
+    recording given together make one (NAME.csv beside NAME-part001.mcap), episodes across parts kept whole.
+    """
+    from groundstation.export import export_csv, export_npz
+    from groundstation.recording_files import expand, group_recordings
+
+    if format == ExportFormat.minari:
+        if len(files) != 1:
+            raise UsageError("minari exports one recording or one folder at a time")
+        _export_minari(files[0], out_path)
+        return
+    recordings = group_recordings(expand(files))
+    if out_path is not None and len(recordings) > 1:
+        raise UsageError(f"--out names one file, but {len(recordings)} recordings were given")
+    for recording in recordings:
+        first = recording.files[0]
+        name = first.stem if len(recording.files) == 1 else recording.name
+        target = out_path or first.with_name(f"{name}.{format.value}")
+        with replaced_atomically(target, source=first) as temporary:
+            rows = (export_csv if format == ExportFormat.csv else export_npz)(recording.files, temporary)
+        out.print(f"{target} ({rows} rows)")
+
+
+def _export_minari(file: Path, root: Path | None) -> None:
+    from groundstation.minari_export import dataset_id_for, export_minari
+    from groundstation.recording import open_recording
+
+    if not file.exists():
+        raise GroundStationError(f"no such recording: {file}")
+    result = export_minari(open_recording(file), dataset_id_for(file), root)
+    left = f", {result.left_out} left out (holes or no end)" if result.left_out else ""
+    out.print(f"Minari dataset {result.dataset_id} in {result.root}: {result.episodes} episodes, "
+              f"{result.steps} steps{left}", markup=False, soft_wrap=True)
+    root_hint = f"MINARI_DATASETS_PATH={result.root} " if root is not None else ""
+    out.print(f"load it: {root_hint}python -c \"import minari; minari.load_dataset('{result.dataset_id}')\"",
+              markup=False, soft_wrap=True)
+
+
+@log_app.command("recover")
+@one_line_errors
+def log_recover(file: Path, out_path: Annotated[Path | None, typer.Option("--out", help="output file")] = None
+                ) -> None:
+    """Rewrite a truncated recording (after a crash or kill) into a finished, indexed one."""
+    from groundstation.mcap_io import recover
+
+    target = out_path or unused_name(existing(file).with_name(file.stem + "-recovered.mcap"))
+    with replaced_atomically(target, source=existing(file)) as temporary:
+        count, truncated = recover(file, temporary)
+    note = "was truncated" if truncated else "was already complete"
+    out.print(f"{target} ({count} messages; the original {note})")
+

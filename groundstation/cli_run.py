@@ -1,0 +1,115 @@
+"""`dive run`: the main job. Connect, set parameters, learn, record to MCAP, show it live if asked."""
+
+from __future__ import annotations
+
+import threading
+from pathlib import Path
+from typing import Annotated
+from urllib.parse import urlencode
+
+import typer
+
+from groundstation import view_cli
+from groundstation.cli_common import UrlArg, err, one_line_errors
+from groundstation.keys import KeyFileOption, resolve_key
+from groundstation.safe_output import printable
+from groundstation.signals import stop_on_signals
+from groundstation.validate import UsageError, parse_speed
+from groundstation.view_options import Viewer
+
+
+@one_line_errors
+def run_command(
+    url: UrlArg = None,
+    episodes: Annotated[int, typer.Option(min=0, max=2**32 - 1,
+                                          help="stop after this many episodes (0 = until Ctrl-C)")] = 0,
+    speed: Annotated[str | None, typer.Option(help="built-in virtual agent only: time factor or 'max'")] = None,
+    seed: Annotated[int | None, typer.Option(min=0, max=2**32 - 1,
+                                             help="built-in virtual agent only: random seed")] = None,
+    preset: Annotated[str | None, typer.Option(
+        help="built-in virtual agent only: plant preset, paper (default) or hardware")] = None,
+    learner: Annotated[str | None, typer.Option(
+        help="built-in virtual agent only: learner, paper (default), actuator3, rmax or literal")] = None,
+    viewer: view_cli.ViewerOption = None,
+    rrd: Annotated[Path | None, typer.Option(help="also save the live Rerun stream to this .rrd file")] = None,
+    web_port: view_cli.WebPortOption = 9090,
+    grpc_port: view_cli.GrpcPortOption = 9876,
+    target_depth: Annotated[float | None, typer.Option(help="target depth z_d \\[m]")] = None,
+    z_tol: Annotated[float | None, typer.Option(help="half-height of the learning region \\[m]")] = None,
+    zdot_tol: Annotated[float | None, typer.Option(help="velocity bound of the learning region \\[m/s]")] = None,
+    success_time: Annotated[float | None, typer.Option(
+        help="time in the region that counts as success \\[s]")] = None,
+    param: Annotated[list[str] | None, typer.Option(help="NAME=VALUE, any agent parameter (repeatable)")] = None,
+    params: Annotated[Path | None, typer.Option(help="file of parameters: JSON or `name = value` lines")] = None,
+    out_path: Annotated[Path | None, typer.Option("--out", help="recording directory, or a .mcap file name")] = None,
+    split_mb: Annotated[float, typer.Option(
+        min=0, help="start a new file (NAME-part002.mcap, ...) after this many MB on disk (0 = never)")] = 0.0,
+    split_minutes: Annotated[float, typer.Option(
+        min=0, help="start a new file after this many minutes (0 = never)")] = 0.0,
+    reconnect: Annotated[bool, typer.Option(help="reconnect after a link loss and backfill the gap")] = True,
+    key_file: KeyFileOption = None,
+) -> None:
+    """Connect, set parameters, start learning and record everything to MCAP until N episodes or Ctrl-C."""
+    from groundstation.recorder import RecorderConfig
+    from groundstation.run_progress import RunDisplay
+    from groundstation.runner import RunConfig, load_params_file, run
+    from groundstation.session import SessionConfig
+
+    if speed is not None:
+        parse_speed(speed)  # now, not 10 s later inside the virtual agent
+    url = _with_sim_options(url, speed=speed, seed=seed, preset=preset, learner=learner)
+    values: dict[str, str] = load_params_file(params) if params else {}
+    for name, value in (("target_depth_m", target_depth), ("z_tol_m", z_tol), ("zdot_tol_mps", zdot_tol),
+                        ("success_time_s", success_time)):
+        if value is not None:
+            values[name] = str(value)
+    for item in param or []:
+        name, sep, raw = item.partition("=")
+        if not sep:
+            raise typer.BadParameter(f"expected NAME=VALUE, got {item!r}", param_hint="--param")
+        values[name.strip()] = raw.strip()
+    if out_path is not None and out_path.suffix == ".mcap":
+        recorder = RecorderConfig(directory=out_path.parent, path=out_path)
+    else:
+        recorder = RecorderConfig(directory=out_path or Path("recordings"))
+    recorder = RecorderConfig(recorder.directory, recorder.path, int(split_mb * 1e6), split_minutes * 60.0)
+    view = view_cli.open_live_view(viewer, rrd, web_port, name=url, headless_default=Viewer.NONE,
+                                   grpc_port=grpc_port)
+    config = RunConfig(url=url, episodes=episodes, params=values, recorder=recorder,
+                       session=SessionConfig(reconnect=reconnect, key=resolve_key(key_file)),
+                       dumps_each_episode=view is not None)
+    stop, signalled = threading.Event(), list[str]()
+    with stop_on_signals(stop, signalled), view_cli.closing_view(view), \
+            RunDisplay(err, episodes, f"connecting to {url}", virtual=url.startswith("sim://")) as display:
+        result = run(config, display.show, stop=stop, listeners=[view] if view is not None else [])
+        for path in result.paths:  # before a served web viewer waits: the path is printed however the run ends
+            typer.echo(printable(path))
+    if result.paths:
+        # A split recording: all its parts (zero-padded, so the shell's order is part order), not the last one alone
+        shown = result.paths[-1] if len(result.paths) == 1 else \
+            result.paths[0].with_name(result.paths[0].name.replace("-part001.mcap", "-part*.mcap"))
+        err.print(f"next: dive log info {shown}\n      dive replay {shown}"
+                  + ("" if view is not None else "\n      (dive run --viewer web shows the run live in a browser)"),
+                  style="dim")
+    if result.lost:
+        err.print(f"{result.lost} samples lost: the agent's log no longer held them", style="yellow")
+    if result.still_missing - result.lost:
+        err.print(f"{result.still_missing - result.lost} samples not backfilled though the agent's log still "
+                  "holds them (the link did not bring them in time)", style="yellow")
+    if result.interrupted or signalled:
+        err.print(f"stopped by {signalled[0] if signalled else 'Ctrl-C'}; the recording is complete", style="dim")
+        raise typer.Exit(130)  # the one convention: interrupted = 130, whatever was saved
+
+
+def _with_sim_options(url: str | None, **sim_options: object) -> str:
+    """Add the built-in agent's options (`--speed`, `--seed`, ...) to a sim:// URL as query parameters."""
+    from groundstation.runs import run_url_default
+
+    url = run_url_default(url)
+    options = {k: str(v) for k, v in sim_options.items() if v is not None}
+    if not options:
+        return url
+    if not url.startswith("sim://"):
+        flags = ", ".join(f"--{k}" for k in options)
+        raise UsageError(f"{flags} apply to the built-in virtual agent (sim://) only")
+    return url + ("&" if "?" in url else "?") + urlencode(options)

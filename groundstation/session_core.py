@@ -1,0 +1,158 @@
+"""A session's state and its send side: the link, codecs, counters, and commands sent with ACK and retry.
+
+SessionCore holds what the reader thread (session_receive.ReceiveLoop) and the public API (session.Session)
+share; a command is registered as pending before its bytes leave, so its ACK can never come back unmatched.
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+import time
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+
+from groundstation.clock import ClockModel
+from groundstation.commands import PendingCommand, PendingCommands, refusal
+from groundstation.dumps import DumpTracker
+from groundstation.errors import CommandTimeout, LinkError
+from groundstation.events import EventKind, LinkEvent, Listeners, Sent, SessionListener
+from groundstation.exactness import RecentFrames, SampleIndexCheck
+from groundstation.gaps import BackfillPlanner
+from groundstation.hello import ground_hello
+from groundstation.links import Link
+from groundstation.params import ParamTable
+from groundstation.stats import LinkStats
+from protocol import FrameEncoder, Message, Signer, StreamDecoder
+from protocol import messages as m
+
+
+@dataclass(frozen=True, slots=True)
+class SessionConfig:
+    hello_timeout_s: float = 5.0
+    period_s: float = 1.0  # heartbeat, TIMESYNC and statistics period
+    link_timeout_s: float = 3.0  # no frame for this long: the link is lost
+    ack_timeout_s: float = 0.5  # first wait for an ACK (3 x measured RTT when that is longer)
+    retries: int = 3
+    reconnect: bool = True
+    backoff_s: tuple[float, float] = (0.2, 5.0)  # first and longest wait between reconnect attempts
+    backfill: bool = True
+    backfill_retry_s: tuple[float, float] = (1.0, 4.0)  # first and longest wait before a LOG_REQUEST is sent again
+    fetch_params: bool = True
+    node_id: int = field(default_factory=lambda: int.from_bytes(os.urandom(4), "little"))
+    key: bytes | None = field(default=None, repr=False)  # signing key: every frame sent is signed (SPEC s. 12)
+
+
+
+HELLO_RESEND_S = 1.0  # an unanswered HELLO is sent again after this long (the agent answers every HELLO)
+
+
+class SessionCore:
+    def __init__(self, link: Link, config: SessionConfig | None = None,
+                 listeners: Iterable[SessionListener] = ()) -> None:
+        self.link = link
+        self.config = config or SessionConfig()
+        self.listeners = Listeners(listeners)
+        # A random first seq: an agent that remembers the last 16 (msg_id, seq) it ACKed must not take a new
+        # session's first commands for retries of the previous session's. A fresh random link id per session, so a
+        # new session's clock may lag the last one's a little (SPEC s. 12).
+        signer = Signer(self.config.key, os.urandom(1)[0]) if self.config.key is not None else None
+        self.encoder = FrameEncoder(first_seq=int.from_bytes(os.urandom(2), "little"), signer=signer)
+        self.decoder = StreamDecoder()
+        self.stats = LinkStats()
+        self.clock = ClockModel()
+        self.params = ParamTable()
+        self.backfill = BackfillPlanner(*self.config.backfill_retry_s)
+        self.dumps = DumpTracker()
+        self.agent_hello: m.Hello | None = None
+        self.last_heartbeat: m.Heartbeat | None = None
+        self.link_up = False
+        self._boot_id = int.from_bytes(os.urandom(4), "little")
+        self._start_s = time.monotonic()
+        self._cond = threading.Condition()
+        self._send_lock = threading.Lock()
+        self._pending = PendingCommands()
+        self._episodes_seen: set[tuple[int, int, int]] = set()
+        self._log_ranges = 0
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._last_rx_s = 0.0
+        self._next_tick_s = 0.0
+        self._next_backfill_s = 0.0
+        self._next_backfill_view_s = 0.0
+        self._retry_backfill_now = False
+        self._finish_requested = False
+        self._finished_at: int | None = None  # set on the reader thread: the sample index the run ended at
+        self._backfill_view: tuple[bool, int, int] = (False, 0, 0)  # (pending, samples held, missing)
+        self._restoring = False
+        self._hello_problem: str | None = None
+        self._hello_resend_s: float | None = None  # while our HELLO is unanswered: when to send it again
+        self._recent = RecentFrames()
+        self.sample_check = SampleIndexCheck()
+        self.failure: LinkError | None = None  # why the session stopped by itself (another agent answered)
+        self._expected_params = 0
+        self._param_updates = 0
+
+    # ------------------------------------------------------------------ commands out
+    def send(self, message: Message, *, wait: bool = True, timeout_s: float | None = None) -> m.Ack | None:
+        """Send a message; a command is retried with the same bytes and seq until ACKed.
+
+        With wait, returns the ACK and raises CommandError on a NACK, CommandTimeout without an ACK.
+        """
+        now = time.monotonic()
+        ack_timeout_s = self._ack_timeout_s()
+        with self._send_lock:
+            encoded = self.encoder.encode(message)
+            pending = None
+            if message.DEFINITION.needs_ack:
+                pending = PendingCommand(message, encoded.seq, encoded.wire, now, now + ack_timeout_s)
+                if wait and timeout_s is not None:  # an explicit wait: keep trying (across reconnects) until then
+                    pending.give_up_s = now + timeout_s
+                self._pending.add(pending)
+            try:
+                self._write(message, encoded.seq, encoded.wire)
+            except LinkError:
+                # A command sent while the link is down (it drops often under water) stays pending: the reader
+                # re-sends it once the session has reconnected. Without reconnect there is nobody to do so.
+                if pending is None or not self.config.reconnect or self._stop.is_set():
+                    raise
+        if pending is None or not wait:
+            return None
+        limit = timeout_s if timeout_s is not None else ack_timeout_s * (self.config.retries + 1) + 1.0
+        pending.done.wait(limit)
+        self._pending.discard(pending.seq)
+        name = message.DEFINITION.name
+        if pending.ack is None:
+            if not self.link_up and self._stop.is_set():
+                raise LinkError(f"{name}: the session is closed")
+            self.stats.command_timeouts += 1
+            raise CommandTimeout(f"{name}: no ACK from the agent after {pending.attempts} tries")
+        refused = refusal(name, pending.ack)
+        if refused is not None:
+            raise refused
+        return pending.ack
+
+    # ------------------------------------------------------------------ helpers
+    def _ack_timeout_s(self) -> float:
+        rtt = self.stats.rtt_median_s()
+        return max(self.config.ack_timeout_s, 3 * rtt) if rtt is not None else self.config.ack_timeout_s
+
+    def _send_hello(self) -> None:
+        self._hello_resend_s = time.monotonic() + HELLO_RESEND_S
+        self.send(ground_hello(self.config.node_id, self._boot_id))
+
+    def _write(self, message: Message, seq: int, wire: bytes, retry: bool = False) -> None:
+        self.link.send(wire)
+        self.stats.sent(len(wire), retry)
+        self.listeners.sent(Sent(seq, message, wire, time.time_ns()))
+
+    def _emit_stats(self) -> None:
+        data = {"link": self.stats.snapshot(self.decoder.stats), "clock": self.clock.as_dict()}
+        self._emit(LinkEvent(EventKind.STATS, time.time_ns(), "", data))
+
+    def _emit(self, event: LinkEvent) -> None:
+        self.listeners.event(event)
+
+    def _hello_data(self) -> dict[str, object]:
+        return self.agent_hello.to_dict() if self.agent_hello else {}
+

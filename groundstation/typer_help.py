@@ -1,0 +1,55 @@
+"""Typer's rich help and error boxes, loaded without the two renderers it imports and `dive` never uses.
+
+typer.rich_utils imports rich.markdown (the markdown-it parser, ~30 % of `dive --help`'s imports) for the
+"markdown" help mode and rich.traceback (with attrs and pygments) for pretty exceptions; `dive` uses the "rich"
+mode and turns pretty exceptions off. Both names are bound to stand-ins that import the real class on first
+use, so nothing breaks if a later Typer uses them after all. Typer is pinned below 0.21 (pyproject.toml); a test
+checks that `dive --help` still imports neither and prints the same help.
+"""
+
+from __future__ import annotations
+
+import importlib
+import sys
+import types
+from typing import Any
+
+_DEFERRED = {"rich.markdown": "Markdown", "rich.traceback": "Traceback"}
+
+
+class _OnFirstUse(type):
+    """A class standing for `module.name`: calling it or asking it for an attribute imports and forwards to the
+    real one. Dunder names are not forwarded: `typing` probes them while rich_utils's annotations are built."""
+
+    _module: str
+    _name: str
+
+    def _real(cls) -> Any:
+        return getattr(importlib.import_module(cls._module), cls._name)
+
+    def __call__(cls, *args: Any, **kwargs: Any) -> Any:
+        return cls._real()(*args, **kwargs)
+
+    def __getattr__(cls, attribute: str) -> Any:
+        if attribute.startswith("__"):
+            raise AttributeError(attribute)
+        return getattr(cls._real(), attribute)
+
+
+def load_typer_help() -> None:
+    """Import typer.rich_utils with the stand-ins in place; the real modules stay importable as before."""
+    if "typer.rich_utils" in sys.modules:
+        return
+    stand_ins: dict[str, types.ModuleType] = {}
+    for module, name in _DEFERRED.items():
+        if module not in sys.modules:
+            stand_in = types.ModuleType(module)
+            setattr(stand_in, name, _OnFirstUse(name, (), {"_module": module, "_name": name}))
+            stand_ins[module] = stand_in
+    sys.modules.update(stand_ins)
+    try:
+        import typer.rich_utils  # noqa: F401  (imported for its place in sys.modules)
+    finally:
+        for module, stand_in in stand_ins.items():
+            if sys.modules.get(module) is stand_in:
+                del sys.modules[module]
