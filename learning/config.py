@@ -59,6 +59,10 @@ class LearnerConfig:
     # 0: the velocity the environment gives (true or observer); k: the agent's own k-step depth
     # difference (z_t - z_{t-k}) / (k dt).
     velocity_diff_steps: int = 0
+    # Shared model only: the reward of arriving in a cell also loses this many times the |velocity| of
+    # the cell's centre (m/s -> reward per step, 0 = the paper's -|z|). It makes rushing at the region's
+    # velocity edge cost what it risks (learning/shared.py, cell_reward).
+    velocity_penalty: float = 0.0
 
     def __post_init__(self) -> None:
         if self.z_cells < 1 or self.zdot_cells < 1 or self.actuator_bins < 1:
@@ -76,8 +80,8 @@ class LearnerConfig:
             raise LearnerConfigError("explore_decay_episodes, known_count and sparse_slots must be >= 1")
         if not 0 <= self.velocity_diff_steps <= MAX_VELOCITY_DIFF_STEPS:
             raise LearnerConfigError(f"velocity_diff_steps must lie in 0..{MAX_VELOCITY_DIFF_STEPS}")
-        if self.dirichlet_weight < 0 or self.count_bonus < 0:
-            raise LearnerConfigError("dirichlet_weight and count_bonus must not be negative")
+        if self.dirichlet_weight < 0 or self.count_bonus < 0 or self.velocity_penalty < 0:
+            raise LearnerConfigError("dirichlet_weight, count_bonus and velocity_penalty must not be negative")
         if self.shared_model and self.sparse_slots > 255:
             raise LearnerConfigError("the shared model holds at most 255 offset slots per type")
         if self.max_sweeps < 1:

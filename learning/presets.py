@@ -26,6 +26,18 @@ _PRESETS: dict[str, LearnerConfig] = {
     "shared-bins13": replace(_SHARED, actuator_bins=13),
     # The velocity the learner sees: its own 4-step depth difference instead of the observer's estimate.
     "shared-bins13-diff4": replace(_SHARED, actuator_bins=13, velocity_diff_steps=4),
+    # For the hardware preset (issue 17's per-trial goals): 7 actuator bins, an 8-step depth difference,
+    # a terminal reward of -100 instead of -10 and a reward that also loses 1 s x |velocity|. Each is a
+    # remedy for what ended late episodes: a rush from the region's depth edge that met its velocity edge
+    # (docs/reproduction.md, "Why single trials kept failing").
+    "shared-bins7-diff8-term100-vpen1": replace(
+        _SHARED, actuator_bins=7, velocity_diff_steps=8, terminal_reward=-100.0, velocity_penalty=1.0
+    ),
+    # The same with 20 depth cells of 1 cm (region 0.1): the shared model learns them for free (it pools over
+    # depth); a finer cell tells the agent better when to brake.
+    "shared-z20-bins7-diff8-term100-vpen1": replace(
+        _SHARED, z_cells=20, actuator_bins=7, velocity_diff_steps=8, terminal_reward=-100.0, velocity_penalty=1.0
+    ),
     # Per-state counts as well, the shared histogram their Dirichlet prior worth 10 transitions: keeps
     # working where dynamics depend on depth.
     "shared-dirichlet": replace(_SHARED, dirichlet_weight=10.0),

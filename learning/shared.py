@@ -18,8 +18,9 @@ Model, for porting (the C twin keeps exactly this layout; `shared_memory_bytes` 
 - Shifting: the successor of s = (b, z, v) under code (dz, dv, db) is (clip(b + db), z + dz, v + dv);
   z + dz outside 0..Z-1, or v + dv outside 0..V-1 (unless depth_only_terminal, which clips v), is the
   terminal state.
-- Reward from the cell, no reward table: r(s') = -|centre of s' depth cell - z_d|, the terminal reward
-  (-10) for the terminal state.
+- Reward from the cell, no reward table: r(s') = -|centre of s' depth cell - z_d|
+  - velocity_penalty * |centre of s' velocity cell| (the second term only when velocity_penalty > 0),
+  the terminal reward (-10; -100 in the bins7 presets) for the terminal state.
 - No Q table, no policy table: Q(s, a) = sum_k c_k / total * (r(s'_k) + gamma v(s'_k)) (+ count bonus)
   from V and the type's slots when acting or planning; a type with total < known_count has Q =
   untried_q_value (0: optimistic). Values: float32 per state, terminal included (always 0).
@@ -209,7 +210,12 @@ def cell_reward(state: int, spec: KernelSpec) -> float:
     if state == spec.z_cells * spec.zdot_cells * spec.actuator_bins:
         return spec.terminal_reward
     iz = (state // spec.zdot_cells) % spec.z_cells
-    return -abs(-spec.z_tol_m + (iz + 0.5) * 2.0 * spec.z_tol_m / spec.z_cells)
+    reward = -abs(-spec.z_tol_m + (iz + 0.5) * 2.0 * spec.z_tol_m / spec.z_cells)
+    if spec.velocity_penalty > 0.0:
+        iv = state % spec.zdot_cells
+        reward -= spec.velocity_penalty * abs(-spec.zdot_tol_mps + (iv + 0.5) * 2.0 * spec.zdot_tol_mps
+                                              / spec.zdot_cells)
+    return reward
 
 
 @njit(cache=True, error_model="numpy")

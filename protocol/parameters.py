@@ -139,6 +139,8 @@ _ROWS = (
     _p("ties_per_step", B, "", 0, 0, 1, _LEARNER, "draw a tied state's action at every step (0 = once per plan)"),
     _p("max_sweeps", U32, "", 100_000, 1, 1_000_000, _LEARNER, "value iteration sweeps per planning call at most"),
     _p("in_place_sweeps", B, "", 0, 0, 1, _LEARNER, "in-place (Gauss-Seidel) value iteration sweeps"),
+    _p("vel_penalty", F, "s", 0.0, 0.0, 100.0, _LEARNER,
+       "shared model: a cell's reward also loses this times its centre |velocity| (0 = the paper's -|z|)"),
 )
 
 

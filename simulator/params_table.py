@@ -65,6 +65,7 @@ BINDINGS: dict[str, Binding] = {
     "ties_per_step": Binding(L, "ties_per_step"),
     "max_sweeps": Binding(L, "max_sweeps"),
     "in_place_sweeps": Binding(L, "in_place_sweeps"),
+    "vel_penalty": Binding(L, "velocity_penalty"),
 }
 
 

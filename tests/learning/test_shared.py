@@ -133,3 +133,31 @@ def test_bounded_planning_stops_at_max_sweeps() -> None:
         unbounded.observe(_state(config, 5, 5), action, 0.0, _state(config, 5, 5), cell)
     unbounded.end_episode()
     assert unbounded.last_sweeps > 100
+
+
+def test_the_velocity_penalty_charges_a_cell_its_centre_speed() -> None:
+    plain = LearnerConfig(shared_model=True)
+    charged = LearnerConfig(shared_model=True, velocity_penalty=2.0)
+    for iz, iv in ((0, 0), (4, 7), (9, 9)):
+        s = _state(plain, iz, iv)
+        z, v = _cell_centre(plain, iz, iv)
+        assert cell_reward(s, kernel_spec(plain)) == pytest.approx(-abs(z))
+        assert cell_reward(s, kernel_spec(charged)) == pytest.approx(-abs(z) - 2.0 * abs(v))
+    terminal = 100
+    assert cell_reward(terminal, kernel_spec(charged)) == charged.terminal_reward
+
+
+def test_the_hardware_preset_learner_is_what_its_name_says() -> None:
+    config = learner_preset("shared-bins7-diff8-term100-vpen1")
+    assert (config.actuator_bins, config.velocity_diff_steps) == (7, 8)
+    assert (config.terminal_reward, config.velocity_penalty) == (-100.0, 1.0)
+    assert config.shared_model and config.p_explore_start == 0.0
+    # 7 bins: 140 types x 40 B + 701 float32 values, well inside the 16 KB goal.
+    assert model_memory_bytes(config) == 140 * 40 + 701 * 4 == 8404
+
+
+def test_finer_depth_cells_cost_only_values() -> None:
+    config = learner_preset("shared-z20-bins7-diff8-term100-vpen1")
+    assert config.z_cells == 20
+    # The types do not depend on depth: 140 x 40 B as with 10 cells, and 1 401 float32 values.
+    assert model_memory_bytes(config) == 140 * 40 + 1401 * 4 == 11204

@@ -16,7 +16,7 @@ from tests.simulator.test_onboard_fast_path import CheckingDownlink
 
 
 @pytest.mark.slow  # two agents of 8000 steps each
-@pytest.mark.parametrize("learner", ["shared-bins13-diff4", "shared-dirichlet"])
+@pytest.mark.parametrize("learner", ["shared-bins13-diff4", "shared-dirichlet", "shared-z20-bins7-diff8-term100-vpen1"])
 def test_the_agent_learns_with_the_shared_model(learner: str) -> None:
     params, config = preset("hardware"), learner_preset(learner)
     rng = np.random.default_rng(2)
@@ -32,7 +32,9 @@ def test_the_agent_learns_with_the_shared_model(learner: str) -> None:
             depths.append(program.depth_m)
             velocities.append(program.velocity_mps)
     assert program.learner.episode > 0 and down.samples > 5000
-    assert program.learner.memory_bytes == (15604 if learner.endswith("diff4") else 1204 + 101 * 2 * 12 * 3)
+    expected_bytes = {"shared-bins13-diff4": 15604, "shared-dirichlet": 1204 + 101 * 2 * 12 * 3,
+                      "shared-z20-bins7-diff8-term100-vpen1": 11204}
+    assert program.learner.memory_bytes == expected_bytes[learner]
     # Every learning step saw a velocity; with diff4 it is the agent's own 4-step depth difference.
     k, dt = config.velocity_diff_steps, params.control_period_s
     if k:

@@ -39,7 +39,8 @@ def _python_loop_trial(params: PlantParams, config: LearnerConfig, seed: int, tr
 
 
 @pytest.mark.slow  # compiles the parallel trial loop on a cold numba cache
-@pytest.mark.parametrize("preset_name, learner", [("paper", "shared-dirichlet"), ("hardware", "shared-bins13-diff4")])
+@pytest.mark.parametrize("preset_name, learner", [("paper", "shared-dirichlet"), ("hardware", "shared-bins13-diff4"),
+                                                  ("hardware", "shared-z20-bins7-diff8-term100-vpen1")])
 def test_the_compiled_study_replays_the_python_api_for_the_shared_learners(preset_name: str, learner: str) -> None:
     params, config = preset(preset_name), learner_preset(learner, ties_per_step=True)
     result = run_study(params, config, trials=2, episodes=6, seed=5)
