@@ -115,11 +115,12 @@ static bool config_valid(const learner_config_t *c)
     if (states_of(c) > MAX_STATES || c->explore_decay_episodes < 1u || c->max_sweeps < 1u) {
         return false;
     }
-    if (c->shared_model && (c->slots != SHARED_SLOTS || c->z_cells > SHARED_MAX_Z_CELLS)) {
-        return false;  /* the shared layout has SHARED_SLOTS slots per type, a reward per depth cell */
+    if (c->shared_model && (c->slots != SHARED_SLOTS || c->z_cells > SHARED_MAX_Z_CELLS
+                            || c->zdot_cells > SHARED_MAX_ZDOT_CELLS)) {
+        return false;  /* the shared layout has SHARED_SLOTS slots per type, a reward per depth and velocity cell */
     }
-    if (!(c->dirichlet_w >= 0.0f) || !(c->count_bonus >= 0.0f) || !isfinite(c->dirichlet_w)
-        || !isfinite(c->count_bonus)) {
+    if (!(c->dirichlet_w >= 0.0f) || !(c->count_bonus >= 0.0f) || !(c->vel_penalty >= 0.0f)
+        || !isfinite(c->dirichlet_w) || !isfinite(c->count_bonus) || !isfinite(c->vel_penalty)) {
         return false;
     }
     /* Written so that NaN fails every test. */

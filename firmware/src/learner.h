@@ -49,6 +49,7 @@ typedef struct {
     float    dirichlet_w;              /* shared model: per-state counts too, this prior weight (0 = off) */
     float    count_bonus;              /* shared model: beta / sqrt(n) added to a pair's reward (0 = off) */
     uint8_t  vel_diff_steps;           /* the agent's velocity input: k-step depth difference (0 = observer) */
+    float    vel_penalty;              /* shared model: a cell's reward also loses this x |its velocity centre| (s) */
 } learner_config_t;
 
 /* The defaults of learning/config.py LearnerConfig (the paper's simulation values). */

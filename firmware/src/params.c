@@ -76,6 +76,7 @@ void params_learner_config(learner_config_t *c) {
     c->count_bonus = g_values[PARAM_COUNT_BONUS];
     c->vel_diff_steps = (uint8_t)g_values[PARAM_VEL_DIFF_STEPS];
     c->ties_per_step = g_values[PARAM_TIES_PER_STEP] != 0.0f;
+    c->vel_penalty = g_values[PARAM_VEL_PENALTY];
 }
 
 static uint32_t n_states(const learner_config_t *c) {

@@ -81,6 +81,11 @@ void shared_carve(uint8_t *base, const learner_config_t *c)
     for (uint32_t iz = 0u; iz < c->z_cells && iz < SHARED_MAX_Z_CELLS; iz++) {
         g_shared.z_reward[iz] = -fabsf(-c->z_tol_m + ((float)iz + 0.5f) * 2.0f * c->z_tol_m / (float)c->z_cells);
     }
+    /* ... minus vel_penalty times the velocity cell's centre speed (0 when off: the reward unchanged, x - 0 = x). */
+    for (uint32_t iv = 0u; iv < c->zdot_cells && iv < SHARED_MAX_ZDOT_CELLS; iv++) {
+        float centre = -c->zdot_tol_mps + ((float)iv + 0.5f) * 2.0f * c->zdot_tol_mps / (float)c->zdot_cells;
+        g_shared.v_penalty[iv] = c->vel_penalty > 0.0f ? c->vel_penalty * fabsf(centre) : 0.0f;
+    }
     g_shared.planning = false;
     g_shared.sweeps = 0u;
 }

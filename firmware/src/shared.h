@@ -18,6 +18,7 @@
 #define SHARED_FAR 255u       /* offset code of a successor beyond the codable offsets: terminal */
 #define SHARED_TIED 2u        /* policy entry of a tied state drawn at every step (ties_per_step) */
 #define SHARED_MAX_Z_CELLS 50u      /* the z_cells parameter's maximum (protocol/parameters.py) */
+#define SHARED_MAX_ZDOT_CELLS 50u   /* the zdot_cells parameter's maximum */
 #define SHARED_FAR_CELL 0xFFFFFFFFu  /* a next_cell no measurement has: recorded as the FAR offset */
 
 /* One type's histogram: counts, their sum, evictions (saturating), offset codes. 40 B, no padding. */

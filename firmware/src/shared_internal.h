@@ -27,6 +27,7 @@ typedef struct {
     shared_local16_t *local16;
     uint8_t *policy;
     float z_reward[SHARED_MAX_Z_CELLS];  /* reward of arriving in each depth cell (cell_reward of learning) */
+    float v_penalty[SHARED_MAX_ZDOT_CELLS];  /* what arriving in each velocity cell costs (0 without vel_penalty) */
     /* planning in progress */
     uint32_t next_state;       /* where the current sweep resumes */
     float delta;               /* max |change| of the current sweep so far */
@@ -77,7 +78,8 @@ static inline float cell_reward(uint32_t s)
     if (s == g_shared.terminal) {
         return g_shared.cfg.term_reward;
     }
-    return g_shared.z_reward[(s / g_shared.cfg.zdot_cells) % g_shared.cfg.z_cells];
+    return g_shared.z_reward[(s / g_shared.cfg.zdot_cells) % g_shared.cfg.z_cells]
+           - g_shared.v_penalty[s % g_shared.cfg.zdot_cells];
 }
 
 static inline uint16_t *local_counts(uint32_t pair)

@@ -44,7 +44,7 @@ class LearnerConfigC(ctypes.Structure):
         ("explore_literal_gt", ctypes.c_bool), ("policy_argmin", ctypes.c_bool),
         ("alg4_printed", ctypes.c_bool), ("max_sweeps", ctypes.c_uint32),
         ("shared_model", ctypes.c_bool), ("ties_per_step", ctypes.c_bool), ("dirichlet_w", ctypes.c_float),
-        ("count_bonus", ctypes.c_float), ("vel_diff_steps", ctypes.c_uint8),
+        ("count_bonus", ctypes.c_float), ("vel_diff_steps", ctypes.c_uint8), ("vel_penalty", ctypes.c_float),
     ]
 
 

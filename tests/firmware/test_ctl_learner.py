@@ -51,7 +51,7 @@ def c_config(lib: ctypes.CDLL, config: LearnerConfig) -> LearnerConfigC:
     c.alg4_printed, c.max_sweeps = config.alg4_printed, config.max_sweeps
     c.shared_model, c.ties_per_step = config.shared_model, config.ties_per_step
     c.dirichlet_w, c.count_bonus = config.dirichlet_weight, config.count_bonus
-    c.vel_diff_steps = config.velocity_diff_steps
+    c.vel_diff_steps, c.vel_penalty = config.velocity_diff_steps, config.velocity_penalty
     return c
 
 
@@ -212,21 +212,14 @@ def test_state_index_and_reward_match(ctl: ctypes.CDLL) -> None:
             assert r == pytest.approx(reward_kernel(depth, target, got, spec), abs=1e-6)
 
 
-# LearnerConfig fields whose C twin is still to come (the firmware helper's next step), at their defaults.
-NOT_YET_ON_FIRMWARE = {"velocity_penalty": 0.0}
-
-
 def test_field_names_cover_python_config() -> None:
     """Every LearnerConfig field has its C twin (model_form is the sparse form the firmware always uses)."""
     c_names = {f[0] for f in LearnerConfigC._fields_}
     renamed = {"sparse_slots": "slots", "actuator_bins": "act_bins", "vi_tolerance": "vi_tol",
                "terminal_reward": "term_reward", "untried_q_value": "untried_q", "dirichlet_weight": "dirichlet_w",
-               "velocity_diff_steps": "vel_diff_steps"}
+               "velocity_diff_steps": "vel_diff_steps", "velocity_penalty": "vel_penalty"}
     for f in fields(LearnerConfig):
         if f.name in ("model_form", "z_cells", "zdot_cells") or renamed.get(f.name, f.name) in c_names:
-            continue
-        if f.name in NOT_YET_ON_FIRMWARE:
-            assert getattr(LearnerConfig(), f.name) == NOT_YET_ON_FIRMWARE[f.name]
             continue
         raise AssertionError(f"LearnerConfig.{f.name} has no field in learner_config_t")
 

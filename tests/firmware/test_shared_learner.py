@@ -19,26 +19,36 @@ from __future__ import annotations
 
 import ctypes
 import shutil
+import struct
 import subprocess
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from learning import Learner, LearnerConfig, n_states
+from learning import Learner, LearnerConfig, learner_memory_bytes, n_states
+from learning.config import kernel_spec
 from learning.model import N_ACTIONS
 from learning.presets import learner_preset
 from learning.rng import new_stream
-from learning.shared import shared_memory_bytes
+from learning.shared import cell_reward, shared_memory_bytes
+from protocol import AckResult, Mode
+from protocol.parameters import param, snapshot_ram_bytes
 from simulator.env import DivingEnv
+from simulator.errors import ParamsError
+from simulator.firmware_host import load_library
+from simulator.onboard import check_ram
 from simulator.parameters import preset
-from tests.firmware.ctl_lib import FIRMWARE, build_ctl_library
+from tests.firmware.core_build import use_firmware_cache
+from tests.firmware.ctl_lib import FIRMWARE, LearnerConfigC, build_ctl_library
 from tests.firmware.test_ctl_learner import c_config
 
 SEED = 20261124
 SHARED_PRESETS = ("shared", "shared-bins3", "shared-bins13", "shared-bins13-diff4", "shared-dirichlet",
-                  "shared-epsilon", "shared-bonus")
+                  "shared-epsilon", "shared-bonus", "shared-bins7-diff8-term100-vpen1",
+                  "shared-z20-bins7-diff8-term100-vpen1")
+VPEN_Z20 = "shared-z20-bins7-diff8-term100-vpen1"
 # float32 against float64: the largest value difference measured over these runs is ~1e-4 (values are sums of
 # a few hundred discounted backups of rewards in -10..0; each float32 backup rounds at ~1e-6 relative).
 VALUE_ATOL = 2e-3
@@ -210,6 +220,7 @@ def replay_in_c(lib: ctypes.CDLL, config: LearnerConfig, rec: Recording, slice_b
     ("shared-dirichlet", "paper", 25, 1000),
     ("shared-bonus", "paper", 25, 101),
     ("shared-epsilon", "paper", 20, 250),  # exploration flips: the same draws on both sides
+    (VPEN_Z20, "hardware", 20, 333),  # the velocity penalty and a terminal reward of -100
 ])
 def test_c_shared_learner_follows_python(
     ctl: ctypes.CDLL, name: str, plant: str, episodes: int, slice_backups: int
@@ -235,3 +246,68 @@ def test_ties_per_step_and_terminal_without_cell(ctl: ctypes.CDLL) -> None:
     t = (5 % config.zdot_cells) * 2 + 1
     assert ctl.shared_slot(t, 0, ctypes.byref(code)) == 1 and code.value == 255
     assert ctl.shared_type_total(t) == 1
+
+
+@pytest.mark.parametrize("name", ["shared", VPEN_Z20])
+def test_cell_reward_is_python_cell_reward(ctl: ctypes.CDLL, name: str) -> None:
+    """Q(s, a) of a type that only ever stayed in its cell, values 0, is the reward of s's cell: the depth term
+    and, with vel_penalty, the velocity term, within f32 rounding of learning.shared.cell_reward."""
+    config = learner_preset(name)
+    c = c_config(ctl, config)
+    assert ctl.learner_configure(ctypes.byref(c))
+    terminal = n_states(config) - 1
+    for s in range(terminal):
+        ctl.learner_observe(s, 0, 0.0, s)  # offset (0, 0, 0): every state of the type shifts onto itself
+    spec = kernel_spec(config)
+    expected = np.array([cell_reward(s, spec) for s in range(terminal)])
+    got = np.array([ctl.learner_q(s, 0) for s in range(terminal)])
+    np.testing.assert_allclose(got, expected, rtol=1e-6, atol=1e-7)
+    if config.velocity_penalty > 0:
+        # The penalty is there: two states of one depth cell, the slowest and the fastest velocity cell.
+        assert got[0] < got[config.zdot_cells // 2]
+
+
+def test_ram_budget_acceptance_is_the_virtual_agents(tmp_path_factory: pytest.TempPathFactory) -> None:
+    """The C parameters (params.c, the host build) accept the z20 preset by PARAM_SET exactly as the Python agent's
+    check_ram does (learner + 4 snapshots of 4 S bytes: 11 204 + 22 416 = 33 620 B of 45 056), and refuse the
+    next grid up (z_cells 30: 47 620 B) on both sides."""
+    use_firmware_cache(tmp_path_factory)
+    lib = load_library()
+    lib.params_set.argtypes = [ctypes.c_uint16, ctypes.c_uint64, ctypes.c_uint8, ctypes.c_bool,
+                               ctypes.POINTER(_Verdict)]
+    lib.params_ram_bytes.restype = ctypes.c_uint32
+    lib.params_ram_bytes.argtypes = [ctypes.POINTER(LearnerConfigC)]
+    lib.params_init()
+    config = learner_preset(VPEN_Z20)
+
+    def set_param(name: str, value: float) -> _Verdict:
+        verdict = _Verdict()
+        bits = struct.unpack("<Q", struct.pack("<d", value))[0]
+        lib.params_set(param(name).index, bits, Mode.IDLE, True, ctypes.byref(verdict))
+        return verdict
+
+    # shared_model first, so that every learner on the way fits (as docs/firmware.md tells a ground station).
+    for name, value in (("shared_model", 1), ("in_place_sweeps", 1), ("p_explore_start", 0.0), ("vel_diff_steps", 8),
+                        ("term_reward", -100.0), ("vel_penalty", 1.0), ("act_bins", 7), ("z_cells", 20)):
+        verdict = set_param(name, value)
+        assert verdict.result == AckResult.ACCEPTED, (name, verdict.reason)
+    c = LearnerConfigC()
+    lib.params_learner_config(ctypes.byref(c))
+    expected = c_config(lib, config)
+    for field_name, _ in LearnerConfigC._fields_:
+        assert getattr(c, field_name) == getattr(expected, field_name), field_name
+    check_ram(config)  # the Python agent accepts it
+    need = learner_memory_bytes(config) + snapshot_ram_bytes(n_states(config), shared_model=True)
+    assert lib.params_ram_bytes(ctypes.byref(c)) == need == 33620
+    verdict = set_param("z_cells", 30)
+    assert verdict.result == AckResult.BAD_VALUE and b"47620 B" in verdict.reason, verdict.reason
+    with pytest.raises(ParamsError, match="47620 bytes"):
+        check_ram(replace(config, z_cells=30))
+    assert set_param("vel_penalty", -1.0).result == AckResult.BAD_VALUE  # SPEC range [0, 100]
+    assert set_param("vel_penalty", 100.5).result == AckResult.BAD_VALUE
+
+
+class _Verdict(ctypes.Structure):
+    """params.h verdict_t."""
+
+    _fields_ = [("result", ctypes.c_uint8), ("reason", ctypes.c_char * 96)]
