@@ -29,7 +29,8 @@ def run_command(
     preset: Annotated[str | None, typer.Option(
         help="built-in virtual agent only: plant preset, paper (default) or hardware")] = None,
     learner: Annotated[str | None, typer.Option(
-        help="built-in virtual agent only: learner, paper (default), actuator3, rmax or literal")] = None,
+        help="built-in virtual agent only: learner preset, paper (default), shared (paper plant), "
+             "shared-z20-bins7-diff8-term100-vpen1 (hardware plant), ...; a wrong name lists them all")] = None,
     viewer: view_cli.ViewerOption = None,
     rrd: Annotated[Path | None, typer.Option(help="also save the live Rerun stream to this .rrd file")] = None,
     web_port: view_cli.WebPortOption = 9090,

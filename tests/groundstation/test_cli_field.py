@@ -67,6 +67,15 @@ def test_version_short_help_and_units_in_help() -> None:
     assert "--install-completion" in CliRunner().invoke(app, ["-h"]).stdout
 
 
+@pytest.mark.parametrize("command", ["sim", "study"])
+def test_the_forwarded_simulator_commands_take_dash_h_too(command: str) -> None:
+    done = subprocess.run([sys.executable, "-c", "import sys; sys.argv[0] = 'dive'; from groundstation import cli; "
+                           "cli.main()", command, "-h"], capture_output=True, text=True, timeout=60,
+                          env={**os.environ, "COLUMNS": "100"})
+    assert done.returncode == 0, done.stderr
+    assert f"Usage: dive {command}" in done.stdout
+
+
 def test_help_imports_neither_rerun_nor_numba_nor_matplotlib() -> None:
     done = subprocess.run([sys.executable, "-X", "importtime", "-m", "groundstation.cli", "--help"],
                           capture_output=True, text=True, timeout=60)
