@@ -146,7 +146,7 @@ def refused_in_mode(probe: Probe) -> str:
     settable = [d for d in spec_params.PARAMS if d.name in values and values[d.name].minimum != values[d.name].maximum]
     in_learning: set[str] = set()
     problems: list[str] = []
-    for _ in range(8):
+    for _ in range(20):  # a short episode (hardware preset, a loaded host) may end after a few parameters
         reach(probe, Mode.LEARNING)
         for d in settable:
             if d.name in in_learning:

@@ -2,7 +2,8 @@
 
 The fixture was captured from main (one step and one link tick per call), never from this branch: first at aa759ad,
 again at 1e82738 and at c766169, whose SPEC 1.1 changes altered the wire themselves (main's own code gives the new
-bytes; the speed-ups give the same).
+bytes; the speed-ups give the same), and after the `vel_penalty` parameter was appended (34 parameters): the wire
+before and after differs in one frame only, the PARAM_VALUE's `count` (33 -> 34) and its CRC; the log is unchanged.
 """
 
 from __future__ import annotations
