@@ -15,6 +15,7 @@ from groundstation.links import make_link
 from groundstation.recorder import Recorder, RecorderConfig
 from groundstation.rerun_view import RerunView, ViewConfig
 from groundstation.session import Session
+from protocol import DumpKind
 from protocol import messages as m
 from tests.groundstation.rrd_readback import rows_per_entity
 
@@ -25,12 +26,17 @@ def _learn(directory: Path) -> tuple[Path, Path]:
     """`dive run --rrd` in miniature: recorder and view on one session while the agent learns a few episodes."""
     ended = threading.Event()
     episodes: list[int] = []
+    policies: list[int] = []  # the POLICY dump follows VALUES after each EPISODE_END: wait for the last one too
 
     def watch(received: Received) -> None:
-        if isinstance(received.message, m.EpisodeEnd):
-            episodes.append(received.message.episode)
-            if len(episodes) >= EPISODES:
-                ended.set()
+        message = received.message
+        if isinstance(message, m.EpisodeEnd):
+            episodes.append(message.episode)
+        elif (isinstance(message, m.DumpChunk) and message.kind == DumpKind.POLICY
+              and message.offset + len(message.data) >= message.total_bytes):
+            policies.append(message.episode)
+        if len(episodes) >= EPISODES and len(policies) >= EPISODES:
+            ended.set()
 
     recorder = Recorder(RecorderConfig(path=directory / "run.mcap"))
     try:
@@ -39,7 +45,7 @@ def _learn(directory: Path) -> tuple[Path, Path]:
                 session.add_listener(session.rx_listener(watch))
                 session.set_param("dump_each_episode", 1)
                 session.command(m.StartLearning(max_episodes=EPISODES))
-                assert ended.wait(120), f"only {len(episodes)} episodes"
+                assert ended.wait(120), f"only {len(episodes)} episodes, {len(policies)} policies"
     finally:
         recorder.close()
     return directory / "run.mcap", directory / "live.rrd"
