@@ -162,33 +162,51 @@ class _Truncated(Exception):
     pass
 
 
+class _Catalog:
+    """The schemas and channels a reader has met, starting with the summary's (a damaged chunk may have held a
+    channel later chunks use); each channel's JSON Schema goes into `info`, and the ids of `topics` into wanted."""
+
+    def __init__(self, path: Path, info: RecordingContents, topics: set[str] | None = None) -> None:
+        self.schemas: dict[int, Schema] = {}
+        self.channels: dict[int, Channel] = {}
+        self.wanted: dict[int, str] = {}
+        self._info, self._topics = info, topics
+        for record in _summary_channels(path):
+            self.add(record)
+
+    def add(self, record: Any) -> bool:
+        """Takes a Schema or Channel record; False for any other record."""
+        if isinstance(record, Schema):
+            self.schemas[record.id] = record
+            return True
+        if not isinstance(record, Channel):
+            return False
+        self.channels[record.id] = record
+        if self._topics is not None and record.topic in self._topics:
+            self.wanted[record.id] = record.topic
+        schema = self.schemas.get(record.schema_id)
+        if schema is not None and schema.encoding == JSONSCHEMA:
+            try:
+                self._info.schemas[record.topic] = json.loads(schema.data)
+            except ValueError:
+                pass  # a schema that is not JSON: the messages are still readable
+        return True
+
+
 def iter_messages(path: Path, topics: set[str] | None = None,
                   info: RecordingContents | None = None) -> Iterator[RecordedMessage]:
     """Messages in file order (optionally only some topics). Fills `info` with metadata and schemas."""
     info = info if info is not None else RecordingContents()
-    schemas: dict[int, Schema] = {}
-    channels: dict[int, Channel] = {}
+    catalog = _Catalog(path, info)
+    schemas, channels = catalog.schemas, catalog.channels
     seen = 0
     damaged = [0]
-    for record in _summary_channels(path):  # a damaged chunk may have held a channel later chunks use
-        if isinstance(record, Schema):
-            schemas[record.id] = record
-        else:
-            channels[record.id] = record
     try:
         for record in _records(path, damaged):
             seen += 1
-            if isinstance(record, Schema):
-                schemas[record.id] = record
-            elif isinstance(record, Channel):
-                channels[record.id] = record
-                schema = schemas.get(record.schema_id)
-                if schema is not None and schema.encoding == JSONSCHEMA:
-                    try:
-                        info.schemas[record.topic] = json.loads(schema.data)
-                    except ValueError:
-                        pass  # a schema that is not JSON: the messages are still readable
-            elif isinstance(record, Message):
+            if catalog.add(record):
+                continue
+            if isinstance(record, Message):
                 channel = channels.get(record.channel_id)
                 if channel is None or (topics is not None and channel.topic not in topics):
                     continue
@@ -255,26 +273,8 @@ def iter_topic_data(path: Path, topics: set[str],
     nothing for messages of other topics. The same tolerance of truncated and damaged files, the same `info`.
     """
     info = info if info is not None else RecordingContents()
-    schemas: dict[int, Schema] = {}
-    channels: dict[int, Channel] = {}
-    wanted: dict[int, str] = {}
-
-    def known(record: Any) -> None:
-        if isinstance(record, Schema):
-            schemas[record.id] = record
-        elif isinstance(record, Channel):
-            channels[record.id] = record
-            if record.topic in topics:
-                wanted[record.id] = record.topic
-            schema = schemas.get(record.schema_id)
-            if schema is not None and schema.encoding == JSONSCHEMA:
-                try:
-                    info.schemas[record.topic] = json.loads(schema.data)
-                except ValueError:
-                    pass  # a schema that is not JSON: the messages are still readable
-
-    for record in _summary_channels(path):  # a damaged chunk may have held a channel later chunks use
-        known(record)
+    catalog = _Catalog(path, info, topics)
+    known, wanted = catalog.add, catalog.wanted
     seen = 0
     damaged = [0]
     try:
