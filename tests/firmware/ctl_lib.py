@@ -5,9 +5,15 @@ from __future__ import annotations
 import ctypes
 import shutil
 import subprocess
+from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
 import pytest
+
+from learning import Learner, LearnerConfig
+from simulator.env import DivingEnv
+from simulator.parameters import preset
 
 FIRMWARE = Path(__file__).resolve().parents[2] / "firmware"
 SOURCES = ("observer", "recovery", "rng", "learner", "shared", "shared_plan", "plant", "sensor")
@@ -140,3 +146,45 @@ def build_ctl_library(out_dir: Path) -> ctypes.CDLL:
         fn.restype = restype
         fn.argtypes = argtypes
     return lib
+
+
+@dataclass
+class Recording:
+    """One Python learning run, for the C learner to replay: per step (state, action, reward, next state, next raw
+    cell); q[0] before any episode, then after each; values, policy, sweeps and the stream's state after each plan."""
+
+    episodes: list[list[tuple[int, int, float, int, int]]] = field(default_factory=list)
+    values: list[np.ndarray] = field(default_factory=list)
+    q: list[np.ndarray] = field(default_factory=list)
+    policy: list[np.ndarray] = field(default_factory=list)
+    sweeps: list[int] = field(default_factory=list)
+    rng_after: list[int] = field(default_factory=list)
+    learner: Learner | None = None
+
+
+def record_python(config: LearnerConfig, plant: str, episodes: int, seed: int) -> Recording:
+    """The Python learner learning in the environment (a plant preset) for some episodes."""
+    learner = Learner(config, np.random.default_rng(seed))
+    env = DivingEnv(preset(plant), config, np.random.default_rng(seed + 1))
+    rec = Recording(learner=learner)
+    rec.q.append(learner.q_values)
+    for _ in range(episodes):
+        _, info = env.reset()
+        state = info["state"]
+        steps = []
+        done = False
+        while not done:
+            action = learner.act(state)
+            _, reward, terminated, truncated, info = env.step(action)
+            learner.observe(state, action, reward, info["state"], info["cell"])
+            steps.append((state, action, reward, info["state"], info["cell"]))
+            state = info["state"]
+            done = terminated or truncated
+        learner.end_episode()
+        rec.episodes.append(steps)
+        rec.values.append(learner.values)
+        rec.q.append(learner.q_values)
+        rec.policy.append(learner.policy)
+        rec.sweeps.append(learner.last_sweeps)
+        rec.rng_after.append(int(learner._rng_state[0]))
+    return rec

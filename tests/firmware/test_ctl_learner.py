@@ -10,7 +10,7 @@ A second run uses the deterministic tie rule (random_ties off: a tie picks a1 in
 from __future__ import annotations
 
 import ctypes
-from dataclasses import dataclass, fields, replace
+from dataclasses import fields, replace
 
 import numpy as np
 import pytest
@@ -18,9 +18,7 @@ import pytest
 from learning import Learner, LearnerConfig, learner_memory_bytes, n_states
 from learning.presets import learner_preset
 from learning.rng import new_stream
-from simulator.env import DivingEnv
-from simulator.parameters import preset
-from tests.firmware.ctl_lib import LearnerConfigC, build_ctl_library
+from tests.firmware.ctl_lib import LearnerConfigC, Recording, build_ctl_library, record_python
 
 SEED = 20261123
 # float32 (C) against float64 (Python): values accumulate rounding over hundreds of sweeps, and the
@@ -90,44 +88,6 @@ def test_oversized_model_refused(ctl: ctypes.CDLL) -> None:
     assert ctl.learner_n_states() == 101  # the old learner stays
 
 
-@dataclass
-class Recording:
-    """One Python learning run: per step (state, action taken, reward, next state), episode ends."""
-
-    episodes: list[list[tuple[int, int, float, int]]]
-    values: list[np.ndarray]
-    q: list[np.ndarray]
-    policy: list[np.ndarray]
-    sweeps: list[int]
-
-
-def record_python(config: LearnerConfig, episodes: int) -> Recording:
-    """The Python learner learning in the environment (paper plant preset) for some episodes."""
-    params = preset("paper")
-    learner = Learner(config, np.random.default_rng(SEED))
-    env = DivingEnv(params, config, np.random.default_rng(SEED + 1))
-    rec = Recording([], [], [], [], [])
-    for _ in range(episodes):
-        _, info = env.reset()
-        state = info["state"]
-        steps = []
-        done = False
-        while not done:
-            action = learner.act(state)
-            _, reward, terminated, truncated, info = env.step(action)
-            learner.observe(state, action, reward, info["state"])
-            steps.append((state, action, reward, info["state"]))
-            state = info["state"]
-            done = terminated or truncated
-        learner.end_episode()
-        rec.episodes.append(steps)
-        rec.values.append(learner.values)
-        rec.q.append(learner.q_values)
-        rec.policy.append(learner.policy)
-        rec.sweeps.append(learner.last_sweeps)
-    return rec
-
-
 def replay_in_c(lib: ctypes.CDLL, config: LearnerConfig, rec: Recording, slice_sweeps: int) -> None:
     """Replay rec into the C learner, checking actions, values, Q and policy after every episode."""
     c = c_config(lib, config)
@@ -136,8 +96,8 @@ def replay_in_c(lib: ctypes.CDLL, config: LearnerConfig, rec: Recording, slice_s
     s_count = n_states(config)
     states = range(s_count)
     for ep, steps in enumerate(rec.episodes):
-        prev_q = rec.q[ep - 1] if ep else np.zeros((s_count, 2))
-        for state, action, reward, next_state in steps:
+        prev_q = rec.q[ep]
+        for state, action, reward, next_state, _ in steps:
             chosen = lib.learner_act(state)
             if abs(prev_q[state, 1] - prev_q[state, 0]) > NEAR_TIE:
                 assert chosen == action, f"episode {ep + 1}: C chose {chosen} in state {state}"
@@ -152,9 +112,9 @@ def replay_in_c(lib: ctypes.CDLL, config: LearnerConfig, rec: Recording, slice_s
         values = np.array([lib.learner_value(s) for s in states])
         np.testing.assert_allclose(values, rec.values[ep], atol=VALUE_ATOL, rtol=0)
         q = np.array([[lib.learner_q(s, a) for a in (0, 1)] for s in states])
-        np.testing.assert_allclose(q, rec.q[ep], atol=VALUE_ATOL, rtol=0)
+        np.testing.assert_allclose(q, rec.q[ep + 1], atol=VALUE_ATOL, rtol=0)
         policy = np.array([lib.learner_policy(s) for s in states])
-        gap = np.abs(rec.q[ep][:, 1] - rec.q[ep][:, 0])
+        gap = np.abs(rec.q[ep + 1][:, 1] - rec.q[ep + 1][:, 0])
         clear = (gap > NEAR_TIE) | (gap == 0.0)  # exact ties: the same draw decides in both
         assert np.array_equal(policy[clear], rec.policy[ep][clear]), f"episode {ep + 1}: policies differ"
         assert lib.learner_episode() == ep + 1
@@ -162,7 +122,7 @@ def replay_in_c(lib: ctypes.CDLL, config: LearnerConfig, rec: Recording, slice_s
     # The model itself: every count the Python learner holds, the C holds.
     final = Learner(config, np.random.default_rng(SEED))
     for steps in rec.episodes:
-        for state, action, reward, next_state in steps:
+        for state, action, reward, next_state, _ in steps:
             final.observe(state, action, reward, next_state)
     counts = final.counts
     for s, s2, a in zip(*np.nonzero(counts), strict=True):
@@ -179,7 +139,7 @@ def test_c_learner_follows_python(
     ctl: ctypes.CDLL, name: str, random_ties: bool, episodes: int, slice_sweeps: int
 ) -> None:
     config = replace(learner_preset(name), random_ties=random_ties)
-    rec = record_python(config, episodes)
+    rec = record_python(config, "paper", episodes, SEED)
     assert sum(len(e) for e in rec.episodes) > 500  # enough learning to make values and policy nontrivial
     replay_in_c(ctl, config, rec, slice_sweeps)
 
@@ -228,6 +188,6 @@ def test_field_names_cover_python_config() -> None:
 def test_c_learner_draws_ties_per_step_as_python(ctl: ctypes.CDLL) -> None:
     """ties_per_step: a tied state is marked (2) at planning and its action drawn at each step, in both."""
     config = replace(learner_preset("paper"), ties_per_step=True)
-    rec = record_python(config, 30)
+    rec = record_python(config, "paper", 30, SEED)
     assert any((p == 2).any() for p in rec.policy)  # ties were left to the steps
     replay_in_c(ctl, config, rec, 5)

@@ -21,7 +21,7 @@ import ctypes
 import shutil
 import struct
 import subprocess
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -35,13 +35,11 @@ from learning.rng import new_stream
 from learning.shared import cell_reward, shared_memory_bytes
 from protocol import AckResult, Mode
 from protocol.parameters import param, snapshot_ram_bytes
-from simulator.env import DivingEnv
 from simulator.errors import ParamsError
 from simulator.firmware_host import load_library
 from simulator.onboard import check_ram
-from simulator.parameters import preset
 from tests.firmware.core_build import use_firmware_cache
-from tests.firmware.ctl_lib import FIRMWARE, LearnerConfigC, build_ctl_library
+from tests.firmware.ctl_lib import FIRMWARE, LearnerConfigC, Recording, build_ctl_library, record_python
 from tests.firmware.test_ctl_learner import c_config
 
 SEED = 20261124
@@ -109,46 +107,6 @@ def test_sizeof_of_the_c_state_is_shared_memory_bytes(tmp_path: Path, compiler: 
            f"-I{FIRMWARE / 'generated'}", "-c", "-o", str(tmp_path / "sizeof_check.o"), str(source)]
     result = subprocess.run(cmd, capture_output=True, text=True)
     assert result.returncode == 0, result.stderr
-
-
-@dataclass
-class Recording:
-    """One Python learning run: per step (state, action, reward, next state, next raw cell)."""
-
-    episodes: list[list[tuple[int, int, float, int, int]]] = field(default_factory=list)
-    values: list[np.ndarray] = field(default_factory=list)
-    q: list[np.ndarray] = field(default_factory=list)
-    policy: list[np.ndarray] = field(default_factory=list)
-    sweeps: list[int] = field(default_factory=list)
-    rng_after: list[int] = field(default_factory=list)  # the Python stream's state after each plan
-    learner: Learner | None = None
-
-
-def record_python(config: LearnerConfig, plant: str, episodes: int) -> Recording:
-    learner = Learner(config, np.random.default_rng(SEED))
-    env = DivingEnv(preset(plant), config, np.random.default_rng(SEED + 1))
-    rec = Recording(learner=learner)
-    rec.q.append(learner.q_values)
-    for _ in range(episodes):
-        _, info = env.reset()
-        state = info["state"]
-        steps = []
-        done = False
-        while not done:
-            action = learner.act(state)
-            _, reward, terminated, truncated, info = env.step(action)
-            learner.observe(state, action, reward, info["state"], info["cell"])
-            steps.append((state, action, reward, info["state"], info["cell"]))
-            state = info["state"]
-            done = terminated or truncated
-        learner.end_episode()
-        rec.episodes.append(steps)
-        rec.values.append(learner.values)
-        rec.q.append(learner.q_values)
-        rec.policy.append(learner.policy)
-        rec.sweeps.append(learner.last_sweeps)
-        rec.rng_after.append(int(learner._rng_state[0]))
-    return rec
 
 
 def _check_model(lib: ctypes.CDLL, learner: Learner) -> None:
@@ -226,7 +184,7 @@ def test_c_shared_learner_follows_python(
     ctl: ctypes.CDLL, name: str, plant: str, episodes: int, slice_backups: int
 ) -> None:
     config = learner_preset(name)
-    rec = record_python(config, plant, episodes)
+    rec = record_python(config, plant, episodes, SEED)
     assert sum(len(e) for e in rec.episodes) > 1000  # enough learning to make values and policy nontrivial
     worst, tie_mismatches = replay_in_c(ctl, config, rec, slice_backups)
     print(f"{name}: largest |v_C - v_Python| over {episodes} episodes: {worst:.2e}; "
@@ -294,7 +252,7 @@ def test_ram_budget_acceptance_is_the_virtual_agents(tmp_path_factory: pytest.Te
     c = LearnerConfigC()
     lib.params_learner_config(ctypes.byref(c))
     expected = c_config(lib, config)
-    for field_name, _ in LearnerConfigC._fields_:
+    for field_name, *_ in LearnerConfigC._fields_:
         assert getattr(c, field_name) == getattr(expected, field_name), field_name
     check_ram(config)  # the Python agent accepts it
     need = learner_memory_bytes(config) + snapshot_ram_bytes(n_states(config), shared_model=True)
