@@ -29,13 +29,12 @@ from typing import Protocol
 
 import numpy as np
 
-from learning import Learner, LearnerConfig, learner_memory_bytes, n_states
+from learning import Learner, LearnerConfig, n_states
 from learning.acting import reward_kernel, state_index_kernel
 from learning.config import kernel_spec
 from learning.shared import raw_cell_kernel
 from learning.spec import direct_entry
 from protocol import AckResult, Action, EndReason, Mode, Severity, messages
-from protocol.parameters import RAM_BUDGET_BYTES, snapshot_ram_bytes
 from protocol.registry import Message
 from simulator.agent_mission import MissionConfig
 from simulator.errors import ParamsError
@@ -43,7 +42,7 @@ from simulator.observer import DepthDifference, SlidingModeObserver
 from simulator.onboard_hw import SimulatedHardware
 from simulator.onboard_kernel import recovery_period_kernel, sense_kernel
 from simulator.parameters import PlantParams
-from simulator.params_table import ParamTable, Scope
+from simulator.params_table import ParamTable, Scope, check_ram
 from simulator.recovery import RecoveryController
 
 Verdict = tuple[AckResult, str]
@@ -390,12 +389,3 @@ class OnboardProgram:
             self.text(f"{definition.name} changed: learner restarted")
         return OK
 
-
-def check_ram(config: LearnerConfig) -> None:
-    """ParamsError naming the bytes if the learner and its snapshots would not fit the RAM budget (SPEC s. 13)."""
-    states = n_states(config)
-    need = learner_memory_bytes(config) + snapshot_ram_bytes(states, config.shared_model)
-    if need > RAM_BUDGET_BYTES:
-        raise ParamsError(
-            f"{states} states need {need} bytes of RAM (learner and snapshots), the budget is {RAM_BUDGET_BYTES}"
-        )

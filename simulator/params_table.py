@@ -6,8 +6,9 @@ from dataclasses import dataclass, fields, replace
 from enum import Enum
 from typing import Any, TypeVar
 
+from learning import LearnerConfig, learner_memory_bytes, n_states
 from protocol import messages
-from protocol.parameters import PARAMS, ParamDef
+from protocol.parameters import PARAMS, RAM_BUDGET_BYTES, ParamDef, snapshot_ram_bytes
 from simulator.errors import ParamsError
 
 T = TypeVar("T")
@@ -136,4 +137,14 @@ class ParamTable:
         return messages.ParamValue(
             index=index, count=len(self.defs), param_type=int(d.param_type), value=self.values[index],
             minimum=d.minimum, maximum=d.maximum, name=d.name,
+        )
+
+
+def check_ram(config: LearnerConfig) -> None:
+    """ParamsError naming the bytes if the learner and its snapshots would not fit the RAM budget (SPEC s. 13)."""
+    states = n_states(config)
+    need = learner_memory_bytes(config) + snapshot_ram_bytes(states, config.shared_model)
+    if need > RAM_BUDGET_BYTES:
+        raise ParamsError(
+            f"{states} states need {need} bytes of RAM (learner and snapshots), the budget is {RAM_BUDGET_BYTES}"
         )

@@ -37,7 +37,7 @@ from protocol import AckResult, Mode
 from protocol.parameters import param, snapshot_ram_bytes
 from simulator.errors import ParamsError
 from simulator.firmware_host import load_library
-from simulator.onboard import check_ram
+from simulator.params_table import check_ram
 from tests.firmware.core_build import use_firmware_cache
 from tests.firmware.ctl_lib import FIRMWARE, LearnerConfigC, Recording, build_ctl_library, record_python
 from tests.firmware.test_ctl_learner import c_config
