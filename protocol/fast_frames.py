@@ -34,6 +34,12 @@ def _crc_table() -> NDArray[np.uint16]:
 _CRC_TABLE = _crc_table()
 
 
+@njit(cache=True, nogil=True, inline="always")
+def crc_step(crc: int, byte: int) -> int:
+    """CRC-16/CCITT-FALSE (protocol.crc) advanced by one byte, from the table."""
+    return ((crc << 8) & 0xFFFF) ^ _CRC_TABLE[((crc >> 8) ^ byte) & 0xFF]
+
+
 @njit(cache=True, nogil=True)
 def decode_chunks(buffer: NDArray[np.uint8], max_chunk: int, min_inner: int, version: int,
                   incompatible_flags: int) -> tuple[int, int, NDArray[np.int64], NDArray[np.uint8]]:
@@ -82,7 +88,7 @@ def decode_chunks(buffer: NDArray[np.uint8], max_chunk: int, min_inner: int, ver
             if verdict == CHUNK_OK:
                 crc = CRC_INIT
                 for k in range(start, written):
-                    crc = ((crc << 8) & 0xFFFF) ^ _CRC_TABLE[((crc >> 8) ^ inner[k]) & 0xFF]
+                    crc = crc_step(crc, inner[k])
                 if crc != 0:  # over the frame and its big-endian CRC, a good frame's CRC is 0
                     verdict = CHUNK_CRC_ERROR
             if verdict == CHUNK_OK and (inner[start] != version or inner[start + 1] & incompatible_flags):
@@ -113,29 +119,24 @@ def decode_buffer(data: bytes, max_chunk: int, min_inner: int, version: int,
     return rest, table[:count].tolist(), inner.tobytes()
 
 
-@njit(cache=True, nogil=True)
-def encode_frame(payload: bytes, header: int, out: NDArray[np.uint8]) -> int:
-    """The unsigned frame of `payload` as wire bytes (COBS(inner) + 0x00) into `out`; returns their count.
-
-    `header` holds the five header bytes, little-endian (version, flags, seq low, seq high, msg_id): one
-    argument instead of four, each costing its unboxing per call. For inner frames shorter than 254 bytes
-    (payloads up to 246 bytes), where no COBS block can be full. Nothing is allocated: the inner frame is
-    walked twice (CRC, then COBS) where it lies, header, payload and CRC.
-    """
-    body = 5 + len(payload)
+@njit(cache=True, nogil=True, inline="always")
+def crc_into(frame: NDArray[np.uint8], body: int) -> None:
+    """The CRC of frame[:body] into frame[body:body + 2], big-endian (the inner frame's trailer)."""
     crc = CRC_INIT
     for k in range(body):
-        byte = (header >> (8 * k)) & 0xFF if k < 5 else payload[k - 5]
-        crc = ((crc << 8) & 0xFFFF) ^ _CRC_TABLE[((crc >> 8) ^ byte) & 0xFF]
-    code_at = 0  # where the code of the block in progress goes
-    written = 1
-    for k in range(body + 2):
-        if k < 5:
-            byte = (header >> (8 * k)) & 0xFF
-        elif k < body:
-            byte = payload[k - 5]
-        else:
-            byte = (crc >> 8) if k == body else (crc & 0xFF)
+        crc = crc_step(crc, frame[k])
+    frame[body] = crc >> 8
+    frame[body + 1] = crc & 0xFF
+
+
+@njit(cache=True, nogil=True, inline="always")
+def cobs_encode_into(source: NDArray[np.uint8], length: int, out: NDArray[np.uint8], start: int) -> int:
+    """COBS(source[:length]) + the 0x00 delimiter into out[start:]; returns the end. For chunks shorter than
+    254 bytes, where no block can be full: each zero becomes the distance to the next one."""
+    code_at = start  # where the code of the block in progress goes
+    written = start + 1
+    for k in range(length):
+        byte = source[k]
         if byte == 0:
             out[code_at] = written - code_at
             code_at = written
@@ -145,6 +146,30 @@ def encode_frame(payload: bytes, header: int, out: NDArray[np.uint8]) -> int:
     out[code_at] = written - code_at
     out[written] = 0
     return written + 1
+
+
+INNER_AT = 256  # encode_frame assembles the inner frame here in its output buffer, past any wire bytes
+
+
+@njit(cache=True, nogil=True)
+def encode_frame(payload: bytes, header: int, out: NDArray[np.uint8]) -> int:
+    """The unsigned frame of `payload` as wire bytes (COBS(inner) + 0x00) into `out`; returns their count.
+
+    `header` holds the five header bytes, little-endian (version, flags, seq low, seq high, msg_id): one
+    argument instead of four, each costing its unboxing per call. For inner frames shorter than 254 bytes
+    (payloads up to 246 bytes), where no COBS block can be full. `out` holds at least 2 * INNER_AT bytes:
+    nothing is allocated, the inner frame is assembled and checksummed in its upper half, then COBS-encoded.
+    """
+    inner = out[INNER_AT:]
+    body = 5 + len(payload)
+    crc = CRC_INIT
+    for k in range(body):  # assembled and checksummed in one pass
+        byte = (header >> (8 * k)) & 0xFF if k < 5 else payload[k - 5]
+        inner[k] = byte
+        crc = crc_step(crc, byte)
+    inner[body] = crc >> 8
+    inner[body + 1] = crc & 0xFF
+    return cobs_encode_into(inner, body + 2, out, 0)
 
 
 COMPILED_MAX_PAYLOAD = 246  # longer payloads take the stdlib path (a full COBS block is possible there)
@@ -158,7 +183,7 @@ def frame_writer(version: int) -> Callable[[bytes, int, int, int], bytes]:
     point, without numba's per-call argument typing. Payloads up to COMPILED_MAX_PAYLOAD bytes.
     """
     entry = _encode_entry()
-    out = np.zeros(512, np.uint8)
+    out = np.zeros(2 * INNER_AT, np.uint8)
     view = memoryview(out)  # type: ignore[arg-type]  # numpy arrays are buffers
 
     def wire(payload: bytes, flags: int, seq: int, msg_id: int) -> bytes:

@@ -22,9 +22,8 @@ from learning.acting import reward_kernel, select_action_kernel, state_index_ker
 from learning.model import record_transition
 from learning.shared import raw_cell_kernel, record_shared
 from learning.spec import KernelSpec
-from protocol.crc import CRC_INIT
 from protocol.enums import PROTOCOL_VERSION
-from protocol.fast_frames import _CRC_TABLE
+from protocol.fast_frames import cobs_encode_into, crc_into
 from simulator.log_ring import ring_commit, ring_reserve
 from simulator.onboard_kernel import recovery_period_kernel, sense_kernel
 from simulator.plant_kernel import ALPHA, plant_step
@@ -104,27 +103,9 @@ def emit_sample(
     _put(inner, 49, state, 2)
     inner[51] = action
     inner[52] = ints[MODE]
-    crc = CRC_INIT
-    for k in range(SAMPLE_INNER - 2):
-        crc = ((crc << 8) & 0xFFFF) ^ _CRC_TABLE[((crc >> 8) ^ inner[k]) & 0xFF]
-    inner[SAMPLE_INNER - 2] = crc >> 8
-    inner[SAMPLE_INNER - 1] = crc & 0xFF
+    crc_into(inner, SAMPLE_INNER - 2)
     ring_commit(ring_index, ring_counters, index, SAMPLE_INNER, True)
-    # COBS: each zero becomes the distance to the next one (no block of a 55-byte frame can be full).
-    start = ints[WIRE_END]
-    code_at = start
-    written = start + 1
-    for k in range(SAMPLE_INNER):
-        byte = inner[k]
-        if byte == 0:
-            wire[code_at] = written - code_at
-            code_at = written
-        else:
-            wire[written] = byte
-        written += 1
-    wire[code_at] = written - code_at
-    wire[written] = 0
-    ints[WIRE_END] = written + 1
+    ints[WIRE_END] = cobs_encode_into(inner, SAMPLE_INNER, wire, ints[WIRE_END])
 
 
 @njit(cache=True, error_model="numpy", inline="always")
