@@ -16,7 +16,8 @@ from simulator.env import DivingEnv
 from simulator.parameters import preset
 
 FIRMWARE = Path(__file__).resolve().parents[2] / "firmware"
-SOURCES = ("observer", "recovery", "rng", "learner", "shared", "shared_plan", "plant", "sensor")
+SOURCES = ("observer", "recovery", "rng", "learner", "learner_model", "learner_plan", "shared", "shared_plan", "plant",
+           "sensor")
 
 
 class SmoState(ctypes.Structure):

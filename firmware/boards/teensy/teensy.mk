@@ -21,6 +21,7 @@ TEENSY_LDFLAGS := $(TEENSY_ARCH) -T $(TEENSY_DIR)/mk20dx256.ld -nostartfiles --s
 	-Wl,--gc-sections
 TEENSY_CORE := $(filter-out %/learner.c,$(CORE_SRC)) $(FIRMWARE)/src/learner.c
 ARENA_TOOL := $(BUILD)/host/arena_size
+LEARNER_SRC := $(addprefix $(FIRMWARE)/src/,learner.c learner_model.c learner_plan.c shared.c shared_plan.c rng.c)
 # name z_cells zdot_cells act_bins shared_model
 TEENSY_VARIANTS := paper:10:10:1:0 actuator3:10:10:3:0 shared-bins13:10:10:13:1
 SKETCH_DIR ?= $(TEENSY_DIR)/diving_agent
@@ -28,9 +29,9 @@ SKETCH_CORE = $(SKETCH_DIR)/src/core
 
 .PHONY: teensy teensy-sketch teensy-variant
 
-$(ARENA_TOOL): $(TEENSY_DIR)/arena_size.c $(FIRMWARE)/src/learner.c $(FIRMWARE)/src/shared.c $(FIRMWARE)/src/shared_plan.c $(FIRMWARE)/src/rng.c $(FIRMWARE)/src/learner.h
+$(ARENA_TOOL): $(TEENSY_DIR)/arena_size.c $(LEARNER_SRC) $(FIRMWARE)/src/learner.h
 	@mkdir -p $(dir $@)
-	$(HOST_CC) -std=c99 -O1 $(INCLUDES) $(TEENSY_DIR)/arena_size.c $(FIRMWARE)/src/learner.c $(FIRMWARE)/src/shared.c $(FIRMWARE)/src/shared_plan.c $(FIRMWARE)/src/rng.c -lm -o $@
+	$(HOST_CC) -std=c99 -O1 $(INCLUDES) $(TEENSY_DIR)/arena_size.c $(LEARNER_SRC) -lm -o $@
 
 teensy: $(ARENA_TOOL)
 	@for v in $(TEENSY_VARIANTS); do \
