@@ -1,9 +1,10 @@
 # The Teensy 3.2 build (MK20DX256: Cortex-M4 without FPU, 256 KB flash, 64 KB RAM), included by firmware/Makefile.
 #   make -C firmware teensy         -> the core + the sketch's glue, compiled with arm-none-eabi-gcc and linked
 #                                      against compile_check/ (declarations and empty stubs of the Arduino calls),
-#                                      in three variants whose learner storage fits the paper learner (S = 101),
-#                                      the actuator-state learner (actuator3, S = 301) and the shared-model
-#                                      learner with 13 actuator bins (shared-bins13, S = 1301); prints
+#                                      in four variants whose learner storage fits the paper learner (S = 101),
+#                                      the actuator-state learner (actuator3, S = 301), the shared-model
+#                                      learner with 13 actuator bins (shared-bins13, S = 1301) and the hardware
+#                                      preset's best, 20 depth cells and 7 bins (shared-z20, S = 1401); prints
 #                                      arm-none-eabi-size
 #   make -C firmware teensy-sketch  -> copies the core into boards/teensy/diving_agent/src/core for Teensyduino
 #                                      (Arduino IDE or platformio, boards/teensy/platformio.ini)
@@ -23,7 +24,7 @@ TEENSY_CORE := $(filter-out %/learner.c,$(CORE_SRC)) $(FIRMWARE)/src/learner.c
 ARENA_TOOL := $(BUILD)/host/arena_size
 LEARNER_SRC := $(addprefix $(FIRMWARE)/src/,learner.c learner_model.c learner_plan.c shared.c shared_plan.c rng.c)
 # name z_cells zdot_cells act_bins shared_model
-TEENSY_VARIANTS := paper:10:10:1:0 actuator3:10:10:3:0 shared-bins13:10:10:13:1
+TEENSY_VARIANTS := paper:10:10:1:0 actuator3:10:10:3:0 shared-bins13:10:10:13:1 shared-z20:20:10:7:1
 SKETCH_DIR ?= $(TEENSY_DIR)/diving_agent
 SKETCH_CORE = $(SKETCH_DIR)/src/core
 
