@@ -85,7 +85,9 @@ class AgentServer:
         self.transport.on_connect = self._connected
         self.transport.on_data = self._received
         self.transport.on_disconnect = self._disconnected
-        self._running = False
+        # True until stop(): a SIGTERM that comes before serve_forever() (the parent killed just as the agent
+        # printed its address) must still stop it, so serve_forever() does not set it again.
+        self._running = True
         self._next_disconnect_us = self._disconnect_period_us()
 
     @property
@@ -177,8 +179,7 @@ class AgentServer:
         self._running = False
 
     def serve_forever(self) -> None:
-        """Run until stop() (a signal handler calls it); always closes the port."""
-        self._running = True
+        """Run until stop() (a signal handler calls it, maybe before this starts); always closes the port."""
         try:
             self._loop()
         finally:

@@ -13,6 +13,8 @@ from pathlib import Path
 import pytest
 
 from groundstation.loginfo import summarize
+from simulator.parameters import preset
+from simulator.server import AgentServer, ServeConfig
 from tests.reliability.recordings import DIVE_MAIN, ROOT
 
 
@@ -83,3 +85,14 @@ def test_kill_9_of_dive_run_or_dive_sim_leaves_no_agent_running(tmp_path: Path) 
     os.kill(sim.pid, signal.SIGKILL)
     sim.wait(10)
     assert gone_within(agent, 10), "the agent of a killed dive sim"
+
+
+def test_a_stop_before_the_agent_loop_starts_is_kept() -> None:
+    """The race behind a killed `dive sim` leaving its agent running (seen once in the suite): the parent died just
+    after the agent printed its address, its SIGTERM handler called stop() before serve_forever() began, and the
+    loop's start used to forget it. A real server on a real port, stopped first: serve_forever() returns at once."""
+    server = AgentServer(ServeConfig(plant=preset("paper"), port=0, seed=1))
+    server.stop()
+    started = time.monotonic()
+    server.serve_forever()
+    assert time.monotonic() - started < 1.0
