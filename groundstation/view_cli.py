@@ -34,6 +34,19 @@ def _fail(message: str, code: int = 1) -> typer.Exit:
     return typer.Exit(code)
 
 
+@contextmanager
+def _one_line_errors() -> Iterator[None]:
+    """Our errors become one line on stderr and exit code 1 (bad usage: 2); Ctrl-C before the end exits 130."""
+    try:
+        yield
+    except UsageError as e:
+        raise _fail(str(e), 2) from None
+    except GroundStationError as e:
+        raise _fail(str(e)) from None
+    except KeyboardInterrupt:
+        raise typer.Exit(130) from None
+
+
 def check_viewer_ports(viewer: Viewer, web_port: int, grpc_port: int | None) -> None:
     """A served web viewer needs both its ports free; else the address printed would show another process's data."""
     if viewer == Viewer.WEB:
@@ -129,7 +142,7 @@ def replay(
     """
     signal.signal(signal.SIGTERM, _interrupt)  # a service manager's stop is a Ctrl-C: clean shutdown
     stopped = False
-    try:
+    with _one_line_errors():
         from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
         from groundstation import replay as rp
@@ -187,12 +200,6 @@ def replay(
                     typer.echo(f"Rerun web viewer: {view.address}")
                 wait_for_interrupt("serving the web viewer")
                 stopped = True
-    except UsageError as e:
-        raise _fail(str(e), 2) from None
-    except GroundStationError as e:
-        raise _fail(str(e)) from None
-    except KeyboardInterrupt:
-        raise typer.Exit(130) from None
     if stopped:
         raise typer.Exit(130)  # ended by Ctrl-C, after a clean shutdown: the one convention (README)
 
@@ -210,7 +217,7 @@ def view(
     """Watch the agent live in the Rerun view, without commanding it."""
     signal.signal(signal.SIGTERM, _interrupt)
     stopped = False
-    try:
+    with _one_line_errors():
         from groundstation.links import make_link
         from groundstation.rerun_view import RerunView, ViewConfig
         from groundstation.runs import attach_url
@@ -230,11 +237,5 @@ def view(
                 typer.echo(f"watching {one_line(hello.name) if hello else 'the agent'} at {one_line(link.url)}")
                 wait_for_interrupt("watching")
                 stopped = True
-    except UsageError as e:
-        raise _fail(str(e), 2) from None
-    except GroundStationError as e:
-        raise _fail(str(e)) from None
-    except KeyboardInterrupt:
-        raise typer.Exit(130) from None
     if stopped:
         raise typer.Exit(130)  # ended by Ctrl-C, after a clean shutdown: the one convention (README)

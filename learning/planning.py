@@ -10,6 +10,11 @@ from learning.acting import TIED
 from learning.rng import uniform
 from learning.spec import KernelSpec
 
+# P and R of every (s, a) row, compressed: row_start [rows + 1] into succ and prob (successor states and their
+# probabilities), mean_reward [rows], known [rows] (backed up, else the untried value). One tuple, so that
+# the kernels that compile rows and those that plan over them do not each spell its five arrays.
+Rows = tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]
+
 
 @njit(cache=True, error_model="numpy")
 def _compile_rows(
@@ -17,7 +22,7 @@ def _compile_rows(
     succ_cnt: NDArray[np.uint16],
     reward_sum: NDArray[np.float32],
     spec: KernelSpec,
-) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]:
+) -> Rows:
     """P and R once per planning call as compressed rows: value iteration then touches only non-zeros."""
     n_states, n_actions, n_slots = succ_cnt.shape
     row_start = np.zeros(n_states * n_actions + 1, dtype=np.int64)
@@ -55,14 +60,11 @@ def _compile_rows(
 @njit(cache=True, error_model="numpy", inline="always")
 def _action_value(
     row: int,
-    row_start: NDArray[np.int64],
-    succ: NDArray[np.int64],
-    prob: NDArray[np.float64],
-    mean_reward: NDArray[np.float64],
-    known: NDArray[np.bool_],
+    rows: Rows,
     values: NDArray[np.float64],
     spec: KernelSpec,
 ) -> float:
+    row_start, succ, prob, mean_reward, known = rows
     if not known[row]:
         return 0.0 if spec.alg4_printed else spec.untried_q_value
     expected = 0.0
@@ -87,17 +89,12 @@ def plan_kernel(
     rng_state: NDArray[np.uint64],
 ) -> int:
     """Value iteration over the per-state count model from the current values; returns sweeps."""
-    row_start, succ, prob, mean_reward, known = _compile_rows(succ_idx, succ_cnt, reward_sum, spec)
-    return plan_rows(row_start, succ, prob, mean_reward, known, values, q, policy, spec, rng_state)
+    return plan_rows(_compile_rows(succ_idx, succ_cnt, reward_sum, spec), values, q, policy, spec, rng_state)
 
 
 @njit(cache=True, error_model="numpy")
 def plan_rows(
-    row_start: NDArray[np.int64],
-    succ: NDArray[np.int64],
-    prob: NDArray[np.float64],
-    mean_reward: NDArray[np.float64],
-    known: NDArray[np.bool_],
+    rows: Rows,
     values: NDArray[np.float64],
     q: NDArray[np.float64],
     policy: NDArray[np.int8],
@@ -125,7 +122,7 @@ def plan_rows(
             best = -np.inf
             for a in range(n_actions):
                 row = s * n_actions + a
-                best = max(best, _action_value(row, row_start, succ, prob, mean_reward, known, values, spec))
+                best = max(best, _action_value(row, rows, values, spec))
             delta = max(delta, abs(best - values[s]))
             new_values[s] = best
             if spec.in_place_sweeps:
@@ -138,9 +135,7 @@ def plan_rows(
     sign = -1.0 if spec.policy_argmin else 1.0
     for s in range(n_states):
         for a in range(n_actions):
-            q[s, a] = 0.0 if s == terminal else _action_value(
-                s * n_actions + a, row_start, succ, prob, mean_reward, known, values, spec
-            )
+            q[s, a] = 0.0 if s == terminal else _action_value(s * n_actions + a, rows, values, spec)
         d = sign * (q[s, 1] - q[s, 0])
         if d > 0.0:
             policy[s] = 1

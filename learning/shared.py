@@ -42,7 +42,7 @@ from numba import njit
 from numpy.typing import NDArray
 
 from learning.model import COUNT_MAX, N_ACTIONS
-from learning.planning import _action_value, plan_rows
+from learning.planning import Rows, _action_value, plan_rows
 from learning.spec import KernelSpec
 
 DZ_MAX, DV_MAX, DB_MAX = 2, 8, 1  # offsets a code can hold; beyond them a successor is FAR (terminal)
@@ -253,7 +253,7 @@ def compile_shared_rows(
     succ_idx: NDArray[np.uint16],
     succ_cnt: NDArray[np.uint16],
     spec: KernelSpec,
-) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]:
+) -> Rows:
     """Every (s, a) row of P (shifted type histogram, blended with local counts) and its mean reward."""
     n_states = spec.z_cells * spec.zdot_cells * spec.actuator_bins + 1
     blend = spec.dirichlet_weight > 0.0 and succ_cnt.shape[0] == n_states
@@ -323,12 +323,12 @@ def shared_q_kernel(
 ) -> NDArray[np.float64]:
     """Q[s, a] from the live model and the current values (no planning): what a shared model's Q_VALUES
     snapshot shows, as the firmware computes it (it keeps no Q table)."""
-    row_start, succ, prob, mean_reward, known = compile_shared_rows(codes, counts, totals, succ_idx, succ_cnt, spec)
+    rows = compile_shared_rows(codes, counts, totals, succ_idx, succ_cnt, spec)
     n_states = values.shape[0]
     q = np.zeros((n_states, N_ACTIONS))
     for s in range(n_states - 1):
         for a in range(N_ACTIONS):
-            q[s, a] = _action_value(s * N_ACTIONS + a, row_start, succ, prob, mean_reward, known, values, spec)
+            q[s, a] = _action_value(s * N_ACTIONS + a, rows, values, spec)
     return q
 
 
@@ -346,5 +346,5 @@ def plan_shared_kernel(
     rng_state: NDArray[np.uint64],
 ) -> int:
     """Value iteration over the shared model (see plan_rows); returns sweeps."""
-    row_start, succ, prob, mean_reward, known = compile_shared_rows(codes, counts, totals, succ_idx, succ_cnt, spec)
-    return plan_rows(row_start, succ, prob, mean_reward, known, values, q, policy, spec, rng_state)
+    rows = compile_shared_rows(codes, counts, totals, succ_idx, succ_cnt, spec)
+    return plan_rows(rows, values, q, policy, spec, rng_state)

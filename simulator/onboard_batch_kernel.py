@@ -146,6 +146,18 @@ def advance(ints: NDArray[np.int64], floats: NDArray[np.float64], plant: NDArray
     ints[T_US] += ints[DT_US]
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def step_ends_batch(ints: NDArray[np.int64], floats: NDArray[np.float64], plant: NDArray[np.float64],
+                    spec: KernelSpec, socs: NDArray[np.float64], volts: NDArray[np.float64]) -> bool:
+    """The end of a step after its SAMPLE: a dive limit (STATUS LIMIT), else the hardware advances; True if
+    the batch must return then (the limit, or a HEARTBEAT due)."""
+    if limit_holds(ints, floats, socs, volts):
+        ints[STATUS] = LIMIT
+        return True
+    advance(ints, floats, plant, spec)
+    return ints[T_US] >= ints[HEARTBEAT_DUE_US]
+
+
 @njit(cache=True, error_model="numpy")
 def held_steps(
     ints: NDArray[np.int64], floats: NDArray[np.float64], plant: NDArray[np.float64],
@@ -174,11 +186,7 @@ def held_steps(
         if recovering and (settled or gave_up):
             ints[STATUS] = SETTLED if settled else GAVE_UP
             return
-        if limit_holds(ints, floats, socs, volts):
-            ints[STATUS] = LIMIT
-            return
-        advance(ints, floats, plant, spec)
-        if ints[T_US] >= ints[HEARTBEAT_DUE_US]:
+        if step_ends_batch(ints, floats, plant, spec, socs, volts):
             return
 
 
@@ -240,9 +248,5 @@ def learning_steps(
         emit_sample(ints, ring_data, ring_index, ring_counters, wire, f32, f32_bytes, pressure, depth, velocity,
                     plant[ALPHA], cmd, reward, state, action)
         ints[STEPS] += 1
-        if limit_holds(ints, floats, socs, volts):
-            ints[STATUS] = LIMIT
-            return
-        advance(ints, floats, plant, spec)
-        if ints[T_US] >= ints[HEARTBEAT_DUE_US]:
+        if step_ends_batch(ints, floats, plant, spec, socs, volts):
             return

@@ -117,16 +117,21 @@ def with_overrides(params: PlantParams, overrides: dict[str, Any]) -> PlantParam
     return validate(replace(params, **clean))
 
 
-def load_params(path: Path, base: PlantParams) -> PlantParams:
-    """base with the overrides of a TOML or JSON file (a flat table of field = value)."""
+def read_param_table(path: Path, key: str = "field") -> dict[str, Any]:
+    """The flat table of a TOML or JSON parameter file; `key` names its keys in the error (field, name)."""
     try:
         text = path.read_bytes()
         data = json.loads(text) if path.suffix.lower() == ".json" else tomllib.loads(text.decode())
     except (OSError, UnicodeDecodeError, ValueError) as e:
         raise ParamsError(f"cannot read parameter file {path}: {e}") from e
     if not isinstance(data, dict):
-        raise ParamsError(f"parameter file {path} must hold a table of field = value")
-    return with_overrides(base, data)
+        raise ParamsError(f"parameter file {path} must hold a table of {key} = value")
+    return data
+
+
+def load_params(path: Path, base: PlantParams) -> PlantParams:
+    """base with the overrides of a TOML or JSON file (a flat table of field = value)."""
+    return with_overrides(base, read_param_table(path))
 
 
 def validate(params: PlantParams) -> PlantParams:

@@ -5,7 +5,6 @@ from __future__ import annotations
 import json
 import signal
 import sys
-import tomllib
 from dataclasses import replace
 from pathlib import Path
 from typing import Annotated, Any
@@ -20,7 +19,7 @@ from simulator.agent_mission import MissionConfig
 from simulator.errors import ParamsError, SimulatorError
 from simulator.faults import FaultConfig
 from simulator.firmware_qemu import QemuConfig, serve_qemu
-from simulator.parameters import PlantParams, preset, with_overrides
+from simulator.parameters import PlantParams, preset, read_param_table, with_overrides
 from simulator.params_table import Scope, binding, check_value
 from simulator.server import FIRMWARES, AgentServer, ServeConfig
 from simulator.signing_mark import mark_path
@@ -56,7 +55,7 @@ def _refuse_for_firmware(learner: str, params: Path | None) -> None:
         raise ParamsError("--learner does not apply to --firmware c: set the agent's parameters with PARAM_SET "
                           "(dive run --param NAME=VALUE)")
     if params is not None:
-        agent_names = sorted(set(_read_table(params)) & set(BY_NAME))
+        agent_names = sorted(set(read_param_table(params, "name")) & set(BY_NAME))
         if agent_names:
             raise ParamsError(f"{params}: agent parameters ({', '.join(agent_names)}) do not apply to --firmware c; "
                               "set them with PARAM_SET (dive run --param NAME=VALUE)")
@@ -77,24 +76,13 @@ def read_key_file(path: Path) -> bytes:
         raise ParamsError(f"cannot read key file {path}: {e}") from e
 
 
-def _read_table(path: Path) -> dict[str, Any]:
-    try:
-        text = path.read_bytes()
-        data = json.loads(text) if path.suffix.lower() == ".json" else tomllib.loads(text.decode())
-    except (OSError, UnicodeDecodeError, ValueError) as e:
-        raise ParamsError(f"cannot read parameter file {path}: {e}") from e
-    if not isinstance(data, dict):
-        raise ParamsError(f"parameter file {path} must hold a table of name = value")
-    return data
-
-
 def apply_param_file(
     path: Path, plant: PlantParams, learner: LearnerConfig, mission: MissionConfig
 ) -> tuple[PlantParams, LearnerConfig, MissionConfig]:
     """Agent parameter names (PARAM_LIST names) set those; any other key must be a PlantParams field."""
     changes: dict[Scope, dict[str, Any]] = {scope: {} for scope in Scope}
     plant_rest: dict[str, Any] = {}
-    for key, value in _read_table(path).items():
+    for key, value in read_param_table(path, "name").items():
         definition = BY_NAME.get(key)
         if definition is None:
             plant_rest[key] = value

@@ -17,7 +17,7 @@ from learning.config import kernel_spec
 from learning.rng import new_stream
 from simulator.errors import StudyError
 from simulator.parameters import PlantParams, kernel_params
-from simulator.study_kernel import N_COUNTERS, run_trials
+from simulator.study_kernel import N_COUNTERS, TrialArrays, run_trials
 
 _POLL_S = 0.1
 
@@ -78,7 +78,7 @@ def run_study(
     counters = np.zeros((trials, N_COUNTERS), dtype=np.int64)
     args = (
         learner_streams, env_streams, params.target_depth_m, kernel_params(params), kernel_spec(config),
-        durations, values, policy, progress, counters,
+        TrialArrays(durations, values, policy, counters), progress,
     )
     failure: list[BaseException] = []
 

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from numba import njit, prange
 from numpy.typing import NDArray
@@ -24,6 +26,16 @@ C_EVICTIONS, C_SWEEPS_TOTAL, C_SWEEPS_MAX, C_PLANS = 0, 1, 2, 3
 N_COUNTERS = 4
 
 
+class TrialArrays(NamedTuple):
+    """What trials fill: a row per trial for run_trials, one trial's rows for run_trial (numba takes it as a
+    named tuple, so the two kernels do not spell the same outputs twice)."""
+
+    durations_s: NDArray[np.float64]  # [episodes] time in the region per episode
+    values: NDArray[np.float64]  # [states] value function after the last episode
+    policy: NDArray[np.int8]  # [states] greedy policy after the last episode
+    counters: NDArray[np.int64]  # [N_COUNTERS] evictions, sweeps in all, most sweeps of one call, planning calls
+
+
 @njit(cache=True, error_model="numpy", nogil=True)
 def run_trial(
     learner_stream: NDArray[np.uint64],
@@ -31,14 +43,12 @@ def run_trial(
     target_depth_m: float,
     spec: KernelSpec,
     lspec: KernelSpec,
-    durations_s: NDArray[np.float64],
-    values: NDArray[np.float64],
-    policy: NDArray[np.int8],
+    out: TrialArrays,
     progress: NDArray[np.int64],
     trial: int,
-    counters: NDArray[np.int64],
 ) -> None:
-    """One learning trial: len(durations_s) episodes; fills durations, final values, policy and counters."""
+    """One learning trial: len(out.durations_s) episodes; fills durations, final values, policy and counters."""
+    durations_s, values, policy, counters = out
     n_states = values.shape[0]
     sparse = lspec.model_form == 1
     shared = lspec.shared_model
@@ -92,15 +102,10 @@ def run_trials(
     target_depth_m: float,
     spec: KernelSpec,
     lspec: KernelSpec,
-    durations_s: NDArray[np.float64],
-    values: NDArray[np.float64],
-    policy: NDArray[np.int8],
+    out: TrialArrays,
     progress: NDArray[np.int64],
-    counters: NDArray[np.int64],
 ) -> None:
     """All trials in parallel; row t of every output belongs to trial t."""
-    for t in prange(durations_s.shape[0]):
-        run_trial(
-            learner_streams[t], env_streams[t], target_depth_m, spec, lspec,
-            durations_s[t], values[t], policy[t], progress, t, counters[t],
-        )
+    for t in prange(out.durations_s.shape[0]):
+        rows = TrialArrays(out.durations_s[t], out.values[t], out.policy[t], out.counters[t])
+        run_trial(learner_streams[t], env_streams[t], target_depth_m, spec, lspec, rows, progress, t)

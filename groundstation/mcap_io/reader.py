@@ -162,6 +162,28 @@ class _Truncated(Exception):
     pass
 
 
+def _filling(info: RecordingContents, path: Path, damaged: list[int], chunk_data: bool = False) -> Iterator[Any]:
+    """_records for the readers that fill `info`: metadata and attachments go into it and are not yielded;
+    at the end (or when the reader is closed) `info` says whether the file was truncated and how many chunks
+    were damaged (damaged[0], which the caller may add to). A file with no record at all is no recording."""
+    seen = 0
+    try:
+        for record in _records(path, damaged, chunk_data):
+            seen += 1
+            if isinstance(record, Metadata):
+                info.metadata.setdefault(record.name, []).append(dict(record.metadata))
+            elif isinstance(record, Attachment):
+                info.attachments.append((record.name, bytes(record.data)))
+            else:
+                yield record
+    except _Truncated:
+        info.truncated = True
+        if seen == 0:
+            raise RecordingError(f"{path} is not an MCAP recording") from None
+    finally:
+        info.damaged_chunks = damaged[0]
+
+
 class _Catalog:
     """The schemas and channels a reader has met, starting with the summary's (a damaged chunk may have held a
     channel later chunks use); each channel's JSON Schema goes into `info`, and the ids of `topics` into wanted."""
@@ -199,30 +221,16 @@ def iter_messages(path: Path, topics: set[str] | None = None,
     info = info if info is not None else RecordingContents()
     catalog = _Catalog(path, info)
     schemas, channels = catalog.schemas, catalog.channels
-    seen = 0
-    damaged = [0]
-    try:
-        for record in _records(path, damaged):
-            seen += 1
-            if catalog.add(record):
+    for record in _filling(info, path, [0]):
+        if catalog.add(record):
+            continue
+        if isinstance(record, Message):
+            channel = channels.get(record.channel_id)
+            if channel is None or (topics is not None and channel.topic not in topics):
                 continue
-            if isinstance(record, Message):
-                channel = channels.get(record.channel_id)
-                if channel is None or (topics is not None and channel.topic not in topics):
-                    continue
-                schema = schemas.get(channel.schema_id)
-                yield RecordedMessage(channel.topic, record.log_time, record.publish_time, bytes(record.data),
-                                      channel.message_encoding, schema.name if schema else "")
-            elif isinstance(record, Metadata):
-                info.metadata.setdefault(record.name, []).append(dict(record.metadata))
-            elif isinstance(record, Attachment):
-                info.attachments.append((record.name, bytes(record.data)))
-    except _Truncated:
-        info.truncated = True
-        if seen == 0:
-            raise RecordingError(f"{path} is not an MCAP recording") from None
-    finally:
-        info.damaged_chunks = damaged[0]
+            schema = schemas.get(channel.schema_id)
+            yield RecordedMessage(channel.topic, record.log_time, record.publish_time, bytes(record.data),
+                                  channel.message_encoding, schema.name if schema else "")
 
 
 _FOOTER_BYTES = 1 + 8 + 8 + 8 + 4  # opcode, length, summary_start, summary_offset_start, summary_crc
@@ -275,65 +283,44 @@ def iter_topic_data(path: Path, topics: set[str],
     info = info if info is not None else RecordingContents()
     catalog = _Catalog(path, info, topics)
     known, wanted = catalog.add, catalog.wanted
-    seen = 0
     damaged = [0]
-    try:
-        for record in _records(path, damaged, chunk_data=True):
-            seen += 1
-            if isinstance(record, _ChunkData):
-                size = len(record)
-                at = 0
-                try:
-                    while at < size:
-                        opcode, length = _RECORD_HEAD.unpack_from(record, at)
-                        start = at + 9
-                        at = start + length
-                        if opcode == Opcode.MESSAGE:
-                            channel_id, _, log_time, _ = _MESSAGE_FIXED.unpack_from(record, start)
-                            topic = wanted.get(channel_id)
-                            if topic is not None:
-                                yield topic, log_time, record[start + 22 : at]
-                        elif opcode == Opcode.SCHEMA:
-                            known(Schema.read(ReadDataStream(BytesIO(record[start:at]))))
-                        elif opcode == Opcode.CHANNEL:
-                            known(Channel.read(ReadDataStream(BytesIO(record[start:at]))))
-                except (struct.error, McapError, ValueError, EOFError, KeyError, IndexError):
-                    damaged[0] += 1  # a chunk that passed its CRC yet does not parse: its messages so far stand
-            elif isinstance(record, Message):
-                topic = wanted.get(record.channel_id)
-                if topic is not None:
-                    yield topic, record.log_time, bytes(record.data)
-            elif isinstance(record, Metadata):
-                info.metadata.setdefault(record.name, []).append(dict(record.metadata))
-            elif isinstance(record, Attachment):
-                info.attachments.append((record.name, bytes(record.data)))
-            else:
-                known(record)
-    except _Truncated:
-        info.truncated = True
-        if seen == 0:
-            raise RecordingError(f"{path} is not an MCAP recording") from None
-    finally:
-        info.damaged_chunks = damaged[0]
+    for record in _filling(info, path, damaged, chunk_data=True):
+        if isinstance(record, _ChunkData):
+            size = len(record)
+            at = 0
+            try:
+                while at < size:
+                    opcode, length = _RECORD_HEAD.unpack_from(record, at)
+                    start = at + 9
+                    at = start + length
+                    if opcode == Opcode.MESSAGE:
+                        channel_id, _, log_time, _ = _MESSAGE_FIXED.unpack_from(record, start)
+                        topic = wanted.get(channel_id)
+                        if topic is not None:
+                            yield topic, log_time, record[start + 22 : at]
+                    elif opcode == Opcode.SCHEMA:
+                        known(Schema.read(ReadDataStream(BytesIO(record[start:at]))))
+                    elif opcode == Opcode.CHANNEL:
+                        known(Channel.read(ReadDataStream(BytesIO(record[start:at]))))
+            except (struct.error, McapError, ValueError, EOFError, KeyError, IndexError):
+                damaged[0] += 1  # a chunk that passed its CRC yet does not parse: its messages so far stand
+        elif isinstance(record, Message):
+            topic = wanted.get(record.channel_id)
+            if topic is not None:
+                yield topic, record.log_time, bytes(record.data)
+        else:
+            known(record)
 
 
 def read_header(path: Path) -> dict[str, list[dict[str, str]]]:
     """The metadata a file begins with, read up to its first message: the recorder writes the session header
     (agent_hello, host, session, parameters) before anything else. RecordingError if the file is missing or
     not an MCAP recording."""
-    metadata: dict[str, list[dict[str, str]]] = {}
-    seen = 0
-    try:
-        for record in _records(path):
-            seen += 1
-            if isinstance(record, Metadata):
-                metadata.setdefault(record.name, []).append(dict(record.metadata))
-            elif isinstance(record, Message):
-                break
-    except _Truncated:
-        if seen == 0:
-            raise RecordingError(f"{path} is not an MCAP recording") from None
-    return metadata
+    info = RecordingContents()
+    for record in _filling(info, path, [0]):
+        if isinstance(record, Message):
+            break
+    return info.metadata
 
 
 def read_recording(path: Path, topics: set[str] | None = None) -> RecordingContents:

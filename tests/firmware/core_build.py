@@ -1,10 +1,14 @@
-"""Compiling the firmware core for host tests: cc on the sources, skipped with one line when cc is missing."""
+"""Compiling the firmware core for host tests, and starting the C agent: cc on the sources, skipped with one line when
+cc is missing."""
 
 from __future__ import annotations
 
 import os
 import shutil
 import subprocess
+import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import pytest
@@ -42,3 +46,21 @@ def use_firmware_cache(tmp_path_factory: pytest.TempPathFactory) -> Path:
     cache.mkdir(exist_ok=True)
     os.environ["DIVE_FIRMWARE_CACHE"] = str(cache)
     return cache
+
+
+@contextmanager
+def c_agent(*transport: str, seed: int) -> Iterator[str]:
+    """`python -m simulator serve --firmware c` at max speed on `transport` while inside: yields the address or
+    device it prints first; fails the test with its stderr if it prints none. Terminated on the way out."""
+    child = subprocess.Popen([sys.executable, "-m", "simulator", "serve", *transport, "--speed", "max", "--seed",
+                              str(seed), "--firmware", "c"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    assert child.stdout is not None
+    try:
+        first = child.stdout.readline().strip()
+        if not first:
+            child.wait(10)
+            pytest.fail(f"the C agent did not start: {child.stderr.read() if child.stderr else ''}")
+        yield first
+    finally:
+        child.terminate()
+        child.wait(10)

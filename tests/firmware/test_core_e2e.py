@@ -17,7 +17,7 @@ from groundstation.loginfo import summarize
 from groundstation.recorder import RecorderConfig
 from groundstation.runner import RunConfig, run
 from protocol.parameters import PARAM_COUNT
-from tests.firmware.core_build import use_firmware_cache
+from tests.firmware.core_build import c_agent, use_firmware_cache
 
 pytestmark = pytest.mark.slow
 FAST = {"success_time_s": "5"}  # short episodes keep the suite quick
@@ -28,38 +28,19 @@ def firmware_cache(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return use_firmware_cache(tmp_path_factory)
 
 
-def start_agent(*transport: str) -> tuple[subprocess.Popen[str], str]:
-    child = subprocess.Popen([sys.executable, "-m", "simulator", "serve", *transport, "--speed", "max", "--seed", "7",
-                              "--firmware", "c"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    assert child.stdout is not None
-    first = child.stdout.readline().strip()
-    if not first:
-        child.wait(10)
-        pytest.fail(f"the C agent did not start: {child.stderr.read() if child.stderr else ''}")
-    return child, first
-
-
 @pytest.fixture(scope="module")
 def tcp_agent(firmware_cache: Path) -> Iterator[str]:
     """One agent for the TCP tests (status and params first, then a run on the same agent)."""
-    child, address = start_agent("--tcp", "127.0.0.1:0")
-    try:
+    with c_agent("--tcp", "127.0.0.1:0", seed=7) as address:
         assert address.startswith("tcp://127.0.0.1:"), address
         yield address
-    finally:
-        child.terminate()
-        child.wait(10)
 
 
 @pytest.fixture
 def pty_agent(firmware_cache: Path) -> Iterator[str]:
-    child, device = start_agent("--pty")
-    try:
+    with c_agent("--pty", seed=7) as device:
         assert device.startswith("/dev/"), device
         yield f"serial://{device}?baud=115200"
-    finally:
-        child.terminate()
-        child.wait(10)
 
 
 def test_status_and_params_over_tcp(tcp_agent: str) -> None:

@@ -5,8 +5,6 @@ its POLICY and its live-rendered Q_VALUES come back by `dive dump`."""
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -15,7 +13,7 @@ from typer.testing import CliRunner
 
 from groundstation.cli import app
 from groundstation.loginfo import summarize
-from tests.firmware.core_build import use_firmware_cache
+from tests.firmware.core_build import c_agent, use_firmware_cache
 
 pytestmark = pytest.mark.slow
 # shared_model first, so that every learner on the way fits the budget (act_bins = 13 alone is refused).
@@ -27,17 +25,9 @@ STATES = 10 * 10 * 13 + 1
 @pytest.fixture(scope="module")
 def agent(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
     use_firmware_cache(tmp_path_factory)
-    child = subprocess.Popen([sys.executable, "-m", "simulator", "serve", "--tcp", "127.0.0.1:0", "--speed", "max",
-                              "--seed", "3", "--firmware", "c"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                             text=True)
-    assert child.stdout is not None
-    address = child.stdout.readline().strip()
-    try:
+    with c_agent("--tcp", "127.0.0.1:0", seed=3) as address:
         assert address.startswith("tcp://127.0.0.1:"), address
         yield address
-    finally:
-        child.terminate()
-        child.wait(10)
 
 
 def test_shared_learner_runs_and_dumps(agent: str, tmp_path: Path) -> None:

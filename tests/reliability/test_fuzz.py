@@ -6,23 +6,16 @@ from __future__ import annotations
 
 from collections import Counter
 
-import numpy as np
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from groundstation.links.memory import MemoryLink
 from groundstation.session import Session
-from learning import LearnerConfig
 from protocol import AckResult, FrameEncoder, Mode, Signer, StreamDecoder, definitions, messages
 from protocol.frame import MAX_CHUNK
 from protocol.registry import Direction, Message
-from simulator.agent_link import AgentLink
-from simulator.agent_mission import MissionConfig
-from simulator.log_ring import LogRing
-from simulator.onboard import OnboardProgram
-from simulator.onboard_hw import SimulatedHardware
-from simulator.parameters import preset
 from tests.protocol.strategies import any_message, messages_of
+from tests.simulator.agent_trace import in_process_agent
 
 KEY = bytes(range(32))
 COMMANDS = st.one_of([messages_of(d) for d in definitions() if d.direction == Direction.GROUND_TO_AGENT])
@@ -58,22 +51,11 @@ def test_the_decoder_never_raises_and_its_memory_and_counts_stay_sane(items: lis
     assert [f.message for f in decoder.feed(b"\x00" + plain.encode(messages.Stop()).wire)][-1:] == [messages.Stop()]
 
 
-def _agent(key: bytes | None) -> tuple[AgentLink, OnboardProgram, bytearray]:
-    out = bytearray()
-    link = AgentLink(out.extend, node_id=1, ring=LogRing(64 * 1024), key=key)
-    params = preset("hardware")
-    rng = np.random.default_rng(0)
-    program = OnboardProgram(params, LearnerConfig(), MissionConfig(), SimulatedHardware(params, rng), rng, link)
-    link.attach(program)
-    link.on_connect()
-    return link, program, out
-
-
 @settings(max_examples=120, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(items=st.lists(st.tuples(COMMANDS, st.sampled_from(["signed", "unsigned", "wrong key"]), MUTATIONS,
                                 st.booleans()), min_size=1, max_size=10))
 def test_the_signing_agent_answers_every_command_once_and_runs_only_signed_ones(items: list[object]) -> None:
-    link, program, out = _agent(KEY)
+    link, program, out = in_process_agent(KEY)
     encoders = {"signed": FrameEncoder(signer=Signer(KEY, 2)), "unsigned": FrameEncoder(100),
                 "wrong key": FrameEncoder(200, signer=Signer(bytes(32), 2))}
     reader = StreamDecoder()

@@ -15,11 +15,12 @@ from pathlib import Path
 
 import numpy as np
 
-from learning import learner_preset
+from learning import LearnerConfig, learner_preset
 from protocol import DumpKind, FrameEncoder, messages
 from protocol.registry import Message
 from simulator.agent_link import AgentLink
 from simulator.agent_mission import MissionConfig
+from simulator.log_ring import LogRing
 from simulator.onboard import OnboardProgram
 from simulator.onboard_hw import SimulatedHardware
 from simulator.parameters import preset
@@ -64,6 +65,19 @@ def build(preset_name: str, seed: int, trace: Trace) -> tuple[AgentLink, Onboard
                              link)
     link.attach(program)
     return link, program
+
+
+def in_process_agent(key: bytes | None = None) -> tuple[AgentLink, OnboardProgram, bytearray]:
+    """The hardware preset's agent with the default learner, connected, its link writing into the bytearray
+    returned (a 64 KiB log): for feeding its receive path frames in-process; signing with `key` if given."""
+    out = bytearray()
+    link = AgentLink(out.extend, node_id=1, ring=LogRing(64 * 1024), key=key)
+    params = preset("hardware")
+    rng = np.random.default_rng(0)
+    program = OnboardProgram(params, LearnerConfig(), MissionConfig(), SimulatedHardware(params, rng), rng, link)
+    link.attach(program)
+    link.on_connect()
+    return link, program, out
 
 
 def step_by_step(link: AgentLink, program: OnboardProgram, steps: int) -> None:

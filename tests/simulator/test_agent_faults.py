@@ -5,20 +5,13 @@ from __future__ import annotations
 import statistics
 import time
 
-import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from learning import LearnerConfig
 from protocol import FrameEncoder, Mode, messages
-from simulator.agent_link import AgentLink
-from simulator.agent_mission import MissionConfig
-from simulator.log_ring import LogRing
-from simulator.onboard import OnboardProgram
-from simulator.onboard_hw import SimulatedHardware
-from simulator.parameters import preset
 from tests.simulator.agent_client import AgentClient, connected
+from tests.simulator.agent_trace import in_process_agent
 
 TCP = ("--tcp", "127.0.0.1:0")
 
@@ -93,17 +86,6 @@ def test_blackout_below_silences_the_link_while_deep(tmp_path) -> None:
 # ---------------------------------------------------------------- fuzzing the receive path in-process
 
 
-def _agent() -> tuple[AgentLink, OnboardProgram, bytearray]:
-    out = bytearray()
-    link = AgentLink(out.extend, node_id=1, ring=LogRing(64 * 1024))
-    params = preset("hardware")
-    rng = np.random.default_rng(0)
-    program = OnboardProgram(params, LearnerConfig(), MissionConfig(), SimulatedHardware(params, rng), rng, link)
-    link.attach(program)
-    link.on_connect()
-    return link, program, out
-
-
 _VALID = [
     messages.StartLearning(max_episodes=3), messages.Stop(), messages.Pause(), messages.SetTarget(target_depth_m=0.3),
     messages.Hover(depth_m=0.2), messages.DumpRequest(kind=4), messages.ResetModel(), messages.ParamListRequest(),
@@ -123,7 +105,7 @@ _VALID = [
     )
 )
 def test_garbage_and_mutated_frames_never_crash_the_agent(chunks: list) -> None:
-    link, program, out = _agent()
+    link, program, out = in_process_agent()
     encoder = FrameEncoder()
     for chunk in chunks:
         if isinstance(chunk, bytes):

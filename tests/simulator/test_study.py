@@ -10,33 +10,14 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from learning import Learner, LearnerConfig, learner_preset
+from learning import LearnerConfig, learner_preset
 from simulator.cli import app
-from simulator.env import DivingEnv
 from simulator.parameters import preset
 from simulator.study import run_study
 from simulator.study_stats import moving_average, per_trial, stable_from
+from tests.simulator.python_trial import python_loop_trial
 
 PAPER = preset("paper")
-
-
-def _python_loop_trial(config: LearnerConfig, seed: int, trial: int, episodes: int) -> list[float]:
-    learner = Learner(config, np.random.default_rng([seed, trial, 0]))
-    env = DivingEnv(PAPER, config, np.random.default_rng([seed, trial, 1]))
-    durations = []
-    for _ in range(episodes):
-        _, info = env.reset()
-        state = info["state"]
-        while True:
-            action = learner.act(state)
-            _, reward, terminated, truncated, info = env.step(action)
-            learner.observe(state, action, reward, info["state"])
-            state = info["state"]
-            if terminated or truncated:
-                break
-        learner.end_episode()
-        durations.append(env.time_s)
-    return durations
 
 
 @pytest.mark.slow  # compiles the parallel trial loop on a cold numba cache (~7 s)
@@ -44,7 +25,7 @@ def test_the_compiled_study_replays_the_python_api_exactly() -> None:
     config = learner_preset("paper")
     result = run_study(PAPER, config, trials=2, episodes=8, seed=11)
     for trial in range(2):
-        expected = _python_loop_trial(config, 11, trial, 8)
+        expected = python_loop_trial(PAPER, config, 11, trial, 8)
         np.testing.assert_allclose(result.durations_s[trial], expected, atol=1e-9)
 
 

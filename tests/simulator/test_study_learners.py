@@ -10,32 +10,13 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from learning import Learner, LearnerConfig, learner_preset
+from learning import learner_preset
 from simulator.cli import app
-from simulator.env import DivingEnv
-from simulator.parameters import PlantParams, preset
+from simulator.parameters import preset
 from simulator.study import run_study
 from simulator.study_stats import summarise
 from simulator.study_sweep import load_sweep, run_sweep
-
-
-def _python_loop_trial(params: PlantParams, config: LearnerConfig, seed: int, trial: int, episodes: int) -> list[float]:
-    learner = Learner(config, np.random.default_rng([seed, trial, 0]))
-    env = DivingEnv(params, config, np.random.default_rng([seed, trial, 1]))
-    durations = []
-    for _ in range(episodes):
-        _, info = env.reset()
-        state = info["state"]
-        while True:
-            action = learner.act(state)
-            _, reward, terminated, truncated, info = env.step(action)
-            learner.observe(state, action, reward, info["state"], info["cell"])
-            state = info["state"]
-            if terminated or truncated:
-                break
-        learner.end_episode()
-        durations.append(env.time_s)
-    return durations
+from tests.simulator.python_trial import python_loop_trial
 
 
 @pytest.mark.slow  # compiles the parallel trial loop on a cold numba cache
@@ -45,7 +26,7 @@ def test_the_compiled_study_replays_the_python_api_for_the_shared_learners(prese
     params, config = preset(preset_name), learner_preset(learner, ties_per_step=True)
     result = run_study(params, config, trials=2, episodes=6, seed=5)
     for trial in range(2):
-        np.testing.assert_allclose(result.durations_s[trial], _python_loop_trial(params, config, 5, trial, 6),
+        np.testing.assert_allclose(result.durations_s[trial], python_loop_trial(params, config, 5, trial, 6),
                                    atol=1e-9)
 
 
