@@ -42,6 +42,14 @@ def surfaces(probe: Probe) -> str:
     return f"surfaced after {TIMEOUT_S:g} s of silence, not before half of it"
 
 
+def _mode_before(probe: Probe, index: int, start: int) -> Mode | None:
+    """The last mode a frame from `start` up to (not including) `index` shows."""
+    for frame in reversed(probe.frames(start, index)):
+        if (mode := mode_of(frame)) is not None:
+            return mode
+    return None
+
+
 @check("linkloss.unsigned_not_alive", SECTION, """for an agent with a key: since the last validly signed frame. An
        unsigned or refused non-command frame [...] does not count as a sign of life for link_timeout_s, so a
        stranger cannot keep a lost link "alive".""", key=True, motion=True)
@@ -57,6 +65,12 @@ def unsigned_not_alive(probe: Probe) -> str:
                                        log_first_sample=0, log_next_sample=0, episode=0, signing_rejects=0),
                            signer=False)
         modes = [x for f in probe.frames(start) if (x := mode_of(f)) is not None]
+        if Mode.SURFACING not in modes and Mode.IDLE not in modes:
+            # What the agent sent may still be on its way (a pseudo-terminal's buffers, a virtual agent at full
+            # speed: seen taking seconds). The mode it was in when a signed TIMESYNC, the first sign of life after
+            # the window, reached it is the last one shown before the reply.
+            shown = _mode_before(probe, probe.barrier(), start)
+            modes += [shown] if shown is not None else []
         expect(Mode.SURFACING in modes or Mode.IDLE in modes,
                f"unsigned HEARTBEATs every 0.1 s kept the link alive for {TIMEOUT_S + GRACE_S:g} s")
     reach(probe, Mode.IDLE)
