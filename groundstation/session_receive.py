@@ -196,6 +196,10 @@ class ReceiveLoop(SessionCore):
             return
         if pending.attempts == 1:  # Karn: a retried command's RTT is ambiguous
             self.stats.round_trip(time.monotonic() - pending.first_sent_s)
+        # Hand the GIL to the thread waiting for this ACK now: it would otherwise wait until this reader blocks
+        # again, after the rest of the read (the replies behind the ACK) and the timers (groundstation_bench:
+        # command round trip 163 -> 140 us median against a 58-61 us echo).
+        time.sleep(0)
         with self._cond:
             self._cond.notify_all()
 

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import os
-from collections import deque
 from collections.abc import Callable
 from pathlib import Path
 
@@ -70,7 +69,8 @@ class AgentLink:
         self.dumps = DumpStore()
         self.program: OnboardProgram | None = None
         self._encoder = FrameEncoder()  # the agent's seq counter; frames keep their inner bytes for the log
-        self._answered: deque[tuple[int, int, int, str]] = deque(maxlen=ACK_MEMORY)
+        # (msg_id, seq) -> (result, reason), oldest first: one lookup per command, not a scan of all 16
+        self._answered: dict[tuple[int, int], tuple[int, str]] = {}
         self._connected = False
         self._heard = False  # a frame from the ground passed CRC and version checks on this link
         self._next_hello_s = 0.0
@@ -247,10 +247,10 @@ class AgentLink:
             if check is not SignatureCheck.VALID:
                 self._refuse(frame, f"signature {check.name.lower().replace('_', ' ')}")
                 return
-        for msg_id, seq, result, reason in self._answered:
-            if msg_id == frame.msg_id and seq == frame.seq:
-                self._ack(frame, AckResult(result), reason)  # a retry: answer again, do not act again
-                return
+        answered = self._answered.get((frame.msg_id, frame.seq))
+        if answered is not None:
+            self._ack(frame, AckResult(answered[0]), answered[1])  # a retry: answer again, do not act again
+            return
         if verifier is not None:
             check = verifier.admit(frame.inner, self.link_clock_s())
             if check is SignatureCheck.VALID:
@@ -270,7 +270,10 @@ class AgentLink:
                 (result, reason), replies = handler(frame.message)
         finally:
             deferred, self._deferred = self._deferred, None
-        self._answered.append((frame.msg_id, frame.seq, int(result), reason))
+        answered = self._answered
+        answered[(frame.msg_id, frame.seq)] = (int(result), reason)
+        if len(answered) > ACK_MEMORY:
+            del answered[next(iter(answered))]
         self._ack(frame, result, reason)
         for action in deferred:
             action()
