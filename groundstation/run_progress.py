@@ -76,17 +76,21 @@ class RunDisplay:
             self._hub = status.hub
             printer.print(styled(f"other tools attach to this run as {status.hub} (dive view, status, mark, "
                                  "surface ...)", "dim"), soft_wrap=True)
-        for line in status.messages[self._messages:]:  # agent text among them: data, never markup
+        # The session's reader thread appends while this runs: take a count once, so that nothing appended meanwhile
+        # is counted as said without being printed (an episode's line went missing that way).
+        messages = len(status.messages)
+        for line in status.messages[self._messages:messages]:  # agent text among them: data, never markup
             printer.print(styled(line, "yellow"), soft_wrap=True)
-        self._messages = len(status.messages)
+        self._messages = messages
         if self._progress is not None:
             self._progress.update(self._task, completed=status.episodes,  # type: ignore[arg-type]
                                   description=describe(status))
         else:
             total = f" of {self.episodes}" if self.episodes else ""
-            for i in range(self._episodes, len(status.ends)):
+            ends = len(status.ends)
+            for i in range(self._episodes, ends):
                 episode, outcome, duration_s = status.ends[i]
                 ok = sum(end[1] == "success" for end in status.ends[: i + 1])
                 printer.print(f"episode {episode}{total}: {outcome} after {duration_s:.1f} s ({ok} ok so far)",
                               soft_wrap=True, highlight=False)
-            self._episodes = len(status.ends)
+            self._episodes = ends
