@@ -3,36 +3,27 @@
 from __future__ import annotations
 
 import argparse
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
-from learning import Learner, learner_preset
-from simulator.env import DivingEnv
-from simulator.parameters import preset
-from simulator.study import run_study
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # the tests' reference trial, run from anywhere
+
+from learning import learner_preset  # noqa: E402
+from simulator.parameters import preset  # noqa: E402
+from simulator.study import run_study  # noqa: E402
+from tests.simulator.python_trial import python_loop_trial  # noqa: E402
 
 
 def python_loop(preset_name: str, learner: str, trial: int, episodes: int, seed: int) -> tuple[float, int]:
-    """One trial driven step by step through Learner and DivingEnv; returns (seconds, learner steps)."""
-    params, config = preset(preset_name), learner_preset(learner)
-    agent = Learner(config, np.random.default_rng([seed, trial, 0]))
-    env = DivingEnv(params, config, np.random.default_rng([seed, trial, 1]))
-    steps = 0
+    """One trial driven step by step through Learner and DivingEnv (the tests' reference trial); returns (seconds,
+    learner steps), the steps counted from the episodes' durations as for the study."""
+    params = preset(preset_name)
     start = time.perf_counter()
-    for _ in range(episodes):
-        _, info = env.reset()
-        state = info["state"]
-        while True:
-            action = agent.act(state)
-            _, reward, terminated, truncated, info = env.step(action)
-            agent.observe(state, action, reward, info["state"])
-            state = info["state"]
-            steps += 1
-            if terminated or truncated:
-                break
-        agent.end_episode()
-    return time.perf_counter() - start, steps
+    durations = python_loop_trial(params, learner_preset(learner), seed, trial, episodes)
+    return time.perf_counter() - start, round(sum(durations) / params.control_period_s)
 
 
 def main() -> None:
