@@ -6,7 +6,7 @@ import dataclasses
 import hashlib
 import struct
 import typing
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from enum import StrEnum
 from operator import attrgetter
@@ -61,25 +61,26 @@ class Message:
 
     def pack(self) -> bytes:
         """The payload bytes, little-endian, in declaration order."""
-        definition = self.DEFINITION
         values = self._getter(self)
-        if len(definition.fields) == 1:
-            values = (values,)
+        return self.pack_values(values) if len(self.DEFINITION.fields) == 1 else self.pack_values(*values)
+
+    @classmethod
+    def pack_values(cls, *values: Any) -> bytes:
+        """`cls(*values).pack()` without building the message, for senders of many messages.
+
+        Values in declaration order; byte-identical to pack(). Building a frozen dataclass costs more
+        than packing it, which matters to an agent sending a SAMPLE every control step and an ACK for every
+        command.
+        """
+        definition = cls.DEFINITION
         try:
-            if self._text_indices:
-                values = list(values)
-                for index in self._text_indices:
-                    encoded = values[index].encode("utf-8")
-                    size = definition.fields[index].wire.size
-                    if len(encoded) > size:  # SPEC.md s. 3: cut at a character boundary (struct would cut inside one)
-                        encoded = encoded[:size].decode("utf-8", errors="ignore").encode("utf-8")
-                    values[index] = encoded
+            packed: Sequence[Any] = cls._encoded_texts(values) if cls._text_indices else values
             if not definition.has_tail:
-                return self._struct.pack(*values)
-            tail = values[-1]
+                return cls._struct.pack(*packed)
+            tail = packed[-1]
             if isinstance(tail, str):
                 tail = tail.encode("utf-8")
-            body: bytes = self._struct.pack(*values[:-1]) + tail
+            body: bytes = cls._struct.pack(*packed[:-1]) + tail
         except (struct.error, AttributeError, TypeError) as e:
             raise PayloadError(f"{definition.name}: {e}") from e
         if len(body) > MAX_PAYLOAD:
@@ -87,19 +88,17 @@ class Message:
         return body
 
     @classmethod
-    def pack_values(cls, *values: Any) -> bytes:
-        """`cls(*values).pack()` without building the message, for senders of many fixed-size messages.
-
-        Values in declaration order; byte-identical to pack(). Building a frozen dataclass costs more
-        than packing it, which matters to an agent sending a SAMPLE every control step. Messages with
-        text or a variable-length tail are built and packed as usual.
-        """
-        if cls._text_indices or cls.DEFINITION.has_tail:
-            return cls(*values).pack()
-        try:
-            return cls._struct.pack(*values)
-        except struct.error as e:
-            raise PayloadError(f"{cls.DEFINITION.name}: {e}") from e
+    def _encoded_texts(cls, values: Sequence[Any]) -> list[Any]:
+        """The values with each text field as its UTF-8 bytes, cut to the field at a character boundary."""
+        fields = cls.DEFINITION.fields
+        encoded_values = list(values)
+        for index in cls._text_indices:
+            encoded = encoded_values[index].encode("utf-8")
+            size = fields[index].wire.size
+            if len(encoded) > size:  # SPEC.md s. 3: cut at a character boundary (struct would cut inside one)
+                encoded = encoded[:size].decode("utf-8", errors="ignore").encode("utf-8")
+            encoded_values[index] = encoded
+        return encoded_values
 
     @classmethod
     def unpack(cls, payload: bytes) -> Self:

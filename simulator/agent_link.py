@@ -36,6 +36,7 @@ HELLO_REPEAT_S = 1.0  # SPEC s. 4: HELLO once per second of link time until the 
 LOG_REPLAY_SAMPLES = 512  # SPEC s. 7: one LOG_REQUEST replays at most this many SAMPLE records
 _DUMP_KINDS = {int(k) for k in DumpKind}
 _SURFACE_ID = messages.Surface.MSG_ID
+_ACK_ID = messages.Ack.MSG_ID
 
 # A command's verdict and what follows its ACK: messages, or inner frames of the on-board log to replay.
 Outcome = tuple[Verdict, list[Message | bytes]]
@@ -134,10 +135,14 @@ class AgentLink:
 
     # ------------------------------------------------------------------ sending
     def send(self, message: Message, flags: int = 0) -> None:
+        self.send_payload(message.MSG_ID, message.pack(), flags)
+
+    def send_payload(self, msg_id: int, payload: bytes, flags: int = 0) -> None:
+        """send() for a payload already packed (the ACK of every command, packed from its values)."""
         if self._deferred is not None:
-            self._deferred.append(lambda: self.send(message, flags))
+            self._deferred.append(lambda: self.send_payload(msg_id, payload, flags))
             return
-        self.write(self._encoder.encode_payload(message.MSG_ID, message.pack(), flags).wire)
+        self.write(self._encoder.encode_payload(msg_id, payload, flags).wire)
 
     def log_frame(self, message: Message, sample: int, is_sample: bool) -> None:
         """A SAMPLE or EPISODE frame: into the on-board log, then onto the link."""
@@ -263,11 +268,12 @@ class AgentLink:
     def _execute(self, frame: Frame) -> None:
         handler = self._handlers.get(type(frame.message))
         replies: list[Message | bytes] = []
-        result, reason = AckResult.UNSUPPORTED, f"command 0x{frame.msg_id:02X} not implemented"
         self._deferred = []
         try:
             if handler is not None:
                 (result, reason), replies = handler(frame.message)
+            else:
+                result, reason = AckResult.UNSUPPORTED, f"command 0x{frame.msg_id:02X} not implemented"
         finally:
             deferred, self._deferred = self._deferred, None
         answered = self._answered
@@ -287,7 +293,7 @@ class AgentLink:
                 self.send(reply)
 
     def _ack(self, frame: Frame, result: AckResult, reason: str) -> None:
-        self.send(messages.Ack(cmd_msg_id=frame.msg_id, cmd_seq=frame.seq, result=int(result), reason=reason))
+        self.send_payload(_ACK_ID, messages.Ack.pack_values(frame.msg_id, frame.seq, int(result), reason))
 
     # ------------------------------------------------------------------ command handlers
     def _simple(self, name: str) -> Handler:
