@@ -44,7 +44,7 @@ class Latch:
         return not self._unreleased
 
 
-@dataclass
+@dataclass(slots=True)
 class PendingCommand:
     message: Message
     seq: int

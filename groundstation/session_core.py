@@ -120,9 +120,9 @@ class SessionCore:
             return None
         limit = timeout_s if timeout_s is not None else ack_timeout_s * (self.config.retries + 1) + 1.0
         pending.done.wait(limit)
-        self._pending.discard(pending.seq)
         name = message.DEFINITION.name
-        if pending.ack is None:
+        if pending.ack is None:  # (an ACK took it off the pending commands)
+            self._pending.discard(pending.seq)
             if not self.link_up and self._stop.is_set():
                 raise LinkError(f"{name}: the session is closed")
             self.stats.command_timeouts += 1

@@ -94,6 +94,7 @@ class ParamTable:
             raw = float(getattr(sources[b.scope], b.field))
             # Stored as the agent stores it: a preset's 0.4 is held (and sent) as the f32 0.4000000059604645.
             self.values.append(d.stored(1.0 - raw if b.inverted else raw))
+        self._messages: dict[int, messages.ParamValue] = {}  # the last PARAM_VALUE built for each index
 
     def __len__(self) -> int:
         return len(self.defs)
@@ -132,12 +133,19 @@ class ParamTable:
         return replace(base, **changes)  # type: ignore[type-var]
 
     def message(self, index: int) -> messages.ParamValue:
-        """The PARAM_VALUE of one parameter."""
+        """The PARAM_VALUE of one parameter (every PARAM_GET answers with one: kept while its value is unchanged)."""
+        value = self.values[index]
+        kept = self._messages.get(index)
+        # The very float object stored, not an equal one: -0.0 == 0.0 but does not pack to the same bytes.
+        if kept is not None and kept.value is value:
+            return kept
         d = self.defs[index]
-        return messages.ParamValue(
-            index=index, count=len(self.defs), param_type=int(d.param_type), value=self.values[index],
+        built = messages.ParamValue(
+            index=index, count=len(self.defs), param_type=int(d.param_type), value=value,
             minimum=d.minimum, maximum=d.maximum, name=d.name,
         )
+        self._messages[index] = built
+        return built
 
 
 def check_ram(config: LearnerConfig) -> None:
