@@ -107,12 +107,16 @@ class CobsChunkDecoder:
     is. The chain last seen for a chunk's length and first code is kept; if the new chunk holds the same codes at
     the same places, it follows the same chain to its end, so it decodes by zeroing those places (two integer
     operations) instead of a Python step per zero. Any other chunk takes cobs_decode and its chain is kept.
-    Byte-identical to `cobs_decode`, errors included.
+    Commands, their ACKs and parameters repeat their chains; a learning agent's SAMPLEs mostly do not (about one
+    in five), so a length and first code whose chain changed several chunks in a row is no longer learned: its
+    chunks take cobs_decode. Byte-identical to `cobs_decode`, errors included.
     """
 
     def __init__(self, max_patterns: int = 4096) -> None:
-        # size << 8 | first code -> (where the codes are, as a mask; their values; every other byte but the first)
-        self._chains: dict[int, tuple[int, int, int]] = {}
+        # size << 8 | first code -> the chain (where the codes are, as a mask; their values; every other byte but
+        # the first), or () for a key given up on
+        self._chains: dict[int, tuple[int, ...]] = {}
+        self._changes: dict[int, int] = {}  # keys whose last chunks each brought a new chain: how many in a row
         self._max_patterns = max_patterns
 
     def decode(self, encoded: bytes) -> bytes:
@@ -120,16 +124,35 @@ class CobsChunkDecoder:
         size = len(encoded)
         if not size or size > _MAX_BLOCK or b"\x00" in encoded:
             return cobs_decode(encoded)
-        value = int.from_bytes(encoded, "big")
         key = size << 8 | encoded[0]
         chain = self._chains.get(key)
-        if chain is not None and value & chain[0] == chain[1]:
-            return (value & chain[2]).to_bytes(size - 1, "big")
+        if chain is not None:
+            if not chain:  # given up on
+                return cobs_decode(encoded)
+            value = int.from_bytes(encoded, "big")
+            if value & chain[0] == chain[1]:
+                if key in self._changes:
+                    del self._changes[key]
+                return (value & chain[2]).to_bytes(size - 1, "big")
         decoded = cobs_decode(encoded)  # checks it, and raises on a malformed chunk
+        self._learn(key, encoded, chain is not None)
+        return decoded
+
+    def _learn(self, key: int, encoded: bytes, changed: bool) -> None:
         if len(self._chains) >= self._max_patterns:
             self._chains.clear()
+            self._changes.clear()
+        if changed:
+            changes = self._changes.get(key, 0) + 1
+            if changes >= _CHANGES_BEFORE_GIVING_UP:
+                self._chains[key] = ()
+                del self._changes[key]
+                return
+            self._changes[key] = changes
         self._chains[key] = _chain(encoded)
-        return decoded
+
+
+_CHANGES_BEFORE_GIVING_UP = 4  # a new chain this many chunks in a row: the key's chains do not repeat
 
 
 def _chain(encoded: bytes) -> tuple[int, int, int]:
@@ -140,10 +163,12 @@ def _chain(encoded: bytes) -> tuple[int, int, int]:
     while position < size:
         codes[position] = encoded[position]
         position += encoded[position]
-    mask = bytes(0xFF if code else 0 for code in codes)
-    places = int.from_bytes(mask, "big")
+    places = int.from_bytes(codes.translate(_CODE_PLACES), "big")
     rest = ~places & ((1 << 8 * (size - 1)) - 1)
     return places, int.from_bytes(codes, "big"), rest
+
+
+_CODE_PLACES = bytes([0] + [0xFF] * 255)  # a code byte (never 0) to 0xFF, the zeros between codes stay 0
 
 
 # Maps 0x00 to 0x01 and every other byte to 0x00: the zero pattern of a frame, as a dictionary key.

@@ -124,24 +124,18 @@ class StreamDecoder:
     def feed(self, data: bytes) -> list[Frame]:
         buffer = self._joined(data)
         decode = self._compiled_for(buffer)
-        if decode is not None:
-            return self._decoded(decode, buffer)
-        frames: list[Frame] = []
-        for chunk in self._chunks(buffer):
-            frame = self._decode_chunk(chunk)
-            if frame is not None:
-                frames.append(frame)
-        return frames
+        return self._decoded(decode, buffer) if decode is not None else list(self._each(self._chunks(buffer)))
 
     def frames(self, data: bytes) -> Iterator[Frame]:
         """feed(), each frame handed over as soon as it is decoded: a reader acting on the first frame of a read
-        (a command's ACK) does not wait for the frames behind it to be decoded. The same frames and counters."""
+        (a command's ACK) does not wait for the frames behind it to be decoded. The same frames and counters; what
+        the read leaves unfinished is held at once, before the first frame is handed over."""
         buffer = self._joined(data)
         decode = self._compiled_for(buffer)
-        if decode is not None:
-            yield from self._decoded(decode, buffer)
-            return
-        for chunk in self._chunks(buffer):
+        return iter(self._decoded(decode, buffer)) if decode is not None else self._each(self._chunks(buffer))
+
+    def _each(self, chunks: list[bytes]) -> Iterator[Frame]:
+        for chunk in chunks:
             frame = self._decode_chunk(chunk)
             if frame is not None:
                 yield frame

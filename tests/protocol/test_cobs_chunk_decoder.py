@@ -56,3 +56,17 @@ def test_a_malformed_chunk_is_refused_where_a_valid_one_of_its_length_and_first_
     assert decoder.decode(valid) == cobs_decode(valid)
     with pytest.raises(CobsError):
         decoder.decode(malformed)
+
+
+def test_a_length_whose_chains_keep_changing_is_decoded_plainly_and_alike() -> None:
+    decoder = CobsChunkDecoder()
+    # Same length and first code, a zero moving through the rest: a new chain every chunk (as learning SAMPLEs).
+    frames = [b"\x01\x02\x03" + bytes(1 if i != j else 0 for i in range(20)) for j in range(20)] * 3
+    for frame in frames:
+        assert decoder.decode(cobs_encode(frame)) == frame
+    malformed = bytearray(cobs_encode(frames[0]))
+    malformed[4] = 0xFE  # the second code runs past the end; the same length and first code
+    with pytest.raises(CobsError):
+        cobs_decode(bytes(malformed))
+    with pytest.raises(CobsError):
+        decoder.decode(bytes(malformed))
