@@ -122,18 +122,18 @@ class CobsChunkDecoder:
     def decode(self, encoded: bytes) -> bytes:
         """Decode one COBS chunk (without its 0x00 delimiter); raises CobsError if it is malformed."""
         size = len(encoded)
-        if not size or size > _MAX_BLOCK or b"\x00" in encoded:
+        if not size or size > _MAX_BLOCK:
             return cobs_decode(encoded)
         key = size << 8 | encoded[0]
         chain = self._chains.get(key)
-        if chain is not None:
-            if not chain:  # given up on
-                return cobs_decode(encoded)
+        if chain:
             value = int.from_bytes(encoded, "big")
-            if value & chain[0] == chain[1]:
+            if value & chain[0] == chain[1] and b"\x00" not in encoded:
                 if key in self._changes:
                     del self._changes[key]
                 return (value & chain[2]).to_bytes(size - 1, "big")
+        elif chain is not None:  # given up on
+            return cobs_decode(encoded)
         decoded = cobs_decode(encoded)  # checks it, and raises on a malformed chunk
         self._learn(key, encoded, chain is not None)
         return decoded
