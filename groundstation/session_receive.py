@@ -42,7 +42,7 @@ class ReceiveLoop(SessionCore):
                 now_ns = time.time_ns()
                 if data:
                     self._last_rx_s = time.monotonic()
-                    for frame in self.decoder.frames(data):  # an ACK is acted on before the frames behind it
+                    for frame in self.decoder.feed(data):
                         self._handle(frame, now_ns)
                 self._tick(time.monotonic())
             except LinkError as e:

@@ -4,11 +4,11 @@ from __future__ import annotations
 
 from binascii import crc_hqx
 from collections import deque
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, fields
 from typing import Any, NamedTuple
 
-from protocol.cobs import CobsChunkDecoder
+from protocol.cobs import cobs_decode
 from protocol.compiled import fast_frames
 from protocol.crc import CRC_INIT
 from protocol.enums import INCOMPATIBLE_FLAGS_MASK, PROTOCOL_VERSION, FrameFlag
@@ -118,64 +118,39 @@ class StreamDecoder:
     _plain: dict[int, tuple[Any, Any, int]] = field(default_factory=lambda: _PLAIN, repr=False)
     _skipped: deque[int] = field(default_factory=lambda: deque(maxlen=REORDER_WINDOW), repr=False)
     _classes: Mapping[int, type[Message]] = field(default_factory=message_classes, repr=False)
-    _cobs: CobsChunkDecoder = field(default_factory=CobsChunkDecoder, repr=False)  # short reads: chains of codes
     agent: bool = False
 
     def feed(self, data: bytes) -> list[Frame]:
-        buffer = self._joined(data)
-        decode = self._compiled_for(buffer)
-        return self._decoded(decode, buffer) if decode is not None else list(self._each(self._chunks(buffer)))
-
-    def frames(self, data: bytes) -> Iterator[Frame]:
-        """feed(), each frame handed over as soon as it is decoded: a reader acting on the first frame of a read
-        (a command's ACK) does not wait for the frames behind it to be decoded. The same frames and counters; what
-        the read leaves unfinished is held at once, before the first frame is handed over."""
-        buffer = self._joined(data)
-        decode = self._compiled_for(buffer)
-        return iter(self._decoded(decode, buffer)) if decode is not None else self._each(self._chunks(buffer))
-
-    def _each(self, chunks: list[bytes]) -> Iterator[Frame]:
-        for chunk in chunks:
-            frame = self._decode_chunk(chunk)
-            if frame is not None:
-                yield frame
-
-    def _compiled_for(self, buffer: bytes) -> _CompiledDecoder | None:
-        # A read of a frame or two (commands and their ACKs) is decoded faster without the compiled call's set-up.
-        return _compiled_decoder() if self.compiled and len(buffer) >= COMPILED_FROM_BYTES else None
-
-    def _decoded(self, decode: _CompiledDecoder, buffer: bytes) -> list[Frame]:
-        """The frames of a long read, COBS and CRC checked by one compiled call."""
-        rest_at, table, inner = decode(buffer, MAX_CHUNK, MIN_INNER, PROTOCOL_VERSION, INCOMPATIBLE_FLAGS_MASK)
-        self._keep(buffer[rest_at:])
-        return self._frames(table, inner)
-
-    def _joined(self, data: bytes) -> bytes:
-        """The bytes to decode: what was held from the last read, then `data` (past a chunk being discarded)."""
-        self.stats.bytes += len(data)
+        stats = self.stats
+        stats.bytes += len(data)
         if self._discarding:
             end = data.find(0)
             if end < 0:
-                return b""
+                return []
             data = data[end + 1 :]
             self._discarding = False
         buffer = self._buffer + data if self._buffer else bytes(data)
-        self._buffer = b""
-        return buffer
-
-    def _chunks(self, buffer: bytes) -> list[bytes]:
-        """The complete, non-empty chunks of `buffer`; the unfinished rest is held for the next read."""
-        chunks = buffer.split(b"\x00")
-        self._keep(chunks.pop())
-        return [chunk for chunk in chunks if chunk]
-
-    def _keep(self, rest: bytes) -> None:
-        """Hold an unfinished chunk; one already over MAX_CHUNK is dropped up to its end (SPEC.md section 1)."""
+        # A read of a frame or two (commands and their ACKs) is decoded faster without the compiled call's set-up.
+        decode = _compiled_decoder() if self.compiled and len(buffer) >= COMPILED_FROM_BYTES else None
+        frames: list[Frame] = []
+        if decode is None:
+            chunks = buffer.split(b"\x00")
+            rest = chunks.pop()
+            for chunk in chunks:
+                if chunk:
+                    frame = self._decode_chunk(chunk)
+                    if frame is not None:
+                        frames.append(frame)
+        else:
+            rest_at, table, inner = decode(buffer, MAX_CHUNK, MIN_INNER, PROTOCOL_VERSION, INCOMPATIBLE_FLAGS_MASK)
+            rest = buffer[rest_at:]
+            frames = self._frames(table, inner)
         if len(rest) > MAX_CHUNK:
-            self.stats.oversize += 1
+            stats.oversize += 1
             self._discarding = True
             rest = b""
         self._buffer = rest
+        return frames
 
     @property
     def buffered_bytes(self) -> int:
@@ -193,7 +168,7 @@ class StreamDecoder:
             stats.oversize += 1
             return None
         try:
-            inner = self._cobs.decode(chunk)
+            inner = cobs_decode(chunk)
         except CobsError:
             stats.cobs_errors += 1
             return None

@@ -100,20 +100,3 @@ def test_incompatible_flags_are_rejected_by_the_compiled_check() -> None:
     inner = build_inner(INCOMPATIBLE_FLAGS_MASK & -INCOMPATIBLE_FLAGS_MASK, 1, 0x20, b"")
     _, table, _ = decode_buffer(cobs_encode(inner) + b"\x00", 256, 7, PROTOCOL_VERSION, INCOMPATIBLE_FLAGS_MASK)
     assert table[0][2] != CHUNK_OK
-
-
-@settings(max_examples=100, deadline=None)
-@given(pieces=_pieces, cuts=st.lists(st.integers(1, 600), max_size=8))
-def test_frames_one_by_one_on_the_compiled_path_are_what_feed_gives(pieces: list[bytes], cuts: list[int]) -> None:
-    stream = b"".join(pieces)
-    threshold = decoder_module.COMPILED_FROM_BYTES
-    decoder_module.COMPILED_FROM_BYTES = 0  # every read on the compiled path, however short
-    try:
-        listed, one_by_one = StreamDecoder(), StreamDecoder()
-        at = 0
-        for cut in [*cuts, len(stream)]:
-            piece, at = stream[at : at + cut], at + cut
-            assert list(one_by_one.frames(piece)) == listed.feed(piece)
-    finally:
-        decoder_module.COMPILED_FROM_BYTES = threshold
-    assert one_by_one.stats == listed.stats and one_by_one.buffered_bytes == listed.buffered_bytes

@@ -118,19 +118,3 @@ def test_memory_stays_bounded_on_an_endless_stream_without_a_zero() -> None:
     frame = FrameEncoder(7).encode(Sample(t_us=1, depth_m=0.5)).wire
     assert [f.seq for f in decoder.feed(b"\x00" + frame)] == [7]
     assert decoder.stats.oversize == 1
-
-
-@STREAM
-@given(messages=st.lists(any_message, min_size=1, max_size=8), garbage=st.lists(_GARBAGE, min_size=3, max_size=3),
-       cuts=st.lists(st.integers(0, 4000), max_size=12))
-def test_frames_one_by_one_are_what_feed_gives_with_the_same_counters(
-        messages: list[Message], garbage: list[bytes], cuts: list[int]) -> None:
-    _, data = _wire(messages)
-    data = garbage[0] + b"\x00" + data + garbage[1] + data + b"\x00" + garbage[2]
-    points = sorted({0, len(data), *(c % (len(data) + 1) for c in cuts)})
-    listed, one_by_one = StreamDecoder(), StreamDecoder()
-    for start, end in zip(points, points[1:], strict=False):
-        piece = data[start:end]
-        assert list(one_by_one.frames(piece)) == listed.feed(piece)
-        assert one_by_one.buffered_bytes == listed.buffered_bytes
-    assert one_by_one.stats == listed.stats
