@@ -202,7 +202,7 @@ def record_speed() -> None:
 def round_trips() -> None:
     """Command round trips against the echo anchor."""
     # Rounds in turn (a change of load falls on both), each on a fresh agent and echo server: the scheduler places
-    # the three threads of a round trip anew each round, and one round's ratio swings 1.6-3x with where they land
+    # the three threads of a round trip anew each round, and one round's ratio swings 1.3-4x with where they land
     # (two idle cores of a VM, each wake-up a halt exit). Each round's ratio, then medians over all round trips.
     cmd: list[float] = []
     bare: list[float] = []

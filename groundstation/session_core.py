@@ -121,7 +121,7 @@ class SessionCore:
         limit = timeout_s if timeout_s is not None else ack_timeout_s * (self.config.retries + 1) + 1.0
         pending.done.wait(limit)
         name = message.DEFINITION.name
-        if pending.ack is None:  # (an ACK took it off the pending commands)
+        if pending.ack is None:  # still pending: an ACK would have removed it
             self._pending.discard(pending.seq)
             if not self.link_up and self._stop.is_set():
                 raise LinkError(f"{name}: the session is closed")
