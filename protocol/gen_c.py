@@ -7,6 +7,7 @@ checked in under firmware/generated/ differ from what this module writes.
 
 from __future__ import annotations
 
+import argparse
 import importlib
 import struct
 import sys
@@ -299,7 +300,12 @@ def write(directory: Path) -> list[Path]:
 
 
 def main(argv: list[str]) -> int:
-    directory = Path(argv[0]) if argv else DEFAULT_DIR
+    parser = argparse.ArgumentParser(
+        prog="python -m protocol.gen_c",
+        description="Write the firmware's C tables (messages, parameters) generated from protocol/.")
+    parser.add_argument("directory", nargs="?", type=Path, default=DEFAULT_DIR,
+                        help=f"where to write them (default: {DEFAULT_DIR})")
+    directory: Path = parser.parse_args(argv).directory  # -h, or an unknown option, exits here and writes nothing
     try:
         for path in write(directory):
             print(path)

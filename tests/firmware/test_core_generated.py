@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import pytest
+
 from protocol import definitions_hash
 from protocol.gen_c import DEFAULT_DIR, generated_files
 from protocol.parameters import PARAM_COUNT, RAM_BUDGET_BYTES
@@ -30,3 +32,14 @@ def test_write_to_a_folder(tmp_path: Path) -> None:
 
     assert main([str(tmp_path)]) == 0
     assert (tmp_path / "proto_messages.h").read_text() == generated_files()["proto_messages.h"]
+
+
+def test_help_and_a_wrong_option_write_nothing(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    from protocol.gen_c import main
+
+    monkeypatch.chdir(tmp_path)
+    for argv, code in ((["--help"], 0), (["--out", "x"], 2)):
+        with pytest.raises(SystemExit) as stop:
+            main(argv)
+        assert stop.value.code == code
+    assert list(tmp_path.iterdir()) == []
