@@ -56,11 +56,14 @@ def _mode_before(probe: Probe, index: int, start: int) -> Mode | None:
 def unsigned_not_alive(probe: Probe) -> str:
     reach(probe, Mode.HOVER)
     with overridden(probe, {"link_timeout_s": TIMEOUT_S, "surface_on_link_loss": 1.0}):
-        start = probe.end
+        start = scanned = probe.end
         deadline = time.monotonic() + TIMEOUT_S + GRACE_S
         with probe.quiet():
-            while time.monotonic() < deadline and probe.wait(lambda f: mode_of(f) == Mode.SURFACING, start, 0.1) \
+            # Each wait scans only what came since the last: rescanning from `start` grows with a fast agent's
+            # frames until the scan alone outlasts the wait, and the agent, read no more, stands still.
+            while time.monotonic() < deadline and probe.wait(lambda f: mode_of(f) == Mode.SURFACING, scanned, 0.1) \
                     is None:
+                scanned = probe.end
                 probe.send(m.Heartbeat(uptime_ms=0, mode=0, battery_mv=0, rx_frames=0, rx_rejects=0, rx_lost=0,
                                        log_first_sample=0, log_next_sample=0, episode=0, signing_rejects=0),
                            signer=False)

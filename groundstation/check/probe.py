@@ -206,16 +206,20 @@ class Probe:
         """The first frame at or after index `start` that satisfies predicate, pumping up to timeout_s."""
         deadline = time.monotonic() + timeout_s
         index = max(start, self._first)
+        last_read = False
         while True:
             while index < self.end:
                 frame = self._frames[index - self._first]
                 if predicate(frame):
                     return index, frame
                 index += 1
-            remaining = deadline - time.monotonic()
-            if remaining <= 0:
+            if last_read:
                 return None
-            self.pump(min(remaining, 0.05))
+            remaining = deadline - time.monotonic()
+            # One read more once the time is up, whatever the scan cost: an agent at --speed max runs only while
+            # its frames are read, so a wait that returned unread could hold it still.
+            last_read = remaining <= 0
+            self.pump(max(0.0, min(remaining, 0.05)))
 
     def wait_message(self, kind: type[T], start: int, timeout_s: float,
                      where: Callable[[T], bool] = lambda _: True) -> tuple[int, T] | None:
