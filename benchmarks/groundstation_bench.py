@@ -2,7 +2,8 @@
 
 Command round trip: PARAM_GET -> ACK through a Session to the virtual agent (`sim://?speed=1`: idle, stepping in
 real time), against a 20-byte frame echoed by another process and received by a reader thread. The agent's
-reply time seen by a bare client (no session) is printed too, to show which side the time is on.
+reply time seen by a bare client (no session) is printed too, to show which side the time is on. The same is
+measured against the robot's own program, the C firmware's host build (`sim://?firmware=c`), when it builds here.
 
 Run: .venv/bin/python benchmarks/groundstation_bench.py
 """
@@ -30,10 +31,13 @@ from groundstation.session import Session, SessionConfig
 from groundstation.stats import percentile
 from protocol import FrameEncoder, StreamDecoder, compiled
 from protocol import messages as m
+from simulator.firmware_host import FirmwareBuildError, library_path
 
 CAPTURE_S = 6.0
 ROUNDS = 3
 ROUND_TRIP_ROUNDS = 5
+AGENTS = {"python": "the Python virtual agent (sim://)",
+          "c": "the robot's own program, the C firmware's host build (sim://?firmware=c)"}
 
 
 def capture_wire(seconds: float) -> bytes:
@@ -100,11 +104,11 @@ def writer_alone(wire: bytes, path: Path) -> tuple[float, int]:
     return time.process_time() - start, len(bodies)
 
 
-def command_rtts(n: int = 300) -> tuple[list[float], list[float]]:
+def command_rtts(firmware: str, n: int = 300) -> tuple[list[float], list[float]]:
     """PARAM_GET -> ACK through a Session, to the virtual agent at --speed 1 (idle, stepping in real time as a
     diving agent does), then the same command from a bare client on the same agent (no session, no reader thread:
     the agent's own reply time, for the breakdown). Returns (session RTTs, bare-client RTTs)."""
-    link = open_link("sim://?speed=1&seed=1")
+    link = open_link(f"sim://?speed=1&seed=1&firmware={firmware}")
     with Session(link, SessionConfig(fetch_params=False, reconnect=False)) as s:
         rtts = []
         for _ in range(n):
@@ -199,16 +203,17 @@ def record_speed() -> None:
     print(f"ratio decode+record / writer alone: median {statistics.median(ratios):.2f} of {ROUNDS} (goal >= 1.0)")
 
 
-def round_trips() -> None:
-    """Command round trips against the echo anchor."""
+def round_trips(firmware: str) -> None:
+    """Command round trips to the agent running `firmware` against the echo anchor."""
     # Rounds in turn (a change of load falls on both), each on a fresh agent and echo server: the scheduler places
     # the three threads of a round trip anew each round, and one round's ratio swings 1.3-4x with where they land
     # (two idle cores of a VM, each wake-up a halt exit). Each round's ratio, then medians over all round trips.
+    print(f"agent: {AGENTS[firmware]}")
     cmd: list[float] = []
     bare: list[float] = []
     echo: list[float] = []
     for round_ in range(ROUND_TRIP_ROUNDS):
-        cmd_round, bare_round = command_rtts()
+        cmd_round, bare_round = command_rtts(firmware)
         echo_round = echo_rtts()
         cmd, bare, echo = cmd + cmd_round, bare + bare_round, echo + echo_round
         print(f"round {round_ + 1}: command round trip {statistics.median(cmd_round) * 1e3:.3f} ms; "
@@ -223,7 +228,7 @@ def round_trips() -> None:
     # Where the time is: no session answers faster than its agent, so the agent's reply alone bounds the ratio.
     print(f"the agent's reply alone: {statistics.median(bare) / echo_s:.2f}x echo; the session's share (command - "
           f"agent alone): {(statistics.median(cmd) - statistics.median(bare)) / echo_s:.2f}x echo")
-    print(f"ratio command / echo: median {statistics.median(cmd) / echo_s:.2f}x (goal <= 2), "
+    print(f"ratio command / echo ({firmware}): median {statistics.median(cmd) / echo_s:.2f}x (goal <= 2), "
           f"p95 {percentile(cmd, 0.95) / percentile(echo, 0.95):.2f}x")
 
 
@@ -233,7 +238,13 @@ def main() -> None:
     # The captured stream (~120 MB) and what decoding it left are gone before the round trips are timed: a ground
     # station holds no such heap, and the collector walking it inflated round trips at random (0.14-0.25 ms).
     gc.collect()
-    round_trips()
+    round_trips("python")
+    try:
+        library_path()  # builds the C firmware's host library, or says why it cannot
+    except FirmwareBuildError as e:
+        print(f"agent: {AGENTS['c']}: not measured: {e}")
+        return
+    round_trips("c")
 
 
 if __name__ == "__main__":
