@@ -30,13 +30,13 @@ def parse_host_port(url: str) -> tuple[str, int]:
     return parts.hostname, port
 
 
-def _connect(host: str, port: int) -> socket.socket:
+def _connect(host: str, port: int, receive_buffer_bytes: int) -> socket.socket:
     """socket.create_connection, with the receive buffer set before the handshake (it fixes the window scale)."""
     error: OSError | None = None
     for family, kind, proto, _, address in socket.getaddrinfo(host, port, type=socket.SOCK_STREAM):
         sock = socket.socket(family, kind, proto)
         try:
-            sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, RECEIVE_BUFFER_BYTES)
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, receive_buffer_bytes)
             sock.settimeout(CONNECT_TIMEOUT_S)
             sock.connect(address)
             return sock
@@ -47,14 +47,15 @@ def _connect(host: str, port: int) -> socket.socket:
 
 
 class TcpLink(Link):
-    def __init__(self, url: str) -> None:
+    def __init__(self, url: str, receive_buffer_bytes: int = RECEIVE_BUFFER_BYTES) -> None:
         super().__init__(url)
         self.host, self.port = parse_host_port(url)
+        self.receive_buffer_bytes = receive_buffer_bytes
         self._sock: socket.socket | None = None
 
     def _connect(self) -> None:
         try:
-            sock = _connect(self.host, self.port)
+            sock = _connect(self.host, self.port, self.receive_buffer_bytes)
         except TimeoutError as e:
             raise LinkTimeout(f"{self.url}: no answer within {CONNECT_TIMEOUT_S:.0f} s") from e
         except OSError as e:
