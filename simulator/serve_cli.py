@@ -16,7 +16,7 @@ from protocol import SigningError
 from protocol.parameters import BY_NAME
 from protocol.signing import parse_key
 from simulator.agent_mission import MissionConfig
-from simulator.errors import ParamsError, SimulatorError
+from simulator.errors import ParamsError, SimulatorError, say_error
 from simulator.faults import FaultConfig
 from simulator.firmware_qemu import QemuConfig, serve_qemu
 from simulator.parameters import PlantParams, preset, read_param_table, with_overrides
@@ -114,12 +114,12 @@ def serve_on_qemu(tcp: str, pty: bool, speed: str, seed: int | None, key_file: P
         config = QemuConfig(host=host, port=port, pty=pty, speed=parse_speed(speed), seed=seed,
                             key=read_key_file(key_file) if key_file is not None else None)
     except SimulatorError as e:
-        typer.echo(f"error: {e}", err=True)
+        say_error(str(e))
         raise typer.Exit(EXIT_BAD_ARGUMENT) from None
     try:
         serve_qemu(config)
     except SimulatorError as e:
-        typer.echo(f"error: {e}", err=True)
+        say_error(str(e))
         raise typer.Exit(1) from None
 
 
@@ -183,7 +183,7 @@ def serve(
         )
         server = AgentServer(config)
     except (SimulatorError, LearningError) as e:
-        typer.echo(f"error: {e}", err=True)
+        say_error(str(e))
         raise typer.Exit(EXIT_BAD_ARGUMENT) from None
     for signum in (signal.SIGINT, signal.SIGTERM):
         signal.signal(signum, lambda *_: server.stop())
@@ -191,12 +191,12 @@ def serve(
     try:
         server.serve_forever()
     except SimulatorError as e:
-        typer.echo(f"error: {e}", err=True)
+        say_error(str(e))
         raise typer.Exit(1) from None
     finally:
         if report is not None:
             try:
                 report.write_text(json.dumps(server.report()))
             except OSError as e:
-                typer.echo(f"error: cannot write report {report}: {e.strerror or e}", err=True)
+                say_error(f"cannot write report {report}: {e.strerror or e}")
     sys.stdout.flush()

@@ -14,7 +14,7 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TaskID, TextC
 from rich.table import Table
 
 from learning import LearningError, learner_names
-from simulator.errors import SimulatorError
+from simulator.errors import SimulatorError, say_error
 from simulator.parameters import load_params
 from simulator.study import StudyResult, run_study
 from simulator.study_compare import compare_rows, write_compare, write_overlay
@@ -106,7 +106,7 @@ def study(
         if len(runs) > 1:
             rows = _write_comparison(runs, results, summaries, out_dir)
     except (SimulatorError, LearningError) as e:
-        print(f"error: {e}", file=sys.stderr)
+        say_error(str(e))
         raise typer.Exit(2) from None
     if len(runs) > 1:
         if as_json:

@@ -94,4 +94,4 @@ def test_missing_compiler_is_one_clear_line(tmp_path: Path) -> None:
                             capture_output=True, text=True, env=env, timeout=120, check=False)
     assert result.returncode == 2
     assert result.stderr.strip().splitlines() == [
-        "error: cannot build the C firmware: 'no-such-cc' not found (install make and a C compiler)"]
+        "python -m simulator: cannot build the C firmware: 'no-such-cc' not found (install make and a C compiler)"]

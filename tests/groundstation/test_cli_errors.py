@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import socket
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -10,6 +12,7 @@ from typer.testing import CliRunner
 
 from groundstation.cli import app
 from tests.groundstation.fake_agent import FakeAgent
+from tests.reliability.recordings import DIVE_MAIN, ROOT
 
 
 def _refused_url() -> str:
@@ -78,3 +81,15 @@ def test_not_an_mcap_file(tmp_path: Path) -> None:
 def test_speed_with_a_real_agent_url_is_refused() -> None:
     result = CliRunner().invoke(app, ["run", "tcp://10.0.0.1:23", "--speed", "5"])
     assert result.exit_code == 2 and "sim://" in result.output and "Traceback" not in result.output
+
+
+@pytest.mark.parametrize("args", [["sim", "--tcp", "127.0.0.1:99999"], ["study", "--trials", "0"]],
+                         ids=["sim", "study"])
+def test_sim_and_study_say_a_bad_argument_as_every_dive_command_does(args: list[str]) -> None:
+    """`dive sim` and `dive study` run the simulator's own command line in a child process: its one line is named
+    after `dive` too, not after the child."""
+    done = subprocess.run([sys.executable, "-c", DIVE_MAIN, *args], capture_output=True, text=True, cwd=ROOT,
+                          timeout=120, check=False)
+    assert done.returncode == 2
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("dive: "), done.stderr

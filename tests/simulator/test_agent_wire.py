@@ -143,4 +143,4 @@ def test_bad_arguments_give_one_line_and_a_non_zero_exit() -> None:
             [sys.executable, "-m", "simulator", "serve", *args], capture_output=True, text=True, cwd=ROOT, timeout=60
         )
         assert done.returncode == 2 and done.stdout == ""
-        assert len(done.stderr.strip().splitlines()) == 1 and done.stderr.startswith("error: ")
+        assert len(done.stderr.strip().splitlines()) == 1 and done.stderr.startswith("python -m simulator: ")
