@@ -96,7 +96,8 @@ def test_qemu_refuses_options_it_cannot_honour() -> None:
     done = subprocess.run([sys.executable, "-m", "simulator", "serve", "--firmware", "qemu", "--drop", "0.1"],
                           capture_output=True, text=True, timeout=60, check=False)
     assert done.returncode == 2
-    assert done.stderr.strip() == "python -m simulator: --firmware qemu runs its own C plant: fault options do not apply"
+    assert done.stderr.strip() == ("python -m simulator: --firmware qemu runs its own C plant: fault options do not "
+                                   "apply")
 
 
 # The dive check groups that need no long stay in one mode: at --speed max an episode of the hardware
