@@ -4,6 +4,8 @@ Command round trip: PARAM_GET -> ACK through a Session to the virtual agent (`si
 real time), against a 20-byte frame echoed by another process and received by a reader thread. The agent's
 reply time seen by a bare client (no session) is printed too, to show which side the time is on. The same is
 measured against the robot's own program, the C firmware's host build (`sim://?firmware=c`), when it builds here.
+Commands and echoes take turns, so both meet the same machine, in two conditions: back to back, and each after
+1 ms of idleness (see CONDITIONS).
 
 Run: .venv/bin/python benchmarks/groundstation_bench.py
 """
@@ -19,6 +21,9 @@ import sys
 import tempfile
 import threading
 import time
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from mcap.writer import CompressionType, Writer
@@ -36,6 +41,10 @@ from simulator.firmware_host import FirmwareBuildError, library_path
 CAPTURE_S = 6.0
 ROUNDS = 3
 ROUND_TRIP_ROUNDS = 5
+ROUND_TRIPS = 300  # of each kind, per condition and round
+# How long the machine idles before each round trip. Back to back, the next one comes within ~0.2 ms; from idle,
+# after 1 ms, as a command a person types does. On this VM the ratio depends on it (each wake-up a halt exit).
+CONDITIONS = {"back to back": 0.0, "from idle": 0.001}
 AGENTS = {"python": "the Python virtual agent (sim://)",
           "c": "the robot's own program, the C firmware's host build (sim://?firmware=c)"}
 
@@ -104,54 +113,13 @@ def writer_alone(wire: bytes, path: Path) -> tuple[float, int]:
     return time.process_time() - start, len(bodies)
 
 
-def command_rtts(firmware: str, n: int = 300) -> tuple[list[float], list[float]]:
-    """PARAM_GET -> ACK through a Session, to the virtual agent at --speed 1 (idle, stepping in real time as a
-    diving agent does), then the same command from a bare client on the same agent (no session, no reader thread:
-    the agent's own reply time, for the breakdown). Returns (session RTTs, bare-client RTTs)."""
-    link = open_link(f"sim://?speed=1&seed=1&firmware={firmware}")
-    with Session(link, SessionConfig(fetch_params=False, reconnect=False)) as s:
-        rtts = []
-        for _ in range(n):
-            t = time.perf_counter()
-            s.command(m.ParamGet(index=0, name=""))
-            rtts.append(time.perf_counter() - t)
-        assert isinstance(link, SimLink) and link.agent_url is not None
-        return rtts, bare_rtts(link.agent_url, n)  # the agent serves one client: this connection replaces the session's
-
-
-def bare_rtts(url: str, n: int) -> list[float]:
-    """PARAM_GET -> ACK on a plain socket, read in the sending thread."""
-    host, port = url.removeprefix("tcp://").rsplit(":", 1)
-    encoder, decoder = FrameEncoder(), StreamDecoder()
-    with socket.create_connection((host, int(port))) as sock:
-        sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-        rtts = []
-        for _ in range(n):
-            wire = encoder.encode(m.ParamGet(index=0, name="")).wire
-            t = time.perf_counter()
-            sock.sendall(wire)
-            while not any(isinstance(f.message, m.Ack) for f in decoder.feed(sock.recv(65536))):
-                pass
-            rtts.append(time.perf_counter() - t)
-    return rtts
-
-
-ECHO_SERVER = """
-import socket, sys
-server = socket.create_server(("127.0.0.1", 0))
-print(server.getsockname()[1], flush=True)
-conn, _ = server.accept()
-conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-while data := conn.recv(4096):
-    conn.sendall(data)
-"""
-
-
-def echo_rtts(n: int = 300) -> list[float]:
+@contextmanager
+def echo_round_trip() -> Iterator[Callable[[], float]]:
     """The anchor: a 20-byte frame echoed by another process over loopback, received by a reader thread.
 
     The shape of a command round trip without our code: the main thread sends and waits on an event,
     a reader thread blocked in recv() gets the echo and sets the event (as Session's reader sets an ACK's).
+    Yields a function that makes one round trip and returns its seconds.
     """
     server = subprocess.Popen([sys.executable, "-c", ECHO_SERVER], stdout=subprocess.PIPE, text=True)
     try:
@@ -169,22 +137,105 @@ def echo_rtts(n: int = 300) -> list[float]:
                     _, got = got.split(b"\x00", 1)
                     arrived.set()
 
-        reader = threading.Thread(target=read, daemon=True)
-        reader.start()
-        rtts = []
-        for _ in range(n):
+        def round_trip() -> float:
             arrived.clear()
             t = time.perf_counter()
             client.sendall(payload)
             arrived.wait(5.0)
-            rtts.append(time.perf_counter() - t)
+            return time.perf_counter() - t
+
+        reader = threading.Thread(target=read, daemon=True)
+        reader.start()
+        yield round_trip
         client.shutdown(socket.SHUT_RDWR)
         reader.join(2)
         client.close()
-        return rtts
     finally:
         server.kill()
         server.wait()
+
+
+@contextmanager
+def bare_round_trip(url: str) -> Iterator[Callable[[], float]]:
+    """PARAM_GET -> ACK on a plain socket, read in the sending thread: the agent's own reply time (no session, no
+    reader thread), for the breakdown. Yields a function that makes one round trip and returns its seconds."""
+    host, port = url.removeprefix("tcp://").rsplit(":", 1)
+    encoder, decoder = FrameEncoder(), StreamDecoder()
+    with socket.create_connection((host, int(port))) as sock:
+        sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+
+        def round_trip() -> float:
+            wire = encoder.encode(m.ParamGet(index=0, name="")).wire
+            t = time.perf_counter()
+            sock.sendall(wire)
+            while not any(isinstance(f.message, m.Ack) for f in decoder.feed(sock.recv(65536))):
+                pass
+            return time.perf_counter() - t
+
+        yield round_trip
+
+
+def paired(first: Callable[[], float], second: Callable[[], float], idle_s: float,
+           n: int = ROUND_TRIPS) -> tuple[list[float], list[float]]:
+    """n round trips of each, in turn, each after idle_s of idleness: the two meet the same state of the machine
+    (run one after the other, the echoes came 70 us apart and met a machine the commands did not)."""
+    a: list[float] = []
+    b: list[float] = []
+    for _ in range(n):
+        if idle_s:
+            time.sleep(idle_s)
+        a.append(first())
+        if idle_s:
+            time.sleep(idle_s)
+        b.append(second())
+    return a, b
+
+
+@dataclass
+class Paired:
+    """One condition's round trips: the session's commands and the bare client's, each with its own echoes."""
+
+    command: list[float] = field(default_factory=list)
+    echo: list[float] = field(default_factory=list)
+    bare: list[float] = field(default_factory=list)
+    bare_echo: list[float] = field(default_factory=list)
+
+    def add(self, other: Paired) -> None:
+        for name in ("command", "echo", "bare", "bare_echo"):
+            getattr(self, name).extend(getattr(other, name))
+
+
+def agent_round(firmware: str) -> dict[str, Paired]:
+    """PARAM_GET -> ACK through a Session to the virtual agent at --speed 1 (idle, stepping in real time as a
+    diving agent does), then from a bare client on the same agent, each paired with echoes, in every condition."""
+    results = {name: Paired() for name in CONDITIONS}
+    link = open_link(f"sim://?speed=1&seed=1&firmware={firmware}")
+    with Session(link, SessionConfig(fetch_params=False, reconnect=False)) as s, echo_round_trip() as echo:
+
+        def command() -> float:
+            t = time.perf_counter()
+            s.command(m.ParamGet(index=0, name=""))
+            return time.perf_counter() - t
+
+        for name, idle_s in CONDITIONS.items():
+            results[name].command, results[name].echo = paired(command, echo, idle_s)
+        assert isinstance(link, SimLink) and link.agent_url is not None
+        # the agent serves one client: this connection replaces the session's
+        with bare_round_trip(link.agent_url) as bare:
+            for name, idle_s in CONDITIONS.items():
+                results[name].bare, results[name].bare_echo = paired(bare, echo, idle_s)
+    return results
+
+
+ECHO_SERVER = """
+import socket, sys
+server = socket.create_server(("127.0.0.1", 0))
+print(server.getsockname()[1], flush=True)
+conn, _ = server.accept()
+conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+while data := conn.recv(4096):
+    conn.sendall(data)
+"""
 
 
 def record_speed() -> None:
@@ -204,32 +255,27 @@ def record_speed() -> None:
 
 
 def round_trips(firmware: str) -> None:
-    """Command round trips to the agent running `firmware` against the echo anchor."""
-    # Rounds in turn (a change of load falls on both), each on a fresh agent and echo server: the scheduler places
-    # the three threads of a round trip anew each round, and one round's ratio swings 1.3-4x with where they land
-    # (two idle cores of a VM, each wake-up a halt exit). Each round's ratio, then medians over all round trips.
+    """Command round trips to the agent running `firmware` against the echo anchor, in each condition."""
+    # Each round has a fresh agent and echo server: the scheduler places the three threads of a round trip anew each
+    # round, and one round's ratio swung 1.3-4x with where they landed (two idle cores of a VM, each wake-up a halt
+    # exit). Each round's ratios, then medians over all round trips.
     print(f"agent: {AGENTS[firmware]}")
-    cmd: list[float] = []
-    bare: list[float] = []
-    echo: list[float] = []
+    totals = {name: Paired() for name in CONDITIONS}
     for round_ in range(ROUND_TRIP_ROUNDS):
-        cmd_round, bare_round = command_rtts(firmware)
-        echo_round = echo_rtts()
-        cmd, bare, echo = cmd + cmd_round, bare + bare_round, echo + echo_round
-        print(f"round {round_ + 1}: command round trip {statistics.median(cmd_round) * 1e3:.3f} ms; "
-              f"echo {statistics.median(echo_round) * 1e3:.3f} ms; ratio "
-              f"{statistics.median(cmd_round) / statistics.median(echo_round):.2f}")
-    for name, values in (("command round trip (PARAM_GET -> ACK)", cmd),
-                         ("  the agent's reply alone (bare client)", bare),
-                         ("echo via another process + reader thread", echo)):
-        print(f"{name:42s} median {statistics.median(values) * 1e3:7.3f} ms   "
-              f"p95 {percentile(values, 0.95) * 1e3:7.3f} ms")
-    echo_s = statistics.median(echo)
-    # Where the time is: no session answers faster than its agent, so the agent's reply alone bounds the ratio.
-    print(f"the agent's reply alone: {statistics.median(bare) / echo_s:.2f}x echo; the session's share (command - "
-          f"agent alone): {(statistics.median(cmd) - statistics.median(bare)) / echo_s:.2f}x echo")
-    print(f"ratio command / echo ({firmware}): median {statistics.median(cmd) / echo_s:.2f}x (goal <= 2), "
-          f"p95 {percentile(cmd, 0.95) / percentile(echo, 0.95):.2f}x")
+        results = agent_round(firmware)
+        ratios = [f"{name} {statistics.median(r.command) / statistics.median(r.echo):.2f}"
+                  for name, r in results.items()]
+        print(f"round {round_ + 1}: command / echo: {'; '.join(ratios)}")
+        for name, r in results.items():
+            totals[name].add(r)
+    for name, r in totals.items():
+        command, echo = statistics.median(r.command), statistics.median(r.echo)
+        # No session answers faster than its agent: the agent's reply alone (against its own echoes) bounds it.
+        print(f"{name + ':':14s} command {command * 1e3:.3f} ms (p95 {percentile(r.command, 0.95) * 1e3:.3f}), echo "
+              f"{echo * 1e3:.3f} ms (p95 {percentile(r.echo, 0.95) * 1e3:.3f}); the agent's reply alone "
+              f"{statistics.median(r.bare) / statistics.median(r.bare_echo):.2f}x its echo")
+        print(f"ratio command / echo ({firmware}, {name}): median {command / echo:.2f}x (goal <= 2), "
+              f"p95 {percentile(r.command, 0.95) / percentile(r.echo, 0.95):.2f}x")
 
 
 def main() -> None:
