@@ -32,9 +32,14 @@ def _silence(probe: Probe, seconds: float, until: set[Mode] | None = None) -> li
 def surfaces(probe: Probe) -> str:
     reach(probe, Mode.HOVER)
     with overridden(probe, {"link_timeout_s": TIMEOUT_S, "surface_on_link_loss": 1.0}):
-        early = _silence(probe, TIMEOUT_S * 0.5)
-        expect(Mode.SURFACING not in early, f"the agent surfaced after {TIMEOUT_S * 0.5:g} s of silence, before "
-               f"link_timeout_s = {TIMEOUT_S:g} s (agent time instead of the link's real clock?)")
+        # The agent's silence began when it read the last frame, no earlier than the probe wrote it. Counted from
+        # the ACK instead, a slow read of that ACK (a pty's backlog, a loaded machine) ate into the window: CI saw a
+        # correct agent surface 0.25 s after the ACK arrived.
+        early_until = probe.last_send_s + TIMEOUT_S * 0.5
+        early = _silence(probe, max(0.0, early_until - time.monotonic()))
+        expect(Mode.SURFACING not in early, f"the agent surfaced less than {TIMEOUT_S * 0.5:g} s after the last "
+               f"frame it was sent, before link_timeout_s = {TIMEOUT_S:g} s (agent time instead of the link's "
+               "real clock?)")
         modes = _silence(probe, TIMEOUT_S * 0.5 + GRACE_S, {Mode.SURFACING, Mode.IDLE})
         expect(Mode.SURFACING in modes or Mode.IDLE in modes,
                f"after {TIMEOUT_S + GRACE_S:g} s of silence the agent still shows {modes[-1].name if modes else '-'}")

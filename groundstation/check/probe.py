@@ -159,6 +159,11 @@ class Probe:
         seq = int.from_bytes(inner[2:4], "little")
         return build_inner(flags, seq, inner[4], payload, chosen.trailer if isinstance(chosen, Signer) else None)
 
+    @property
+    def last_send_s(self) -> float:
+        """When (time.monotonic) the probe last wrote to the link: no agent heard from it since before then."""
+        return self._last_send_s
+
     # ------------------------------------------------------------------ frames in
     @property
     def end(self) -> int:

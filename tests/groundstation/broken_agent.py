@@ -3,13 +3,15 @@
     python tests/groundstation/broken_agent.py FAULT[,FAULT] serve --tcp 127.0.0.1:0 ...
 
 Faults: `unknown-no-ack` (no ACK for an unknown command id, as the 1.0 agent did), `rejects-as-frames` (HEARTBEAT
-counts rejected chunks in rx_frames instead of rx_rejects).
+counts rejected chunks in rx_frames instead of rx_rejects), `silence-in-agent-time` (link silence measured on the
+agent's clock, which at --speed max runs far ahead of the link's real one).
 """
 
 from __future__ import annotations
 
 import sys
 from collections.abc import Callable
+from typing import Any
 
 from protocol import AckResult, messages
 from protocol.decoder import Frame
@@ -42,7 +44,18 @@ def rejects_as_frames() -> None:
     Link.heartbeat = heartbeat  # type: ignore[method-assign]
 
 
-FAULTS: dict[str, Callable[[], None]] = {"unknown-no-ack": unknown_no_ack, "rejects-as-frames": rejects_as_frames}
+def silence_in_agent_time() -> None:
+    original = Link.__init__
+
+    def init(self: Link, *args: Any, **kwargs: Any) -> None:
+        original(self, *args, **kwargs)
+        self.link_clock_s = self._agent_clock_s  # link silence on the agent's clock, not the link's real one
+
+    Link.__init__ = init  # type: ignore[method-assign]
+
+
+FAULTS: dict[str, Callable[[], None]] = {"unknown-no-ack": unknown_no_ack, "rejects-as-frames": rejects_as_frames,
+                                         "silence-in-agent-time": silence_in_agent_time}
 
 if __name__ == "__main__":
     for name in sys.argv.pop(1).split(","):
