@@ -128,3 +128,14 @@ def test_bad_options_are_usage_errors() -> None:
     for args in (["--timeout", "0"], ["--param", "low_batt_v"], ["--only", "no_such_check"]):
         result = CliRunner().invoke(app, ["check", "tcp://127.0.0.1:1", *args])
         assert result.exit_code == 2, (args, result.output)
+
+
+def test_the_run_order_is_the_modules_order_whatever_was_imported_first() -> None:
+    """The handshake checks run first (they need a link nothing was sent on yet), even when another check module
+    was imported before the runner, as a test that uses one check does."""
+    script = ("import groundstation.check.linkloss\n"
+              "from groundstation.check.runner import CHECK_MODULES, selected\n"
+              "modules = [c.run.__module__.rsplit('.', 1)[-1] for c in selected(())]\n"
+              "print(modules[0], modules == sorted(modules, key=CHECK_MODULES.index))\n")
+    result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, cwd=ROOT, check=True)
+    assert result.stdout.split() == ["handshake", "True"]
