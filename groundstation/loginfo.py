@@ -85,6 +85,7 @@ def summarize(path: Path) -> RecordingSummary:
     finished: list[BootSummary] = []
     first_ns = last_ns = None
     first_us = last_us = None
+    new_session = True
     for msg in iter_messages(path, None, info):
         if not summary.messages:  # the header is read by now: a split part begins in the boot its header names
             boots.header(info.metadata)
@@ -117,7 +118,10 @@ def summarize(path: Path) -> RecordingSummary:
                                                        body["duration_s"] or 0.0, body["episode_return"] or 0.0,
                                                        bool(body.get("_backfilled"))))
         elif msg.topic == "/agent/HELLO":
-            summary.sessions += 1
+            # The agent's HELLO on connect and its answer to ours are one session: the first after a start or a loss.
+            if new_session:
+                summary.sessions += 1
+                new_session = False
             if boots.hello(msg):
                 finished.append(boot.finish())
                 boot = _Boot(boots.current)
@@ -125,6 +129,7 @@ def summarize(path: Path) -> RecordingSummary:
             body = json_fields(msg)
             if body is not None and body.get("kind") == "link_lost":
                 summary.link_losses += 1
+                new_session = True
         elif msg.topic == "/link":
             body = json_fields(msg)
             link = body.get("link") if body is not None else None
