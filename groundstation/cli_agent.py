@@ -50,7 +50,8 @@ HOVER_RANGE_M = (0.0, 2.5)
 @one_line_errors
 def params_command(
     args: Annotated[list[str] | None, typer.Argument(
-        help="[URL] [get NAME | set NAME VALUE | save FILE | diff FILE | load FILE]", show_default=False)] = None,
+        help="[URL] \\[get NAME | set NAME VALUE | save FILE | diff FILE | load FILE]: nothing lists them all",
+        show_default=False)] = None,
     key_file: KeyFileOption = None,
 ) -> None:
     """List the agent's parameters, get / set one, or save, compare with or load a TOML file of them."""

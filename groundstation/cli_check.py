@@ -42,7 +42,7 @@ def check_command(
     param: Annotated[list[str] | None, typer.Option(
         help="NAME=VALUE set for the run and put back after it (repeatable)")] = None,
     timeout: Annotated[float | None, typer.Option(
-        help="seconds to wait for an ACK or a reply [default: 2; sim://: 10, its first use of a learner compiles]")]
+        help="seconds to wait for an ACK or a reply \\[default: 2; sim://: 10, its first use of a learner compiles]")]
     = None,
     mode_timeout: Annotated[float, typer.Option(help="seconds to wait for a mode change (surfacing, recovery)")]
     = 60.0,

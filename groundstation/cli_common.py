@@ -65,9 +65,15 @@ TAKES_NEGATIVE = {"ignore_unknown_options": True}  # `-5` is a value, not an unk
 
 
 def split_url(args: list[str], actions: tuple[str, ...] = ()) -> tuple[str | None, list[str]]:
-    """An optional URL first (it has `://` or is a /dev path), then the command's own words."""
-    if args and ("://" in args[0] or args[0].startswith("/dev/")) and args[0] not in actions:
+    """An optional URL (it has `://` or is a /dev path), then the command's own words. The URL may also follow an
+    action word (`dive params get tcp://... NAME`), the order people type who think of the action first."""
+    def is_url(word: str) -> bool:
+        return ("://" in word or word.startswith("/dev/")) and word not in actions
+
+    if args and is_url(args[0]):
         return args[0], args[1:]
+    if len(args) > 1 and args[0] in actions and is_url(args[1]):
+        return args[1], [args[0], *args[2:]]
     return None, args
 
 

@@ -100,8 +100,12 @@ def _export_minari(file: Path, root: Path | None) -> None:
 
 @log_app.command("recover")
 @one_line_errors
-def log_recover(file: Path, out_path: Annotated[Path | None, typer.Option("--out", help="output file")] = None
-                ) -> None:
+def log_recover(
+    file: Annotated[Path, typer.Argument(help="the truncated recording (it is read, never changed)",
+                                         show_default=False)],
+    out_path: Annotated[Path | None, typer.Option(
+        "--out", help="output file (default: FILE-recovered.mcap beside it)")] = None,
+) -> None:
     """Rewrite a truncated recording (after a crash or kill) into a finished, indexed one."""
     from groundstation.mcap_io import recover
 

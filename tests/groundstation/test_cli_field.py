@@ -8,9 +8,13 @@ import os
 import socket
 import subprocess
 import sys
+from collections.abc import Iterator
 from pathlib import Path
 
+import click
 import pytest
+import typer
+from rich.markup import render
 from typer.testing import CliRunner, Result
 
 from groundstation.cli import app
@@ -144,6 +148,8 @@ def test_params_save_diff_load_and_run_share_one_toml_format(tmp_path: Path) -> 
         loaded = _cli("params", agent.url, "load", str(saved))
         assert loaded.exit_code == 0 and "z_tol_m = 0.25" in loaded.stdout, loaded.stderr
         assert "0 of 7 differ" in _cli("params", agent.url, "diff", str(saved)).stdout
+        action_first = _cli("params", "get", agent.url, "z_tol_m")  # the order people who think "get" first type
+        assert action_first.exit_code == 0 and "z_tol_m = 0.25" in action_first.stdout, action_first.stderr
         whole = _cli("params", agent.url, "set", "max_episodes", "3.7")
         assert whole.exit_code == 1 and "3.7 is not a whole number" in whole.stderr
         bad = tmp_path / "bad.toml"
@@ -181,3 +187,26 @@ def test_params_and_hover_honour_dive_url() -> None:
     finally:
         agent.close()
     assert agent.connections == 2 and agent.executed.count("CMD_HOVER") == 1
+
+
+def _help_texts(command: click.Command, path: str = "dive") -> Iterator[tuple[str, str, bool]]:
+    """Every help text dive's commands, arguments and options carry: where it is shown, the text, an argument's?"""
+    yield path, command.help or "", False
+    for param in command.params:
+        yield f"{path} {param.name}", getattr(param, "help", None) or "", isinstance(param, click.Argument)
+    if isinstance(command, click.Group):
+        for name, sub in command.commands.items():
+            yield from _help_texts(sub, f"{path} {name}")
+
+
+def test_no_help_text_loses_words_to_rich_markup() -> None:
+    """Help is rendered as Rich markup: an unescaped `[default: 2]` is read as a style tag and vanishes."""
+    lost = [f"{where}: {text!r}" for where, text, _ in _help_texts(typer.main.get_command(app))
+            if render(text).plain != text.replace("\\[", "[")]
+    assert lost == []
+
+
+def test_every_argument_says_what_it_takes() -> None:
+    """typer 0.20 under click 8.5 dropped every argument's help text without a word: pyproject holds click below."""
+    bare = [where for where, text, argument in _help_texts(typer.main.get_command(app)) if argument and not text]
+    assert bare == []
