@@ -50,8 +50,9 @@ HOVER_RANGE_M = (0.0, 2.5)
 @one_line_errors
 def params_command(
     args: Annotated[list[str] | None, typer.Argument(
-        help="[URL] \\[get NAME | set NAME VALUE | save FILE | diff FILE | load FILE]: nothing lists them all",
-        show_default=False)] = None,
+        help="get NAME, set NAME VALUE, save FILE, diff FILE or load FILE (none: list them all), after the "
+             "agent's URL (default: $DIVE_URL, else the running `dive run`)",
+        metavar="[URL] [ACTION ...]", show_default=False)] = None,
     key_file: KeyFileOption = None,
 ) -> None:
     """List the agent's parameters, get / set one, or save, compare with or load a TOML file of them."""
@@ -117,8 +118,9 @@ def surface(url: UrlArg = None, key_file: KeyFileOption = None) -> None:
 
 
 @one_line_errors
-def hover(args: Annotated[list[str], typer.Argument(help="[URL] DEPTH: the depth to hold \\[m]",
-                                                    show_default=False)],
+def hover(args: Annotated[list[str], typer.Argument(
+              help="the depth to hold \\[m], after the agent's URL (as for params)", metavar="[URL] DEPTH",
+              show_default=False)],
           key_file: KeyFileOption = None) -> None:
     """Hold a depth with the recovery controller (no learning)."""
     url, words = split_url(args)
