@@ -17,6 +17,7 @@ from groundstation.safe_output import one_line
 from groundstation.validate import UsageError
 
 if TYPE_CHECKING:
+    from groundstation.dumps import Dump
     from groundstation.session import Session
 
 
@@ -153,13 +154,47 @@ _DUMP_KINDS = {DumpChoice.values: "VALUES", DumpChoice.policy: "POLICY", DumpCho
 
 @one_line_errors
 def dump(url: UrlArg = None, kind: Annotated[DumpChoice, typer.Option(help="what to dump")] = DumpChoice.values,
+         png: Annotated[Path | None, typer.Option(
+             help="draw the values or the policy over the learner's grid into this PNG instead of printing JSON")]
+         = None,
          key_file: KeyFileOption = None) -> None:
-    """Fetch the value function, policy, Q values or model counts and print them as JSON."""
+    """Fetch the value function, policy, Q values or model counts and print them as JSON (or draw one: --png)."""
+    if png is not None and kind not in (DumpChoice.values, DumpChoice.policy):
+        raise UsageError(f"--png draws --kind values or policy; {kind.value} is printed as JSON")
+    if png is not None:
+        from groundstation.safe_files import check_output
+
+        check_output(png)  # before asking the agent: a recording is never overwritten
     with agent_session(url, key_file) as s:
         from protocol import DumpKind
 
         snapshot = s.dump(DumpKind[_DUMP_KINDS[kind]], timeout_s=10.0)
-    out.print_json(json.dumps(snapshot.as_dict()))
+        grid_params = {name: s.params.get(name).value
+                       for name in ("target_depth_m", "z_tol_m", "zdot_tol_mps", "z_cells", "zdot_cells")}
+    if png is None:
+        out.print_json(json.dumps(snapshot.as_dict()))
+        return
+    _draw_dump(png, snapshot, grid_params)
+
+
+def _draw_dump(png: Path, snapshot: Dump, grid_params: dict[str, float]) -> None:
+    import numpy as np
+
+    from groundstation.dump_plot import write_dump_png
+    from groundstation.heatmap import dump_grid
+    from groundstation.safe_files import replaced_atomically
+
+    values = np.asarray(snapshot.values())
+    p = grid_params
+    grid = dump_grid(len(values), p["target_depth_m"], p["z_tol_m"], p["zdot_tol_mps"], int(p["z_cells"]),
+                     int(p["zdot_cells"]))
+    if grid is None:
+        raise GroundStationError(f"the {snapshot.kind.name} dump holds {len(values)} states: not one row of the grid")
+    with replaced_atomically(png) as temporary:
+        write_dump_png(temporary, snapshot.kind, values, grid, snapshot.episode)
+    out.print(f"{one_line(png)}: {snapshot.kind.name.lower()} of episode {snapshot.episode} over {grid.z_cells} x "
+              f"{grid.zdot_cells} cells" + (f" x {grid.blocks} actuator bins" if grid.blocks > 1 else ""),
+              soft_wrap=True)  # one line a script can read the path from
 
 
 @one_line_errors

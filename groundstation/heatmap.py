@@ -61,6 +61,26 @@ def default_grid() -> Grid:
                 int(g["act_bins"]))
 
 
+def dump_grid(states: int, target_depth_m: float, z_tol_m: float, zdot_tol_mps: float, z_cells: int,
+              zdot_cells: int) -> Grid | None:
+    """The grid a dump of `states` states covers (its terminal state last); None when it holds not one row of cells.
+
+    A dump whose rows are not whole blocks of z_cells (parameters not seen, or another grid than they say) is drawn
+    as one block of its own rows.
+    """
+    rows = (states - 1) // zdot_cells
+    if rows < 1:
+        return None
+    if rows % z_cells:
+        z_cells = rows
+    return Grid(target_depth_m, z_tol_m, zdot_tol_mps, z_cells, zdot_cells, rows // z_cells)
+
+
+def value_palette(steps: int = 256) -> NDArray[np.float64]:
+    """The value heatmap's colours from lowest to highest, as RGB in 0..1 (a plot's colour bar)."""
+    return _colormap(np.linspace(0.0, 1.0, steps)) / 255.0
+
+
 @dataclass(frozen=True, slots=True)
 class Label:
     """A text at a point of the heatmap's plane (cell units: the image's pixels), with a swatch colour."""

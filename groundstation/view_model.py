@@ -12,7 +12,16 @@ import numpy as np
 from numpy.typing import NDArray
 
 from groundstation.dumps import DumpAssembler
-from groundstation.heatmap import DEFAULT_GRID, Grid, policy_frame, policy_image, value_frame, value_image, value_range
+from groundstation.heatmap import (
+    DEFAULT_GRID,
+    Grid,
+    dump_grid,
+    policy_frame,
+    policy_image,
+    value_frame,
+    value_image,
+    value_range,
+)
 from protocol import Action, DumpKind, EndReason, FrameFlag, Message, Severity
 from protocol import messages as m
 
@@ -325,15 +334,9 @@ class ViewModel:
 
     def _grid(self, states: int) -> Grid | None:
         """The grid a dump of `states` states covers; None when it holds not one row of cells."""
-        zdot = self._zdot_cells
-        rows = (states - 1) // zdot
-        if rows < 1:
-            return None
-        z_cells = int(self._grid_params["z_cells"])
-        if rows % z_cells:  # parameters not seen, or another grid than they say: the dump's own rows count
-            z_cells = rows
         region = self._region
         if region is None:
             params = self._grid_params
             region = Region(params["target_depth_m"], params["z_tol_m"], params["zdot_tol_mps"])
-        return Grid(region.target_depth_m, region.z_tol_m, region.zdot_tol_mps, z_cells, zdot, rows // z_cells)
+        return dump_grid(states, region.target_depth_m, region.z_tol_m, region.zdot_tol_mps,
+                         int(self._grid_params["z_cells"]), self._zdot_cells)
