@@ -150,6 +150,7 @@ class DumpChoice(StrEnum):
 
 _DUMP_KINDS = {DumpChoice.values: "VALUES", DumpChoice.policy: "POLICY", DumpChoice.q: "Q_VALUES",
                DumpChoice.counts: "COUNTS"}  # DumpKind names (protocol is imported by the command)
+_GRID_PARAMS = ("target_depth_m", "z_tol_m", "zdot_tol_mps", "z_cells", "zdot_cells")  # what --png draws over
 
 
 @one_line_errors
@@ -169,12 +170,11 @@ def dump(url: UrlArg = None, kind: Annotated[DumpChoice, typer.Option(help="what
         from protocol import DumpKind
 
         snapshot = s.dump(DumpKind[_DUMP_KINDS[kind]], timeout_s=10.0)
-        grid_params = {name: s.params.get(name).value
-                       for name in ("target_depth_m", "z_tol_m", "zdot_tol_mps", "z_cells", "zdot_cells")}
+        grid_params = {name: s.params.get(name).value for name in _GRID_PARAMS} if png is not None else {}
     if png is None:
         out.print_json(json.dumps(snapshot.as_dict()))
-        return
-    _draw_dump(png, snapshot, grid_params)
+    else:
+        _draw_dump(png, snapshot, grid_params)
 
 
 def _draw_dump(png: Path, snapshot: Dump, grid_params: dict[str, float]) -> None:

@@ -55,8 +55,8 @@ def log_export(files: Annotated[list[Path], typer.Argument(help="recordings, or 
                    help="csv: samples; npz: offline-RL transitions; minari: a Minari dataset (FILE may be a folder)")]
                = ExportFormat.csv,
                out_path: Annotated[Path | None, typer.Option(
-                   "--out", help="output file (one recording only); for minari the datasets folder "
-                   "(default: Minari's own)")] = None,
+                   "--out", help="output file (one recording only) or a folder for the outputs; for minari the "
+                   "datasets folder (default: Minari's own)")] = None,
                ) -> None:
     """Export samples as CSV, (s, a, r, s', terminated, truncated) transitions as .npz, or a Minari dataset.
 
@@ -72,12 +72,14 @@ def log_export(files: Annotated[list[Path], typer.Argument(help="recordings, or 
         _export_minari(files[0], out_path)
         return
     recordings = group_recordings(expand(files))
-    if out_path is not None and len(recordings) > 1:
-        raise UsageError(f"--out names one file, but {len(recordings)} recordings were given")
+    into_folder = out_path is not None and out_path.is_dir()  # as cp does: the usual names, in that folder
+    if out_path is not None and not into_folder and len(recordings) > 1:
+        raise UsageError(f"--out names one file, but {len(recordings)} recordings were given (or name a folder)")
     for recording in recordings:
         first = recording.files[0]
         name = first.stem if len(recording.files) == 1 else recording.name
-        target = out_path or first.with_name(f"{name}.{format.value}")
+        beside = first.with_name(f"{name}.{format.value}")
+        target = (out_path / beside.name if into_folder else out_path) if out_path is not None else beside
         with replaced_atomically(target, source=first) as temporary:
             rows = (export_csv if format == ExportFormat.csv else export_npz)(recording.files, temporary)
         out.print(f"{target} ({rows} rows)")

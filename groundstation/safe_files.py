@@ -36,7 +36,11 @@ def _same_file(a: Path, b: Path) -> bool:
 
 
 def check_output(target: Path, source: Path | None = None) -> None:
-    """Refuse an output that is its own input or an existing recording, with the name to use instead."""
+    """Refuse an output that is its own input, an existing recording, a folder or in no folder, saying why."""
+    if target.is_dir():
+        raise RecordingError(f"{one_line(target)} is a folder: give a file name")
+    if not target.parent.is_dir():
+        raise RecordingError(f"there is no folder {one_line(target.parent)} to write {one_line(target.name)} into")
     if source is not None and (_same_file(target, source) or target.resolve() == source.resolve()):
         raise RecordingError(f"--out {one_line(target)} is the input file; writing it would destroy the recording: "
                              "give another name")

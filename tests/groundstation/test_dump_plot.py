@@ -53,3 +53,5 @@ def test_png_refuses_what_it_cannot_draw_and_never_overwrites_a_recording(tmp_pa
     onto = CliRunner().invoke(app, ["dump", "sim://", "--png", str(recording)])
     assert onto.exit_code == 1 and "is an existing recording" in onto.stderr
     assert recording.read_bytes() == b"\x89MCAP0\r\nkept"
+    nowhere = CliRunner().invoke(app, ["dump", "sim://", "--png", str(tmp_path / "nowhere" / "v.png")])
+    assert nowhere.exit_code == 1 and "there is no folder" in nowhere.stderr

@@ -81,6 +81,18 @@ def test_recover_export_and_run_never_write_over_a_recording(tmp_path: Path) -> 
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.mcap", "b.mcap"]  # no temporary file left
 
 
+def test_an_output_folder_takes_the_usual_names_and_a_missing_one_is_one_line(tmp_path: Path) -> None:
+    recordings = [make_recording(tmp_path / "a.mcap"), make_recording(tmp_path / "b.mcap")]
+    folder = tmp_path / "csv"
+    folder.mkdir()
+    done = dive("log", "export", *map(str, recordings), "--out", str(folder))  # as cp does: one file each, inside
+    assert done.returncode == 0, done.stderr
+    assert sorted(p.name for p in folder.iterdir()) == ["a.csv", "b.csv"]
+    one_error_line(dive("log", "export", str(recordings[0]), "--out", str(tmp_path / "nowhere" / "a.csv")),
+                   "there is no folder")
+    one_error_line(dive("log", "recover", str(recordings[0]), "--out", str(folder)), "is a folder: give a file name")
+
+
 def test_recover_picks_a_new_name_and_export_replaces_its_target_atomically(tmp_path: Path) -> None:
     original = make_recording(tmp_path / "a.mcap")
     first, second = dive("log", "recover", str(original)), dive("log", "recover", str(original))
