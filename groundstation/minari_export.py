@@ -64,7 +64,8 @@ def export_minari(recording: Recording, dataset_id: str, root: Path | None) -> M
         from minari.data_collector.episode_buffer import EpisodeBuffer
         from minari.storage.datasets_root_dir import get_dataset_path
     except ImportError as e:
-        raise RecordingError("--format minari needs minari: pip install 'diving-agent[minari]'") from e
+        raise RecordingError("--format minari needs minari: pip install -e '.[minari]' in the checkout "
+                             "(or pip install minari)") from e
     if get_dataset_path(dataset_id).exists():
         raise RecordingError(f"a Minari dataset {dataset_id} already exists under "
                              f"{get_dataset_path().resolve()}; choose another --out or remove it")

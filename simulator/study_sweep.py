@@ -125,8 +125,8 @@ def run_sweep(
             try:
                 from distributed import Client, as_completed
             except ImportError:
-                raise SimulatorError("--cluster needs the 'cluster' extra: pip install 'diving-agent[cluster]'") \
-                    from None
+                raise SimulatorError("--cluster needs Dask's distributed: pip install -e '.[cluster]' in the checkout "
+                                     "(or pip install distributed)") from None
             try:
                 client = Client(cluster, timeout=10)
             except (OSError, TimeoutError) as e:
