@@ -23,7 +23,7 @@ import threading
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 
 from mcap.writer import CompressionType, Writer
@@ -201,8 +201,8 @@ class Paired:
     bare_echo: list[float] = field(default_factory=list)
 
     def add(self, other: Paired) -> None:
-        for name in ("command", "echo", "bare", "bare_echo"):
-            getattr(self, name).extend(getattr(other, name))
+        for kind in fields(self):
+            getattr(self, kind.name).extend(getattr(other, kind.name))
 
 
 def agent_round(firmware: str) -> dict[str, Paired]:

@@ -160,11 +160,11 @@ def dump(url: UrlArg = None, kind: Annotated[DumpChoice, typer.Option(help="what
          = None,
          key_file: KeyFileOption = None) -> None:
     """Fetch the value function, policy, Q values or model counts and print them as JSON (or draw one: --png)."""
-    if png is not None and kind not in (DumpChoice.values, DumpChoice.policy):
-        raise UsageError(f"--png draws --kind values or policy; {kind.value} is printed as JSON")
     if png is not None:
         from groundstation.safe_files import check_output
 
+        if kind not in (DumpChoice.values, DumpChoice.policy):
+            raise UsageError(f"--png draws --kind values or policy; {kind.value} is printed as JSON")
         check_output(png)  # before asking the agent: a recording is never overwritten
     with agent_session(url, key_file) as s:
         from protocol import DumpKind

@@ -72,14 +72,17 @@ def log_export(files: Annotated[list[Path], typer.Argument(help="recordings, or 
         _export_minari(files[0], out_path)
         return
     recordings = group_recordings(expand(files))
-    into_folder = out_path is not None and out_path.is_dir()  # as cp does: the usual names, in that folder
-    if out_path is not None and not into_folder and len(recordings) > 1:
+    folder = out_path if out_path is not None and out_path.is_dir() else None  # as cp does: the usual names, in it
+    if out_path is not None and folder is None and len(recordings) > 1:
         raise UsageError(f"--out names one file, but {len(recordings)} recordings were given (or name a folder)")
     for recording in recordings:
         first = recording.files[0]
         name = first.stem if len(recording.files) == 1 else recording.name
-        beside = first.with_name(f"{name}.{format.value}")
-        target = (out_path / beside.name if into_folder else out_path) if out_path is not None else beside
+        target = first.with_name(f"{name}.{format.value}")
+        if folder is not None:
+            target = folder / target.name
+        elif out_path is not None:
+            target = out_path
         with replaced_atomically(target, source=first) as temporary:
             rows = (export_csv if format == ExportFormat.csv else export_npz)(recording.files, temporary)
         out.print(f"{target} ({rows} rows)")

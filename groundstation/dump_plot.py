@@ -39,9 +39,12 @@ def write_dump_png(path: Path, kind: DumpKind, values: NDArray[np.generic], grid
     from matplotlib.figure import Figure
     from matplotlib.ticker import MaxNLocator
 
+    value_span: tuple[float, float] | None = None  # the colour bar's, for VALUES
     if kind == DumpKind.VALUES:
-        image = value_image(values.astype(np.float32), grid.zdot_cells)
-        what = "value function v(s)"
+        floats = values.astype(np.float32)
+        image = value_image(floats, grid.zdot_cells)
+        value_span = value_range(floats, grid.zdot_cells)
+        what = f"value function v(s); outside the region {float(values[-1]):.3g}"
     else:
         image = policy_image(values.astype(np.uint8), grid.zdot_cells)
         what = "greedy policy"
@@ -60,10 +63,8 @@ def write_dump_png(path: Path, kind: DumpKind, values: NDArray[np.generic], grid
             ax.set_ylabel("depth z [m]")
         if grid.blocks > 1:
             ax.set_title(f"actuator bin {block}")
-    outside = float(values[-1])
-    if kind == DumpKind.VALUES:
-        _value_bar(figure, axes, *value_range(values.astype(np.float32), grid.zdot_cells))
-        what += f"; outside the region {outside:.3g}"
+    if value_span is not None:
+        _value_bar(figure, axes, *value_span)
     else:
         _policy_legend(figure)
     figure.suptitle(f"{what}, episode {episode}")

@@ -259,8 +259,7 @@ def test_an_impossible_index_in_a_file_is_not_missing_samples(tmp_path: Path) ->
 
 def test_minari_missing_is_one_line_that_says_how_to_install_it(tmp_path: Path) -> None:
     recording = make_recording(tmp_path / "a.mcap")
-    code = ("import sys; sys.modules['minari'] = None; sys.argv[0] = 'dive'; from groundstation.cli import main; "
-            "main()")
-    done = subprocess.run([sys.executable, "-c", code, "log", "export", str(recording), "--format", "minari",
+    minari_hidden = "import sys; sys.modules['minari'] = None; " + DIVE_MAIN
+    done = subprocess.run([sys.executable, "-c", minari_hidden, "log", "export", str(recording), "--format", "minari",
                            "--out", str(tmp_path / "datasets")], capture_output=True, text=True, timeout=120)
     one_error_line(done, "needs minari: pip install -e '.[minari]' in the checkout (or pip install minari)")
