@@ -17,7 +17,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from groundstation.loginfo import summarize
+from groundstation.recording.info import summarize
 from tests.reliability.recordings import dive, read
 from tests.simulator.agent_client import running
 

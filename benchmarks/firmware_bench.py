@@ -33,7 +33,7 @@ from learning import LearnerConfig, learner_memory_bytes, n_states
 from learning.presets import learner_preset
 from protocol import Mode
 from protocol.parameters import snapshot_ram_bytes
-from simulator.firmware_qemu import FIRMWARE_DIR, QemuAgent, QemuConfig, build_elf
+from simulator.serve.firmware_qemu import FIRMWARE_DIR, QemuAgent, QemuConfig, build_elf
 
 CPU_HZ = 72e6
 GOAL_RAM_BYTES = 32 * 1024
@@ -121,7 +121,7 @@ def qemu_run(config: LearnerConfig, run_args: list[str], episodes: int, work: Pa
     elf = build_elf(work / "build", arena_flags(config))
     diag = work / "uart1.txt"
     with QemuAgent(QemuConfig(seed=1, bench=True, icount=True, diag_path=diag), elf) as agent:
-        dive = [sys.executable, "-c", "import sys; sys.argv[0] = 'dive'; from groundstation.cli import main; main()"]
+        dive = [sys.executable, "-c", "import sys; sys.argv[0] = 'dive'; from groundstation.cli.app import main; main()"]  # noqa: E501
         done = subprocess.run([*dive, "run", agent.address, "--episodes", str(episodes), "--viewer", "none",
                                "--out", str(work / "run.mcap"), *run_args], capture_output=True, text=True,
                               timeout=900, check=False)

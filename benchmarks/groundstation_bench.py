@@ -28,15 +28,15 @@ from pathlib import Path
 
 from mcap.writer import CompressionType, Writer
 
-from groundstation.events import Received
 from groundstation.links import open_link
 from groundstation.links.sim import SimLink
-from groundstation.recorder import Recorder, RecorderConfig, message_json, message_schema
-from groundstation.session import Session, SessionConfig
-from groundstation.stats import percentile
+from groundstation.recording.recorder import Recorder, RecorderConfig, message_json, message_schema
+from groundstation.session.agent_session import Session, SessionConfig
+from groundstation.session.events import Received
+from groundstation.session.stats import percentile
 from protocol import FrameEncoder, StreamDecoder, compiled
 from protocol import messages as m
-from simulator.firmware_host import FirmwareBuildError, library_path
+from simulator.serve.firmware_host import FirmwareBuildError, library_path
 
 CAPTURE_S = 6.0
 ROUNDS = 3

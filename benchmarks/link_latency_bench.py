@@ -24,12 +24,12 @@ import tempfile
 import time
 from pathlib import Path
 
-from groundstation.hub import Hub
 from groundstation.links import make_link
 from groundstation.links.hub import HUB_RECEIVE_BUFFER_BYTES
 from groundstation.links.tcp import TcpLink
-from groundstation.recorder import Recorder, RecorderConfig
-from groundstation.session import Session, SessionConfig
+from groundstation.recording.recorder import Recorder, RecorderConfig
+from groundstation.run.hub import Hub
+from groundstation.session.agent_session import Session, SessionConfig
 from protocol import messages as m
 
 ROOT = Path(__file__).resolve().parent.parent

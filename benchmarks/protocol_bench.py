@@ -17,7 +17,7 @@ try:
 except ImportError:  # the anchor lives in the `bench` extra, not in the test install
     sys.exit("protocol_bench needs pymavlink, the anchor it measures against: pip install -e '.[bench]'")
 
-from groundstation.columns import message_array
+from groundstation.recording.columns import message_array
 from protocol import FrameEncoder, StreamDecoder, compiled
 from protocol.columns import columns, payload_records
 from protocol.messages import Sample

@@ -27,14 +27,14 @@ import rerun as rr
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from groundstation import replay  # noqa: E402
-from groundstation.events import Received  # noqa: E402
 from groundstation.links import make_link  # noqa: E402
 from groundstation.mcap_io import RecordingContents, iter_messages  # noqa: E402
-from groundstation.recorder import Recorder, RecorderConfig  # noqa: E402
-from groundstation.rerun_view import log_frame, new_recording, send_batch, send_styles  # noqa: E402
-from groundstation.session import Session, SessionConfig  # noqa: E402
-from groundstation.view_model import ENTITIES, Batch, Kind  # noqa: E402
+from groundstation.recording.recorder import Recorder, RecorderConfig  # noqa: E402
+from groundstation.session.agent_session import Session, SessionConfig  # noqa: E402
+from groundstation.session.events import Received  # noqa: E402
+from groundstation.view import replay  # noqa: E402
+from groundstation.view.model import ENTITIES, Batch, Kind  # noqa: E402
+from groundstation.view.rerun_sink import log_frame, new_recording, send_batch, send_styles  # noqa: E402
 from protocol import Mode  # noqa: E402
 from protocol import messages as m  # noqa: E402
 from tests.groundstation.synthetic_agent import generate, record  # noqa: E402

@@ -28,7 +28,7 @@ import numpy as np
 from groundstation.links.tcp import RECEIVE_BUFFER_BYTES
 from protocol import FrameEncoder, Mode, StreamDecoder, compiled, messages
 from simulator.parameters import preset
-from simulator.plant import Plant
+from simulator.plant.model import Plant
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 _NOT_DIVING = (int(Mode.IDLE), int(Mode.SURFACING))

@@ -19,11 +19,11 @@ import threading
 import time
 from pathlib import Path
 
-from groundstation.events import LinkEvent, Received, Sent
 from groundstation.links import make_link
 from groundstation.mcap_io import iter_messages
-from groundstation.recorder import Recorder, RecorderConfig
-from groundstation.session import Session, SessionConfig
+from groundstation.recording.recorder import Recorder, RecorderConfig
+from groundstation.session.agent_session import Session, SessionConfig
+from groundstation.session.events import LinkEvent, Received, Sent
 from protocol import Mode, compiled
 from protocol import messages as m
 

@@ -2,7 +2,7 @@
 
 Run: `.venv/bin/python benchmarks/startup_bench.py [--repeat 5]`. Not a test: it prints figures.
 Goal (issue 14): every command starts in under 0.3 s (Rerun, numba, matplotlib, mcap imported only where used;
-`python -X importtime -m groundstation.cli --help` shows what is). Wall time is the median of the runs; CPU
+`python -X importtime -m groundstation.cli.app --help` shows what is). Wall time is the median of the runs; CPU
 time (user + system) is printed beside it, since on a shared machine the wall time mostly measures the queue.
 """
 
@@ -40,7 +40,7 @@ def main() -> None:
     print(f"{'command':<22} {'wall s':>7} {'cpu s':>7} {'wall / python -c pass':>22}  goal 0.3 s")
     print(f"{'python -c pass':<22} {anchor_wall:7.3f} {anchor_cpu:7.3f} {1.0:21.1f}x")
     for command in COMMANDS:
-        wall, cpu = _time([sys.executable, "-m", "groundstation.cli", *command], args.repeat)
+        wall, cpu = _time([sys.executable, "-m", "groundstation.cli.app", *command], args.repeat)
         verdict = "ok" if wall < 0.3 else "over"
         print(f"{'dive ' + ' '.join(command):<22} {wall:7.3f} {cpu:7.3f} {wall / anchor_wall:21.1f}x  {verdict}")
 

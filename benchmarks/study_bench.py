@@ -13,7 +13,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # the tests' re
 
 from learning import learner_preset  # noqa: E402
 from simulator.parameters import preset  # noqa: E402
-from simulator.study import run_study  # noqa: E402
+from simulator.study.runner import run_study  # noqa: E402
 from tests.simulator.python_trial import python_loop_trial  # noqa: E402
 
 

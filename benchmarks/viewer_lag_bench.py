@@ -33,12 +33,12 @@ from pathlib import Path
 
 import rerun.chunk as rrc
 
-from groundstation.events import LinkEvent, Received, Sent
 from groundstation.links import make_link
-from groundstation.recorder import Recorder, RecorderConfig
-from groundstation.rerun_view import RerunView, ViewConfig
-from groundstation.session import Session, SessionConfig
-from groundstation.view_options import Viewer
+from groundstation.recording.recorder import Recorder, RecorderConfig
+from groundstation.session.agent_session import Session, SessionConfig
+from groundstation.session.events import LinkEvent, Received, Sent
+from groundstation.view.options import Viewer
+from groundstation.view.rerun_sink import RerunView, ViewConfig
 from protocol import messages as m
 
 SPEEDS = ("1", "100", "max")  # the first is the anchor

@@ -15,8 +15,8 @@ import argparse
 import gymnasium
 import numpy as np
 
-import simulator.gym_env  # noqa: F401  registers DivingAgent-v0
-from simulator.gym_env import DiscreteState
+import simulator.gym  # noqa: F401  registers DivingAgent-v0
+from simulator.gym.env import DiscreteState
 
 
 def train(episodes: int, seed: int, preset: str) -> list[float]:

@@ -12,11 +12,11 @@ import numpy as np
 from learning import LearnerConfig
 from protocol import FrameEncoder, Mode, Signer, StreamDecoder, messages
 from protocol.frame import MAX_CHUNK
-from simulator.agent_link import AgentLink
-from simulator.agent_mission import MissionConfig
-from simulator.log_ring import LogRing
-from simulator.onboard import OnboardProgram
-from simulator.onboard_hw import SimulatedHardware
+from simulator.agent.hardware import SimulatedHardware
+from simulator.agent.link import AgentLink
+from simulator.agent.log_ring import LogRing
+from simulator.agent.mission import MissionConfig
+from simulator.agent.program import OnboardProgram
 from simulator.parameters import preset
 
 KEY = bytes(range(32))

@@ -17,8 +17,8 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from groundstation.links import make_link  # noqa: E402
-from groundstation.rerun_view import RerunView, ViewConfig, Viewer  # noqa: E402
-from groundstation.session import Session  # noqa: E402
+from groundstation.session.agent_session import Session  # noqa: E402
+from groundstation.view.rerun_sink import RerunView, ViewConfig, Viewer  # noqa: E402
 from protocol import messages as m  # noqa: E402
 
 

@@ -6,8 +6,8 @@ import os
 
 import typer
 
-from simulator.serve_cli import serve
-from simulator.study_cli import study
+from simulator.serve.cli import serve
+from simulator.study.cli import study
 
 app = typer.Typer(
     name="simulator",

@@ -69,6 +69,94 @@ def _owner(path: Path) -> Path:
     return relative if len(relative.parts) == 1 else Path(relative.parts[0])
 
 
+# The folders of each package (docs/architecture.md) and which other folders each may import. A folder imports
+# only downwards: what is listed here. The modules at a package's top level are its base (errors, safe output,
+# parameters): every folder may import them, and they import no folder, except the entry points listed below.
+ROOMS: dict[str, dict[str, set[str]]] = {
+    "groundstation": {
+        "cli": {"run", "view", "recording", "check", "session", "links", "mcap_io"},
+        "run": {"recording", "session", "links", "mcap_io"},
+        "view": {"recording", "session", "links", "mcap_io"},
+        "check": {"session", "links"},
+        "recording": {"session", "links", "mcap_io"},
+        "session": {"links"},
+        "links": set(),
+        "mcap_io": set(),
+    },
+    "simulator": {
+        "serve": {"agent", "plant"},
+        "study": {"plant"},
+        "gym": {"plant"},
+        "agent": {"plant"},
+        "plant": set(),
+    },
+}
+# Top-level modules that are entry points into the folders, with the folders each reaches.
+ENTRY_POINTS: dict[str, set[str]] = {
+    "groundstation/__init__.py": {"recording"},  # `from groundstation import open_recording`, loaded lazily
+    "simulator/cli.py": {"serve", "study"},  # `python -m simulator serve | study`
+    "simulator/gym_env.py": {"gym"},  # the old path of simulator.gym.env, kept for one release
+}
+TOP_LEVEL_BASE_LIMIT = 4  # modules beside __init__, __main__ and errors
+
+
+def _room(package: str, path: Path) -> str | None:
+    """The folder a module lives in, or None for a top-level module."""
+    relative = path.relative_to(ROOT / package)
+    return relative.parts[0] if len(relative.parts) > 1 else None
+
+
+def _rooms_imported(package: str, path: Path) -> set[str]:
+    """The folders of `package` that a module imports (any import of package.FOLDER or package.FOLDER.x)."""
+    tree = ast.parse(path.read_text(), filename=str(path))
+    modules: list[str] = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            modules.extend(alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+            modules.append(node.module)
+            modules.extend(f"{node.module}.{alias.name}" for alias in node.names)
+    rooms = set()
+    for module in modules:
+        parts = module.split(".")
+        if parts[0] == package and len(parts) > 1 and (ROOT / package / parts[1]).is_dir():
+            rooms.add(parts[1])
+    return rooms
+
+
+@pytest.mark.parametrize("package", sorted(ROOMS))
+def test_every_folder_has_an_import_rule(package: str) -> None:
+    folders = {p.parent.name for p in (ROOT / package).glob("*/__init__.py")}
+    assert folders == set(ROOMS[package]), f"{package}: folders without a rule or rules without a folder"
+
+
+@pytest.mark.parametrize("package", sorted(ROOMS))
+def test_folders_import_only_downwards(package: str) -> None:
+    for path in _modules(package):
+        room = _room(package, path)
+        relative = path.relative_to(ROOT).as_posix()
+        if room is None:
+            allowed = ENTRY_POINTS.get(relative, set())
+        else:
+            allowed = ROOMS[package][room] | {room}
+        forbidden = _rooms_imported(package, path) - allowed
+        assert not forbidden, f"{relative} imports {sorted(forbidden)}"
+
+
+@pytest.mark.parametrize("package", sorted(ROOMS))
+def test_the_top_level_holds_only_the_base(package: str) -> None:
+    top = {p.name for p in (ROOT / package).glob("*.py")} - {"__init__.py", "__main__.py", "errors.py"}
+    assert len(top) <= TOP_LEVEL_BASE_LIMIT, f"{package}/ holds {sorted(top)} at its top level"
+
+
+@pytest.mark.parametrize("package", sorted(ROOMS))
+def test_no_file_repeats_its_folders_name(package: str) -> None:
+    for path in _modules(package):
+        folder = path.parent.name
+        if path.parent != ROOT / package:
+            assert not path.stem.startswith(folder), f"{path.relative_to(ROOT)}: the folder says {folder!r} already"
+
+
 @pytest.mark.parametrize("library", SINGLE_OWNER)
 def test_each_foreign_io_library_has_one_owner_in_groundstation(library: str) -> None:
     owners = {_owner(p) for p in _modules("groundstation") if library in _imports(p)}

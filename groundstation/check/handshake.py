@@ -6,7 +6,7 @@ import os
 
 from groundstation.check.probe import Probe
 from groundstation.check.registry import CheckFailed, CheckSkipped, check, expect
-from groundstation.hello import ground_hello
+from groundstation.session.hello import ground_hello
 from protocol import PROTOCOL_VERSION, NodeKind, definitions_hash
 from protocol import messages as m
 

@@ -10,15 +10,15 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from groundstation.cli_common import UrlArg, agent_session, one_line_errors, out, split_url
+from groundstation.cli.common import UrlArg, agent_session, one_line_errors, out, split_url
+from groundstation.cli.validate import UsageError
 from groundstation.errors import GroundStationError
-from groundstation.keys import KeyFileOption
 from groundstation.safe_output import one_line
-from groundstation.validate import UsageError
+from groundstation.session.keys import KeyFileOption
 
 if TYPE_CHECKING:
-    from groundstation.dumps import Dump
-    from groundstation.session import Session
+    from groundstation.session.agent_session import Session
+    from groundstation.session.dumps import Dump
 
 
 @one_line_errors
@@ -57,7 +57,7 @@ def params_command(
     key_file: KeyFileOption = None,
 ) -> None:
     """List the agent's parameters, get / set one, or save, compare with or load a TOML file of them."""
-    from groundstation.paramfile import read_params, write_params
+    from groundstation.session.paramfile import read_params, write_params
 
     url, words = split_url(list(args or []), _PARAM_ACTIONS)
     action, rest = (words[0], words[1:]) if words else (None, [])
@@ -100,7 +100,7 @@ def _param_number(s: Session, name: str, text: str) -> float:
     """A value as the agent stores it (F32 parameters as f32), to compare a file's value with the agent's."""
     import struct
 
-    from groundstation.params import ParamType, parse_value
+    from groundstation.session.params import ParamType, parse_value
 
     p = s.params.get(name)
     value = parse_value(p, text)
@@ -161,7 +161,7 @@ def dump(url: UrlArg = None, kind: Annotated[DumpChoice, typer.Option(help="what
          key_file: KeyFileOption = None) -> None:
     """Fetch the value function, policy, Q values or model counts and print them as JSON (or draw one: --png)."""
     if png is not None:
-        from groundstation.safe_files import check_output
+        from groundstation.recording.safe_files import check_output
 
         if kind not in (DumpChoice.values, DumpChoice.policy):
             raise UsageError(f"--png draws --kind values or policy; {kind.value} is printed as JSON")
@@ -180,9 +180,9 @@ def dump(url: UrlArg = None, kind: Annotated[DumpChoice, typer.Option(help="what
 def _draw_dump(png: Path, snapshot: Dump, grid_params: dict[str, float]) -> None:
     import numpy as np
 
-    from groundstation.dump_plot import write_dump_png
-    from groundstation.heatmap import dump_grid
-    from groundstation.safe_files import replaced_atomically
+    from groundstation.recording.safe_files import replaced_atomically
+    from groundstation.view.dump_plot import write_dump_png
+    from groundstation.view.heatmap import dump_grid
 
     values = np.asarray(snapshot.values())
     p = grid_params
@@ -202,8 +202,8 @@ def mark(text: Annotated[str, typer.Argument(help="what happened (recorded on /m
          run: Annotated[str | None, typer.Option(help="the run (hub://RUN's RUN) when several are running")] = None,
          ) -> None:
     """Put a marker into the recording of the `dive run` running on this machine (the one named with --run)."""
-    from groundstation.marker import send_marker
-    from groundstation.runs import find_run
+    from groundstation.links.runs import find_run
+    from groundstation.run.marker import send_marker
 
     info = find_run(run.removeprefix("hub://") if run else None)
     send_marker(info, text)

@@ -8,11 +8,16 @@ from typing import Annotated
 
 import typer
 
-from groundstation import cli_agent, cli_check, cli_log, cli_run, record_cli, view_cli
-from groundstation.cli_common import TAKES_NEGATIVE, err
-from groundstation.keys import keygen
+from groundstation.cli import agent as cli_agent
+from groundstation.cli import check as cli_check
+from groundstation.cli import log as cli_log
+from groundstation.cli import record as record_cli
+from groundstation.cli import run as cli_run
+from groundstation.cli import view as view_cli
+from groundstation.cli.common import TAKES_NEGATIVE, err
+from groundstation.cli.typer_help import load_typer_help
+from groundstation.session.keys import keygen
 from groundstation.simulator_process import run_simulator_command
-from groundstation.typer_help import load_typer_help
 
 app = typer.Typer(
     name="dive",
@@ -25,7 +30,7 @@ app = typer.Typer(
 )
 def _version(value: bool) -> None:
     if value:
-        from groundstation.hello import tool_version
+        from groundstation.session.hello import tool_version
 
         typer.echo(f"dive {tool_version()}")
         raise typer.Exit()

@@ -11,9 +11,9 @@ from urllib.parse import urlencode
 
 import typer
 
-from groundstation.cli_common import UrlArg, err, one_line_errors, out
-from groundstation.keys import KEY_FILE_ENV, resolve_key
+from groundstation.cli.common import UrlArg, err, one_line_errors, out
 from groundstation.safe_output import in_markup
+from groundstation.session.keys import KEY_FILE_ENV, resolve_key
 
 REPLY_TIMEOUT_S = 2.0
 SIM_REPLY_TIMEOUT_S = 10.0  # a virtual agent compiles kernels on first use: its first answer may take seconds

@@ -11,13 +11,13 @@ from typing import TYPE_CHECKING, Annotated, Any, TypeVar
 import typer
 from rich.text import Text
 
+from groundstation.cli.validate import UsageError
 from groundstation.errors import GroundStationError
-from groundstation.keys import resolve_key
 from groundstation.safe_output import SafeConsole, one_line
-from groundstation.validate import UsageError
+from groundstation.session.keys import resolve_key
 
 if TYPE_CHECKING:  # the session (mcap, numpy) is imported by the commands that open one
-    from groundstation.session import Session
+    from groundstation.session.agent_session import Session
 
 F = TypeVar("F", bound=Callable[..., Any])
 err = SafeConsole(stderr=True)  # agent text and file names are data: no markup, control characters escaped
@@ -48,8 +48,8 @@ def one_line_errors(func: F) -> F:
 def agent_session(url: str | None, key_file: Path | None = None) -> Iterator[Session]:
     """A session with *the* agent: the URL given, else $DIVE_URL, else the running `dive run` (never a new sim)."""
     from groundstation.links import make_link
-    from groundstation.runs import attach_url
-    from groundstation.session import Session, SessionConfig
+    from groundstation.links.runs import attach_url
+    from groundstation.session.agent_session import Session, SessionConfig
 
     session = Session(make_link(attach_url(url)),
                       SessionConfig(reconnect=False, backfill=False, key=resolve_key(key_file)))

@@ -9,10 +9,10 @@ from typing import Annotated
 
 import typer
 
-from groundstation.cli_common import existing, one_line_errors, out
+from groundstation.cli.common import existing, one_line_errors, out
+from groundstation.cli.validate import UsageError
 from groundstation.errors import GroundStationError
-from groundstation.safe_files import replaced_atomically, unused_name
-from groundstation.validate import UsageError
+from groundstation.recording.safe_files import replaced_atomically, unused_name
 
 log_app = typer.Typer(help="Inspect, export and repair recordings.", no_args_is_help=True,
                       context_settings={"help_option_names": ["-h", "--help"]})
@@ -23,8 +23,8 @@ log_app = typer.Typer(help="Inspect, export and repair recordings.", no_args_is_
 def log_info(files: Annotated[list[Path], typer.Argument(help="recordings, or folders of them")],
              as_json: Annotated[bool, typer.Option("--json", help="machine-readable")] = False) -> None:
     """Sessions, duration, episodes with outcome and length, samples, loss, backfill and missing samples."""
-    from groundstation.loginfo import format_summary, summarize
-    from groundstation.recording_files import being_recorded, expand, json_summary
+    from groundstation.recording.files import being_recorded, expand, json_summary
+    from groundstation.recording.info import format_summary, summarize
 
     summaries = []
     for path in expand(files):
@@ -63,8 +63,8 @@ def log_export(files: Annotated[list[Path], typer.Argument(help="recordings, or 
     Several recordings (or a folder) give one output file each, beside each recording; the parts of a split
     recording given together make one (NAME.csv beside NAME-part001.mcap), episodes across parts kept whole.
     """
-    from groundstation.export import export_csv, export_npz
-    from groundstation.recording_files import expand, group_recordings
+    from groundstation.recording.export import export_csv, export_npz
+    from groundstation.recording.files import expand, group_recordings
 
     if format == ExportFormat.minari:
         if len(files) != 1:
@@ -89,8 +89,8 @@ def log_export(files: Annotated[list[Path], typer.Argument(help="recordings, or 
 
 
 def _export_minari(file: Path, root: Path | None) -> None:
-    from groundstation.minari_export import dataset_id_for, export_minari
-    from groundstation.recording import open_recording
+    from groundstation.recording.minari_export import dataset_id_for, export_minari
+    from groundstation.recording.tables import open_recording
 
     if not file.exists():
         raise GroundStationError(f"no such recording: {file}")

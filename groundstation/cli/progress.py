@@ -8,7 +8,7 @@ from types import TracebackType
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
 
-from groundstation.runner import RunStatus
+from groundstation.run.job import RunStatus
 from groundstation.safe_output import in_markup, styled
 
 SLOW_START_S = 3.0  # a virtual agent silent this long is loading, or on its first start compiling, its kernels

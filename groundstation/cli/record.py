@@ -15,10 +15,10 @@ from typing import Annotated
 
 import typer
 
+from groundstation.cli.validate import UsageError
 from groundstation.errors import GroundStationError, RecordingExistsError
-from groundstation.keys import KeyFileOption, resolve_key
 from groundstation.safe_output import one_line, printable
-from groundstation.validate import UsageError
+from groundstation.session.keys import KeyFileOption, resolve_key
 
 
 def _interrupt(signum: int, frame: object) -> None:
@@ -47,10 +47,10 @@ def record(
     interrupted = False
     try:
         from groundstation.links import make_link
-        from groundstation.recorder import Recorder, RecorderConfig
-        from groundstation.runner import session_info
-        from groundstation.runs import attach_url
-        from groundstation.session import Session, SessionConfig
+        from groundstation.links.runs import attach_url
+        from groundstation.recording.recorder import Recorder, RecorderConfig
+        from groundstation.run.job import session_info
+        from groundstation.session.agent_session import Session, SessionConfig
 
         directory = out_path.parent if out_path is not None and out_path.suffix == ".mcap" else \
             out_path or Path("recordings")

@@ -9,13 +9,13 @@ from urllib.parse import urlencode
 
 import typer
 
-from groundstation import view_cli
-from groundstation.cli_common import UrlArg, err, one_line_errors
-from groundstation.keys import KeyFileOption, resolve_key
+from groundstation.cli import view as view_cli
+from groundstation.cli.common import UrlArg, err, one_line_errors
+from groundstation.cli.signals import stop_on_signals
+from groundstation.cli.validate import UsageError, parse_speed
 from groundstation.safe_output import printable
-from groundstation.signals import stop_on_signals
-from groundstation.validate import UsageError, parse_speed
-from groundstation.view_options import Viewer
+from groundstation.session.keys import KeyFileOption, resolve_key
+from groundstation.view.options import Viewer
 
 
 @one_line_errors
@@ -51,10 +51,10 @@ def run_command(
     key_file: KeyFileOption = None,
 ) -> None:
     """Connect, set parameters, start learning and record everything to MCAP until N episodes or Ctrl-C."""
-    from groundstation.recorder import RecorderConfig
-    from groundstation.run_progress import RunDisplay
-    from groundstation.runner import RunConfig, load_params_file, run
-    from groundstation.session import SessionConfig
+    from groundstation.cli.progress import RunDisplay
+    from groundstation.recording.recorder import RecorderConfig
+    from groundstation.run.job import RunConfig, load_params_file, run
+    from groundstation.session.agent_session import SessionConfig
 
     if speed is not None:
         parse_speed(speed)  # now, not 10 s later inside the virtual agent
@@ -104,7 +104,7 @@ def run_command(
 
 def _with_sim_options(url: str | None, **sim_options: object) -> str:
     """Add the built-in agent's options (`--speed`, `--seed`, ...) to a sim:// URL as query parameters."""
-    from groundstation.runs import run_url_default
+    from groundstation.links.runs import run_url_default
 
     url = run_url_default(url)
     options = {k: str(v) for k, v in sim_options.items() if v is not None}

@@ -13,18 +13,18 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
+from groundstation.cli.validate import UsageError, check_port_free, parse_speed
 from groundstation.errors import GroundStationError
-from groundstation.keys import KeyFileOption, resolve_key
 from groundstation.safe_output import in_markup, one_line
-from groundstation.validate import UsageError, check_port_free, parse_speed
-from groundstation.view_errors import ViewError
-from groundstation.view_options import GrpcPortOption, Viewer, ViewerOption, WebPortOption
+from groundstation.session.keys import KeyFileOption, resolve_key
+from groundstation.view.errors import ViewError
+from groundstation.view.options import GrpcPortOption, Viewer, ViewerOption, WebPortOption
 
 if TYPE_CHECKING:  # Rerun, mcap and the replay code are imported by the commands that use them
     from rich.progress import Progress
 
-    from groundstation import replay as rp
-    from groundstation.rerun_view import RerunView
+    from groundstation.view import replay as rp
+    from groundstation.view.rerun_sink import RerunView
 
 __all__ = ["GrpcPortOption", "ViewerOption", "WebPortOption", "closing_view", "open_live_view", "replay", "view"]
 
@@ -71,7 +71,7 @@ def open_live_view(viewer: Viewer | None, rrd: Path | None, web_port: int, name:
     if chosen == Viewer.NONE and rrd is None:
         return None
     check_viewer_ports(chosen, web_port, grpc_port)
-    from groundstation.rerun_view import ViewConfig, attach_view
+    from groundstation.view.rerun_sink import ViewConfig, attach_view
 
     live = attach_view(ViewConfig(viewer=chosen, rrd=rrd, web_port=web_port, grpc_port=grpc_port), name=name)
     if live is not None and live.address:
@@ -145,10 +145,10 @@ def replay(
     with _one_line_errors():
         from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
-        from groundstation import replay as rp
         from groundstation.mcap_io import RecordingContents
-        from groundstation.recording_files import expand
-        from groundstation.rerun_view import RerunView, ViewConfig
+        from groundstation.recording.files import expand
+        from groundstation.view import replay as rp
+        from groundstation.view.rerun_sink import RerunView, ViewConfig
 
         factor = parse_speed(speed)
         try:
@@ -219,9 +219,9 @@ def view(
     stopped = False
     with _one_line_errors():
         from groundstation.links import make_link
-        from groundstation.rerun_view import RerunView, ViewConfig
-        from groundstation.runs import attach_url
-        from groundstation.session import Session, SessionConfig
+        from groundstation.links.runs import attach_url
+        from groundstation.session.agent_session import Session, SessionConfig
+        from groundstation.view.rerun_sink import RerunView, ViewConfig
 
         link = make_link(attach_url(url))
         config = ViewConfig(viewer=default_viewer(viewer, None), rrd=rrd, web_port=web_port, grpc_port=grpc_port)

@@ -1,13 +1,13 @@
 """hub:// links: attach to a running `dive run`'s session through its hub (hub:// = the one run, hub://RUN = that one).
 
 The hub speaks the agent's frame protocol over loopback TCP, so this is a TCP link whose address comes from
-the run's announcement file (groundstation/runs.py), looked up again on every reconnect.
+the run's announcement file (groundstation/links/runs.py), looked up again on every reconnect.
 """
 
 from __future__ import annotations
 
+from groundstation.links.runs import hub_address
 from groundstation.links.tcp import TcpLink, parse_host_port
-from groundstation.runs import hub_address
 
 # Not the agent link's 2 KiB: the hub does not wait for a slow reader (it queues for it, then drops it), so a small
 # window keeps no backlog away and only stalls. With 2 KiB a tool's round trip at --speed max stalled 40-60 ms about

@@ -1,6 +1,6 @@
 """The `dive run`s on this machine: each announces its hub in a small file, keyed by run, under the runtime folder.
 
-`dive view`, `status`, `mark`, `surface`, ... find a run here and attach to its hub (groundstation/hub.py)
+`dive view`, `status`, `mark`, `surface`, ... find a run here and attach to its hub (groundstation/run/hub.py)
 instead of opening a second link to the agent, which has one TCP slot. A file whose process is gone is
 stale: it is ignored and removed.
 """

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from groundstation.errors import RecordingError
-from groundstation.recording import open_recording
+from groundstation.recording.tables import open_recording
 from protocol import Action, EndReason, Mode
 
 _REASONS = {reason.name.lower(): int(reason) for reason in EndReason}

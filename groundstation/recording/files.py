@@ -85,7 +85,7 @@ def group_recordings(files: list[Path]) -> list[RecordingParts]:
 
 def being_recorded(path: Path) -> str | None:
     """`dive run N` when a run on this machine is writing `path` now (so a missing footer is not damage)."""
-    from groundstation.runs import running
+    from groundstation.links.runs import running
 
     try:
         target = path.resolve()

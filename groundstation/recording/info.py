@@ -6,10 +6,10 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
-from groundstation.exactness import SampleIndexCheck
-from groundstation.gaps import SampleRanges
 from groundstation.mcap_io import RecordingContents, iter_messages
-from groundstation.recorded import Boots, json_fields
+from groundstation.recording.recorded import Boots, json_fields
+from groundstation.session.exactness import SampleIndexCheck
+from groundstation.session.gaps import SampleRanges
 from protocol import EndReason
 
 

@@ -1,6 +1,6 @@
 """`dive log export --format minari`: a recording's learning episodes as a Minari offline-RL dataset.
 
-Each episode becomes one Minari episode in the terms of `DivingAgent-v0` (simulator/gym_env.py), so
+Each episode becomes one Minari episode in the terms of `DivingAgent-v0` (simulator/gym/env.py), so
 `minari.load_dataset(id).recover_environment()` gives the simulated task the data fits:
 
 - observation t: [measured depth m, the velocity the learner saw m/s, actuator command minus the
@@ -28,13 +28,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from groundstation.errors import RecordingError
-from groundstation.recording import Recording
+from groundstation.recording.tables import Recording
 from protocol import Action, EndReason, Mode
 
 ENV_ID = "DivingAgent-v0"
-ENV_ENTRY_POINT = "simulator.gym_env:_make"  # resolved by gymnasium at load time, not imported here
+ENV_ENTRY_POINT = "simulator.gym.env:_make"  # resolved by gymnasium at load time, not imported here
 NAMESPACE = "diving_agent"
-# DivingAgent-v0's observation bounds (simulator/gym_env.py): the same numbers, checked by a test.
+# DivingAgent-v0's observation bounds (simulator/gym/env.py): the same numbers, checked by a test.
 OBS_LOW = (-1.0, -5.0, -130.0)
 OBS_HIGH = (12.0, 5.0, 130.0)
 

@@ -17,12 +17,12 @@ from typing import Any, TypeVar
 
 import orjson
 
-from groundstation.dumps import DumpAssembler
 from groundstation.errors import RecordingError, RecordingExistsError
-from groundstation.events import EventKind, LinkEvent, Received, Sent
-from groundstation.hello import tool_version
 from groundstation.mcap_io import RAW_ENCODING, McapFileWriter, mcap_library_version
-from groundstation.safe_files import unused_name
+from groundstation.recording.safe_files import unused_name
+from groundstation.session.dumps import DumpAssembler
+from groundstation.session.events import EventKind, LinkEvent, Received, Sent
+from groundstation.session.hello import tool_version
 from protocol import Message, messages
 from protocol.cobs import cobs_decode
 from protocol.jsonschema import message_json_schema

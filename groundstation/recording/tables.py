@@ -27,7 +27,7 @@ from numpy.typing import NDArray
 
 from groundstation.errors import RecordingError
 from groundstation.mcap_io import RecordedMessage, RecordingContents, iter_messages
-from groundstation.recorded import Boots, header_boot_id, json_fields
+from groundstation.recording.recorded import Boots, header_boot_id, json_fields
 from protocol import EndReason
 
 SAMPLE_TOPIC = "/agent/SAMPLE"

@@ -26,9 +26,9 @@ from collections import OrderedDict
 from dataclasses import dataclass, field
 
 from groundstation.errors import LinkError
-from groundstation.events import LinkEvent, Received, Sent
-from groundstation.marker import CONFIRMATION as MARKER_CONFIRMATION
-from groundstation.session import Session
+from groundstation.run.marker import CONFIRMATION as MARKER_CONFIRMATION
+from groundstation.session.agent_session import Session
+from groundstation.session.events import LinkEvent, Received, Sent
 from protocol import FrameEncoder, FrameFlag, Message, StreamDecoder
 from protocol import messages as m
 

@@ -12,20 +12,20 @@ from typing import Any
 from urllib.parse import parse_qsl, urlsplit
 
 from groundstation.errors import CommandError, GroundStationError, LinkError, RecordingExistsError
-from groundstation.events import EventKind, LinkEvent, Received, Sent, SessionListener
-from groundstation.hub import Hub
 from groundstation.links import make_link
-from groundstation.recorder import Recorder, RecorderConfig
-from groundstation.runs import RunInfo, announce, new_run, withdraw
+from groundstation.links.runs import RunInfo, announce, new_run, withdraw
+from groundstation.recording.recorder import Recorder, RecorderConfig
+from groundstation.run.hub import Hub
 from groundstation.safe_output import one_line
-from groundstation.session import Session, SessionConfig
+from groundstation.session.agent_session import Session, SessionConfig
+from groundstation.session.events import EventKind, LinkEvent, Received, Sent, SessionListener
 from protocol import EndReason, Mode
 from protocol import messages as m
 
 
 def load_params_file(path: Path) -> dict[str, str]:
-    """Parameters from a TOML file of `name = value` lines (groundstation/paramfile.py)."""
-    from groundstation.paramfile import read_params
+    """Parameters from a TOML file of `name = value` lines (groundstation/session/paramfile.py)."""
+    from groundstation.session.paramfile import read_params
 
     return read_params(path)
 
@@ -41,7 +41,7 @@ class RunConfig:
     recorder: RecorderConfig = field(default_factory=RecorderConfig)
     session: SessionConfig = field(default_factory=SessionConfig)
     backfill_wait_s: float = 10.0
-    hub: bool = True  # serve the session to local tools (groundstation/hub.py)
+    hub: bool = True  # serve the session to local tools (groundstation/run/hub.py)
     dumps_each_episode: bool = False  # a viewer is attached: the agent sends VALUES and POLICY after every episode
 
 

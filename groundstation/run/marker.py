@@ -7,13 +7,13 @@ import socket
 import time
 
 from groundstation.errors import LinkError, LinkTimeout
-from groundstation.hello import ground_hello
+from groundstation.links.runs import RunInfo
 from groundstation.links.tcp import parse_host_port
-from groundstation.runs import RunInfo
+from groundstation.session.hello import ground_hello
 from protocol import FrameEncoder, StreamDecoder
 from protocol import messages as m
 
-CONFIRMATION = "marker recorded"  # what the hub answers (groundstation/hub.py)
+CONFIRMATION = "marker recorded"  # what the hub answers (groundstation/run/hub.py)
 
 
 def send_marker(run: RunInfo, text: str, timeout_s: float = 3.0) -> None:

@@ -12,12 +12,12 @@ import threading
 import time
 from collections.abc import Callable
 
-from groundstation.dumps import Dump
 from groundstation.errors import CommandError, CommandTimeout, IncompatibleAgentError, LinkTimeout, ParameterError
-from groundstation.events import EventKind, LinkEvent, Received, ReceivedCallback, SessionListener
-from groundstation.params import Parameter, ParamTable, load_cached, parse_value, save_cached
-from groundstation.session_core import SessionConfig
-from groundstation.session_receive import ReceiveLoop
+from groundstation.session.core import SessionConfig
+from groundstation.session.dumps import Dump
+from groundstation.session.events import EventKind, LinkEvent, Received, ReceivedCallback, SessionListener
+from groundstation.session.params import Parameter, ParamTable, load_cached, parse_value, save_cached
+from groundstation.session.receive import ReceiveLoop
 from protocol import DumpKind, Message
 from protocol import messages as m
 

@@ -12,17 +12,17 @@ import time
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 
-from groundstation.clock import ClockModel
-from groundstation.commands import PendingCommand, PendingCommands, refusal
-from groundstation.dumps import DumpTracker
 from groundstation.errors import CommandTimeout, LinkError
-from groundstation.events import EventKind, LinkEvent, Listeners, Sent, SessionListener
-from groundstation.exactness import RecentFrames, SampleIndexCheck
-from groundstation.gaps import BackfillPlanner
-from groundstation.hello import ground_hello
 from groundstation.links import Link
-from groundstation.params import ParamTable
-from groundstation.stats import LinkStats
+from groundstation.session.clock import ClockModel
+from groundstation.session.commands import PendingCommand, PendingCommands, refusal
+from groundstation.session.dumps import DumpTracker
+from groundstation.session.events import EventKind, LinkEvent, Listeners, Sent, SessionListener
+from groundstation.session.exactness import RecentFrames, SampleIndexCheck
+from groundstation.session.gaps import BackfillPlanner
+from groundstation.session.hello import ground_hello
+from groundstation.session.params import ParamTable
+from groundstation.session.stats import LinkStats
 from protocol import FrameEncoder, Message, Signer, StreamDecoder
 from protocol import messages as m
 

@@ -13,7 +13,7 @@ import tomllib
 from pathlib import Path
 
 from groundstation.errors import ParameterError
-from groundstation.params import ParamTable
+from groundstation.session.params import ParamTable
 
 
 def read_params(path: Path) -> dict[str, str]:

@@ -5,11 +5,11 @@ from __future__ import annotations
 import time
 
 from groundstation.errors import AgentChangedError, LinkError
-from groundstation.events import EventKind, LinkEvent, Received
-from groundstation.hello import incompatibility
-from groundstation.params import Parameter
 from groundstation.safe_output import one_line
-from groundstation.session_core import SessionCore
+from groundstation.session.core import SessionCore
+from groundstation.session.events import EventKind, LinkEvent, Received
+from groundstation.session.hello import incompatibility
+from groundstation.session.params import Parameter
 from protocol import Frame, FrameFlag, Mode, StreamDecoder
 from protocol import messages as m
 

@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
-from groundstation.heatmap import (
+from groundstation.view.heatmap import (
     POLICY_COLOURS,
     UNTRIED,
     Grid,

@@ -11,8 +11,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from groundstation.dumps import DumpAssembler
-from groundstation.heatmap import (
+from groundstation.session.dumps import DumpAssembler
+from groundstation.view.heatmap import (
     DEFAULT_GRID,
     Grid,
     dump_grid,
@@ -212,7 +212,7 @@ class ViewModel:
     def samples(self, records: NDArray[np.void], host_time_ns: list[int], replayed: list[bool]) -> None:
         """Many SAMPLEs in a row (a replay's run between other messages), as columns: the rows feed() makes.
 
-        `records` is the structured array of their payloads (groundstation.columns.message_array); the rows,
+        `records` is the structured array of their payloads (groundstation.recording.columns.message_array); the rows,
         values and timelines are those of feeding each SAMPLE in turn (a test compares them).
         """
         count = len(records)

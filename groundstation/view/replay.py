@@ -12,12 +12,12 @@ from pathlib import Path
 
 import numpy as np
 
-from groundstation.columns import record_dtype
 from groundstation.mcap_io import RecordingContents, iter_messages, iter_topic_data
-from groundstation.recording_files import RecordingParts as Parts
-from groundstation.recording_files import group_recordings
-from groundstation.view_errors import ReplayError
-from groundstation.view_model import Batch, ViewModel
+from groundstation.recording.columns import record_dtype
+from groundstation.recording.files import RecordingParts as Parts
+from groundstation.recording.files import group_recordings
+from groundstation.view.errors import ReplayError
+from groundstation.view.model import Batch, ViewModel
 from protocol import PROTOCOL_VERSION, FrameError, FrameFlag, Message, PayloadError, UnknownMessageError, message_class
 from protocol import messages as m
 from protocol.crc import CRC_INIT

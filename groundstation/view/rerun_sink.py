@@ -18,11 +18,11 @@ import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 
-from groundstation.events import LinkEvent, Received, Sent
-from groundstation.heatmap import AXIS_COLOUR, DEFAULT_GRID, SWATCH_RADIUS, Bounds, Frame, bounds, default_grid
-from groundstation.view_errors import ViewError
-from groundstation.view_model import ENTITIES, Batch, Kind, Rows, ViewModel
-from groundstation.view_options import Viewer
+from groundstation.session.events import LinkEvent, Received, Sent
+from groundstation.view.errors import ViewError
+from groundstation.view.heatmap import AXIS_COLOUR, DEFAULT_GRID, SWATCH_RADIUS, Bounds, Frame, bounds, default_grid
+from groundstation.view.model import ENTITIES, Batch, Kind, Rows, ViewModel
+from groundstation.view.options import Viewer
 
 APPLICATION_ID = "diving_agent"
 _COLOURS: dict[str, tuple[int, int, int]] = {

@@ -16,9 +16,9 @@ import numpy as np
 from learning.learner import LearnerArrays
 from learning.spec import direct_entry
 from protocol import Mode
-from simulator import onboard_batch_kernel as k
-from simulator.agent_link import AgentLink
-from simulator.onboard import OnboardProgram
+from simulator.agent import batch_kernel as k
+from simulator.agent.link import AgentLink
+from simulator.agent.program import OnboardProgram
 
 _HELD = (Mode.RECOVERING, Mode.HOVER, Mode.PAUSED)
 WIRE_BUFFER_BYTES = 64 * 1024  # one batch's frames; bounds its steps (k.SAMPLE_WIRE bytes each)

@@ -24,9 +24,9 @@ from learning.shared import raw_cell_kernel, record_shared
 from learning.spec import KernelSpec
 from protocol.enums import PROTOCOL_VERSION
 from protocol.fast_frames import cobs_encode_into, crc_into
-from simulator.log_ring import ring_commit, ring_reserve
-from simulator.onboard_kernel import recovery_period_kernel, sense_kernel
-from simulator.plant_kernel import ALPHA, plant_step
+from simulator.agent.kernel import recovery_period_kernel, sense_kernel
+from simulator.agent.log_ring import ring_commit, ring_reserve
+from simulator.plant.kernel import ALPHA, plant_step
 
 SAMPLE_ID = 0x20  # messages.Sample.MSG_ID (a test checks they agree)
 SAMPLE_PAYLOAD = 48  # messages.Sample's packed size

@@ -10,10 +10,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from learning.spec import KernelSpec, direct_entry
-from simulator.agent_mission import Battery
+from simulator.agent.mission import Battery
 from simulator.parameters import PlantParams, kernel_params, neutral_alpha_deg
-from simulator.plant import Plant
-from simulator.sensor import PressureSensor, depth_from_pressure_kernel
+from simulator.plant.model import Plant
+from simulator.plant.sensor import PressureSensor, depth_from_pressure_kernel
 
 
 class SimulatedHardware:

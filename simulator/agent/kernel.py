@@ -13,10 +13,10 @@ from numba import njit
 from numpy.typing import NDArray
 
 from learning.spec import KernelSpec
-from simulator.observer import observer_update_kernel
-from simulator.plant_kernel import ALPHA, ZDOT, Z
-from simulator.recovery import recovery_gave_up, recovery_settled, recovery_update_kernel
-from simulator.sensor import depth_from_pressure_kernel, read_pressure_kernel
+from simulator.plant.kernel import ALPHA, ZDOT, Z
+from simulator.plant.observer import observer_update_kernel
+from simulator.plant.recovery import recovery_gave_up, recovery_settled, recovery_update_kernel
+from simulator.plant.sensor import depth_from_pressure_kernel, read_pressure_kernel
 
 
 @njit(cache=True, error_model="numpy")

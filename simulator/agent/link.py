@@ -23,12 +23,12 @@ from protocol import (
 from protocol.decoder import COMMAND_IDS_FROM, UndecodedCommand
 from protocol.frame import HEADER
 from protocol.registry import Message
-from simulator import agent_dumps
-from simulator.agent_dumps import DumpStore
+from simulator.agent import dumps as agent_dumps
+from simulator.agent.dumps import DumpStore
+from simulator.agent.log_ring import LogRing
+from simulator.agent.program import OnboardProgram, Verdict
+from simulator.agent.signing_mark import MarkFile
 from simulator.errors import ParamsError
-from simulator.log_ring import LogRing
-from simulator.onboard import OnboardProgram, Verdict
-from simulator.signing_mark import MarkFile
 
 FIRMWARE_VERSION = (0, 1, 1)
 ACK_MEMORY = 16  # SPEC s. 5: the last 16 (msg_id, seq, result) answered on their merits

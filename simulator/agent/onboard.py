@@ -13,11 +13,11 @@ from typing import Protocol
 import numpy as np
 
 from learning import LearnerConfig
-from simulator.agent_link import AgentLink
-from simulator.agent_mission import MissionConfig
-from simulator.onboard import OnboardProgram
-from simulator.onboard_batch import StepBatcher
-from simulator.onboard_hw import SimulatedHardware
+from simulator.agent.batch import StepBatcher
+from simulator.agent.hardware import SimulatedHardware
+from simulator.agent.link import AgentLink
+from simulator.agent.mission import MissionConfig
+from simulator.agent.program import OnboardProgram
 from simulator.parameters import PlantParams
 
 Write = Callable[[bytes], None]  # takes the wire bytes of one frame

@@ -36,14 +36,14 @@ from learning.shared import raw_cell_kernel
 from learning.spec import direct_entry
 from protocol import AckResult, Action, EndReason, Mode, Severity, messages
 from protocol.registry import Message
-from simulator.agent_mission import MissionConfig
+from simulator.agent.hardware import SimulatedHardware
+from simulator.agent.kernel import recovery_period_kernel, sense_kernel
+from simulator.agent.mission import MissionConfig
+from simulator.agent.params_table import ParamTable, Scope, check_ram
 from simulator.errors import ParamsError
-from simulator.observer import DepthDifference, SlidingModeObserver
-from simulator.onboard_hw import SimulatedHardware
-from simulator.onboard_kernel import recovery_period_kernel, sense_kernel
 from simulator.parameters import PlantParams
-from simulator.params_table import ParamTable, Scope, check_ram
-from simulator.recovery import RecoveryController
+from simulator.plant.observer import DepthDifference, SlidingModeObserver
+from simulator.plant.recovery import RecoveryController
 
 Verdict = tuple[AckResult, str]
 OK: Verdict = (AckResult.ACCEPTED, "")

@@ -1,9 +1,9 @@
 """`DivingAgent-v0`: the learner's task as a real `gymnasium.Env`, with wrappers for the paper's state.
 
-    import gymnasium, simulator.gym_env
+    import gymnasium, simulator.gym.env
     env = gymnasium.make("DivingAgent-v0", preset="hardware", z_tol_m=0.15, zdot_tol_mps=0.03)
 
-or, without importing first, `gymnasium.make("simulator.gym_env:DivingAgent-v0")`. Keyword arguments
+or, without importing first, `gymnasium.make("simulator.gym.env:DivingAgent-v0")`. Keyword arguments
 of `make`: `preset` (`paper` or `hardware`), `learner` (a named learner of `learning.presets`, for
 the grid), every `LearnerConfig` field the task depends on (z_tol_m, zdot_tol_mps, z_cells,
 zdot_cells, actuator_bins, terminal_reward, depth_only_terminal), `params` (PlantParams overrides as
@@ -27,10 +27,9 @@ from numpy.typing import NDArray
 
 from learning import LearnerConfig, n_states
 from learning.presets import learner_preset
-from simulator.env import DivingEnv
+from simulator.gym.task import DivingEnv
 from simulator.parameters import PlantParams, preset, with_overrides
 
-ENV_ID = "DivingAgent-v0"
 # What the real agent can measure or command, with margin: the sensor reads to ~2.9 m (MS5803-01BA),
 # velocities past 5 m/s and gear offsets past the 130 deg stroke cannot happen.
 _OBS_LOW = np.array([-1.0, -5.0, -130.0])
@@ -43,7 +42,7 @@ _RENDER_STEPS = 3000  # the last 300 s at 0.1 s: one successful episode
 
 
 class DivingAgentEnv(gymnasium.Env[NDArray[np.float64], np.int64]):
-    """The depth-holding task of the paper over the project's compiled plant (simulator.env.DivingEnv)."""
+    """The depth-holding task of the paper over the project's compiled plant (simulator.gym.task.DivingEnv)."""
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 10}
 
@@ -97,7 +96,7 @@ class DivingAgentEnv(gymnasium.Env[NDArray[np.float64], np.int64]):
         """An RGB image of the episode so far: depth with target and bounds, and the actuator offset."""
         if self.render_mode != "rgb_array":
             return None
-        from simulator.gym_render import episode_image
+        from simulator.gym.render import episode_image
 
         return episode_image(self._trace, self.plant.target_depth_m, self.config.z_tol_m,
                              self.plant.action_window_deg)
@@ -124,7 +123,7 @@ class DiscreteState(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[np.int64, dict[str, Any]]:
         _, info = self.env.reset(seed=seed, options=options)
-        # The environment computes the state from the same observation (simulator.episode._state).
+        # The environment computes the state from the same observation (simulator.plant.episode._state).
         return np.int64(info["state"]), info
 
     def step(self, action: np.int64) -> tuple[np.int64, SupportsFloat, bool, bool, dict[str, Any]]:
@@ -171,7 +170,3 @@ class ObserverInTheLoop(
 def _make(preset: str = "paper", **kwargs: Any) -> DivingAgentEnv:
     return DivingAgentEnv(preset_name=preset, **kwargs)
 
-
-if ENV_ID not in gymnasium.registry:
-    # 3000 steps = 300 s at the paper's 0.1 s loop; the environment truncates there itself.
-    gymnasium.register(id=ENV_ID, entry_point="simulator.gym_env:_make", max_episode_steps=None)

@@ -11,7 +11,9 @@ from numpy.typing import NDArray
 from learning import LearnerConfig
 from learning.config import kernel_spec
 from learning.rng import new_stream
-from simulator.episode import (
+from simulator.errors import SimulatorError
+from simulator.parameters import PlantParams, kernel_params
+from simulator.plant.episode import (
     E_ALPHA,
     E_CENTER,
     E_CMD,
@@ -26,8 +28,6 @@ from simulator.episode import (
     episode_step_kernel,
     new_env_state,
 )
-from simulator.errors import SimulatorError
-from simulator.parameters import PlantParams, kernel_params
 
 
 class DivingEnv:

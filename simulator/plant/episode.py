@@ -11,10 +11,10 @@ from learning.config import MAX_VELOCITY_DIFF_STEPS
 from learning.rng import uniform
 from learning.shared import raw_cell_kernel
 from learning.spec import KernelSpec
-from simulator.observer import observer_update_kernel
-from simulator.plant_kernel import plant_step
-from simulator.recovery import AVG, recovery_gave_up, recovery_init, recovery_settled, recovery_update_kernel
-from simulator.sensor import depth_from_pressure_kernel, read_pressure_kernel
+from simulator.plant.kernel import plant_step
+from simulator.plant.observer import observer_update_kernel
+from simulator.plant.recovery import AVG, recovery_gave_up, recovery_init, recovery_settled, recovery_update_kernel
+from simulator.plant.sensor import depth_from_pressure_kernel, read_pressure_kernel
 
 # Layout of the environment state array: plant, command, observer, recovery, bookkeeping.
 E_Z, E_ZDOT, E_ALPHA = 0, 1, 2  # plant (same order as plant_kernel)

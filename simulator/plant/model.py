@@ -7,7 +7,7 @@ from numpy.typing import NDArray
 
 from learning.spec import KernelSpec, direct_entry
 from simulator.parameters import PlantParams, kernel_params, neutral_alpha_deg
-from simulator.plant_kernel import ALPHA, PLANT_SIZE, ZDOT, Z, plant_step
+from simulator.plant.kernel import ALPHA, PLANT_SIZE, ZDOT, Z, plant_step
 
 
 class Plant:

@@ -60,7 +60,7 @@ class DepthDifference:
     """The learner's own velocity input: (z_t - z_{t-k}) / (k dt) over its measured depths.
 
     The agent's alternative to the observer (no lag model, k-1 steps of averaging); the study's kernel
-    keeps the same ring in its environment array (simulator/episode.py).
+    keeps the same ring in its environment array (simulator/plant/episode.py).
     """
 
     def __init__(self, steps: int) -> None:

@@ -15,14 +15,14 @@ from learning import LearnerConfig, LearningError, learner_names, learner_preset
 from protocol import SigningError
 from protocol.parameters import BY_NAME
 from protocol.signing import parse_key
-from simulator.agent_mission import MissionConfig
+from simulator.agent.mission import MissionConfig
+from simulator.agent.params_table import Scope, binding, check_value
+from simulator.agent.signing_mark import mark_path
 from simulator.errors import ParamsError, SimulatorError, say_error
-from simulator.faults import FaultConfig
-from simulator.firmware_qemu import QemuConfig, serve_qemu
 from simulator.parameters import PlantParams, preset, read_param_table, with_overrides
-from simulator.params_table import Scope, binding, check_value
-from simulator.server import FIRMWARES, AgentServer, ServeConfig
-from simulator.signing_mark import mark_path
+from simulator.serve.faults import FaultConfig
+from simulator.serve.firmware_qemu import QemuConfig, serve_qemu
+from simulator.serve.loop import FIRMWARES, AgentServer, ServeConfig
 
 EXIT_BAD_ARGUMENT = 2
 

@@ -23,12 +23,12 @@ from pathlib import Path
 
 import numpy as np
 
+from simulator.agent.hardware import SimulatedHardware
+from simulator.agent.onboard import Write
 from simulator.errors import SimulatorError
-from simulator.onboard_agent import Write
-from simulator.onboard_hw import SimulatedHardware
 from simulator.parameters import PlantParams
 
-FIRMWARE_DIR = Path(__file__).resolve().parent.parent / "firmware"
+FIRMWARE_DIR = Path(__file__).resolve().parents[2] / "firmware"
 LIBRARY_NAME = "libdiveagent.so"
 LIBRARY_ENV = "DIVE_FIRMWARE_LIB"  # a prebuilt library to load instead of building one
 CACHE_ENV = "DIVE_FIRMWARE_CACHE"  # where built libraries are kept (default ~/.cache/diving-agent)

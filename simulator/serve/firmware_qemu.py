@@ -26,9 +26,9 @@ from pathlib import Path
 from types import TracebackType
 
 from simulator.errors import SimulatorError
-from simulator.qemu_relay import LinkRelay
+from simulator.serve.qemu_relay import LinkRelay
 
-FIRMWARE_DIR = Path(__file__).resolve().parent.parent / "firmware"
+FIRMWARE_DIR = Path(__file__).resolve().parents[2] / "firmware"
 ELF_ENV = "DIVE_FIRMWARE_ELF"  # a prebuilt QEMU ELF to run instead of building one
 QEMU_ENV = "DIVE_QEMU"  # the qemu-system-arm to run
 MACHINE = "mps2-an386"

@@ -12,12 +12,12 @@ from pathlib import Path
 import numpy as np
 
 from learning import LearnerConfig
-from simulator.agent_mission import MissionConfig
-from simulator.faults import MAX_LOGGED_SEQS, DelayLine, FaultConfig, FrameFaults, frame_seq
-from simulator.onboard_agent import OnboardAgent, PythonAgent
-from simulator.onboard_batch_kernel import SAMPLE_WIRE
+from simulator.agent.batch_kernel import SAMPLE_WIRE
+from simulator.agent.mission import MissionConfig
+from simulator.agent.onboard import OnboardAgent, PythonAgent
 from simulator.parameters import PlantParams
-from simulator.server_transport import PtyTransport, TcpTransport, Transport
+from simulator.serve.faults import MAX_LOGGED_SEQS, DelayLine, FaultConfig, FrameFaults, frame_seq
+from simulator.serve.transport import PtyTransport, TcpTransport, Transport
 
 SLICE_S = 0.004  # longest the program runs before the sockets are served again
 MAX_WAIT_S = 0.02  # longest select() waits, so pty opens and delayed bytes are noticed
@@ -294,7 +294,7 @@ def _onboard_agent(config: ServeConfig, rng: np.random.Generator, write: Callabl
     """
     fast = config.speed is None or config.speed > 1.0
     if config.firmware == "c":
-        from simulator.firmware_host import FirmwareAgent  # builds or loads the C library only when asked for
+        from simulator.serve.firmware_host import FirmwareAgent  # builds or loads the C library only when asked for
 
         # The firmware keeps its non-volatile area (the signing mark) in its own format, beside the Python agent's.
         nv_file = config.mark_file.with_name(config.mark_file.name + ".fw-nv") if config.mark_file else None

@@ -16,10 +16,10 @@ from rich.table import Table
 from learning import LearningError, learner_names
 from simulator.errors import SimulatorError, say_error
 from simulator.parameters import load_params
-from simulator.study import StudyResult, run_study
-from simulator.study_compare import compare_rows, write_compare, write_overlay
-from simulator.study_options import Exploration, LearnerOptions, RunSpec, Ties, expand_runs
-from simulator.study_output import build_summary, prepare_out_dir, write_results
+from simulator.study.compare import compare_rows, write_compare, write_overlay
+from simulator.study.options import Exploration, LearnerOptions, RunSpec, Ties, expand_runs
+from simulator.study.output import build_summary, prepare_out_dir, write_results
+from simulator.study.runner import StudyResult, run_study
 
 
 def _seed_list(text: str | None, seed: int) -> list[int]:
@@ -73,7 +73,7 @@ def study(
     err = Console(stderr=True, width=None if sys.stderr.isatty() else 200)
     try:
         if sweep is not None:
-            from simulator.study_sweep import run_sweep_command
+            from simulator.study.sweep import run_sweep_command
 
             run_sweep_command(sweep, out, cluster, err)
             return

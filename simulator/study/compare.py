@@ -11,8 +11,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from simulator.errors import StudyError
-from simulator.study import StudyResult
-from simulator.study_stats import WINDOW, bootstrap_samples, moving_average
+from simulator.study.runner import StudyResult
+from simulator.study.stats import WINDOW, bootstrap_samples, moving_average
 
 _LEVEL = 95.0
 

@@ -14,7 +14,7 @@ from numpy.typing import NDArray  # noqa: E402
 
 from learning import LearnerConfig  # noqa: E402
 from learning.acting import TIED  # noqa: E402
-from simulator.study_stats import WINDOW, moving_average  # noqa: E402
+from simulator.study.stats import WINDOW, moving_average  # noqa: E402
 
 _DPI = 120
 

@@ -13,7 +13,7 @@ from learning.model import N_ACTIONS, allocate_model, record_transition
 from learning.planning import plan_kernel
 from learning.shared import allocate_shared, plan_shared_kernel, record_shared
 from learning.spec import KernelSpec
-from simulator.episode import (
+from simulator.plant.episode import (
     E_STEPS,
     episode_cell_kernel,
     episode_reset_kernel,

@@ -13,9 +13,9 @@ import numpy as np
 from learning import LearnerConfig
 from simulator.errors import StudyError
 from simulator.parameters import PlantParams
-from simulator.study import StudyResult
-from simulator.study_figures import write_figures
-from simulator.study_stats import moving_average, summarise
+from simulator.study.figures import write_figures
+from simulator.study.runner import StudyResult
+from simulator.study.stats import moving_average, summarise
 
 
 def prepare_out_dir(out_dir: Path) -> Path:

@@ -17,7 +17,7 @@ from learning.config import kernel_spec
 from learning.rng import new_stream
 from simulator.errors import StudyError
 from simulator.parameters import PlantParams, kernel_params
-from simulator.study_kernel import N_COUNTERS, TrialArrays, run_trials
+from simulator.study.kernel import N_COUNTERS, TrialArrays, run_trials
 
 _POLL_S = 0.1
 

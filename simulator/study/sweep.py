@@ -32,9 +32,9 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 from learning import LearnerConfig, LearningError, learner_preset
 from simulator.errors import SimulatorError, StudyError
 from simulator.parameters import preset, preset_names
-from simulator.study import run_study
-from simulator.study_output import prepare_out_dir
-from simulator.study_stats import summarise
+from simulator.study.output import prepare_out_dir
+from simulator.study.runner import run_study
+from simulator.study.stats import summarise
 
 _CONFIG_FIELDS = {f.name: f.type for f in fields(LearnerConfig)}
 _TIMING_COLUMNS = ("wall_s",)  # the only columns that differ between two runs of one file

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from learning import Learner, LearnerConfig
-from simulator.env import DivingEnv
+from simulator.gym.task import DivingEnv
 from simulator.parameters import preset
 
 FIRMWARE = Path(__file__).resolve().parents[2] / "firmware"

@@ -12,10 +12,10 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
-from groundstation.cli import app
-from groundstation.loginfo import summarize
-from groundstation.recorder import RecorderConfig
-from groundstation.runner import RunConfig, run
+from groundstation.cli.app import app
+from groundstation.recording.info import summarize
+from groundstation.recording.recorder import RecorderConfig
+from groundstation.run.job import RunConfig, run
 from protocol.parameters import PARAM_COUNT
 from tests.firmware.core_build import c_agent, use_firmware_cache
 

@@ -20,7 +20,7 @@ CAPACITY_BYTES = 40_000  # ~700 records: ~40 s of hovering at 40 Hz wraps it sev
 
 class LoggingAgent:
     def __init__(self) -> None:
-        from simulator.firmware_host import FirmwareAgent
+        from simulator.serve.firmware_host import FirmwareAgent
 
         self.decoder = StreamDecoder()
         self.frames: list[Any] = []

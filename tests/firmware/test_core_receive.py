@@ -24,7 +24,7 @@ class Agent:
     """A FirmwareAgent whose frames are decoded as a ground station would."""
 
     def __init__(self) -> None:
-        from simulator.firmware_host import FirmwareAgent
+        from simulator.serve.firmware_host import FirmwareAgent
 
         self.decoder = StreamDecoder()
         self.frames: list[Any] = []

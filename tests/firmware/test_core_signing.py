@@ -31,7 +31,7 @@ class Clock:
 
 class KeyedAgent:
     def __init__(self) -> None:
-        from simulator.firmware_host import FirmwareAgent
+        from simulator.serve.firmware_host import FirmwareAgent
 
         self.decoder = StreamDecoder()
         self.frames: list[Any] = []

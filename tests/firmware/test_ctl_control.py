@@ -15,11 +15,11 @@ import numpy as np
 import pytest
 
 from learning.rng import new_stream
-from simulator.observer import SlidingModeObserver
 from simulator.parameters import neutral_alpha_deg, preset
-from simulator.plant import Plant
-from simulator.recovery import RecoveryController
-from simulator.sensor import PressureSensor, depth_from_pressure
+from simulator.plant.model import Plant
+from simulator.plant.observer import SlidingModeObserver
+from simulator.plant.recovery import RecoveryController
+from simulator.plant.sensor import PressureSensor, depth_from_pressure
 from tests.firmware.ctl_lib import (
     PlantParamsC,
     PlantStateC,

@@ -19,7 +19,7 @@ from pathlib import Path
 import pytest
 
 from protocol import Mode, StreamDecoder, messages
-from simulator.firmware_qemu import ELF_ENV, QemuAgent, QemuConfig, build_elf
+from simulator.serve.firmware_qemu import ELF_ENV, QemuAgent, QemuConfig, build_elf
 from tests.reliability.recordings import assert_complete, dive, read
 
 pytestmark = pytest.mark.slow

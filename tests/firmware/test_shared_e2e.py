@@ -11,8 +11,8 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
-from groundstation.cli import app
-from groundstation.loginfo import summarize
+from groundstation.cli.app import app
+from groundstation.recording.info import summarize
 from tests.firmware.core_build import c_agent, use_firmware_cache
 
 pytestmark = pytest.mark.slow

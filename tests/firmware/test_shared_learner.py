@@ -35,9 +35,9 @@ from learning.rng import new_stream
 from learning.shared import cell_reward, shared_memory_bytes
 from protocol import AckResult, Mode
 from protocol.parameters import param, snapshot_ram_bytes
+from simulator.agent.params_table import check_ram
 from simulator.errors import ParamsError
-from simulator.firmware_host import load_library
-from simulator.params_table import check_ram
+from simulator.serve.firmware_host import load_library
 from tests.firmware.core_build import use_firmware_cache
 from tests.firmware.ctl_lib import FIRMWARE, LearnerConfigC, Recording, build_ctl_library, record_python
 from tests.firmware.test_ctl_learner import c_config

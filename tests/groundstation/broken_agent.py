@@ -15,7 +15,7 @@ from typing import Any
 
 from protocol import AckResult, messages
 from protocol.decoder import Frame
-from simulator import agent_link
+from simulator.agent import link as agent_link
 from simulator.cli import main
 
 Link = agent_link.AgentLink

@@ -209,7 +209,7 @@ class FakeAgent:
             return 0, []
         if isinstance(msg, m.DumpRequest):
             data = struct.pack("<101f", *[float(i) for i in range(101)]) if msg.kind == DumpKind.VALUES else bytes(101)
-            if msg.dump_id == 0:  # a new snapshot gets a new id, as on the agent (simulator/agent_dumps.py)
+            if msg.dump_id == 0:  # a new snapshot gets a new id, as on the agent (simulator/agent/dumps.py)
                 self.last_dump_id += 1
             dump_id = msg.dump_id or self.last_dump_id
             end = len(data) if msg.length == 0 else msg.offset + msg.length

@@ -12,8 +12,8 @@ from typing import Any
 import numpy as np
 from mcap.writer import CompressionType, Writer
 
-from groundstation.events import EventKind, LinkEvent, Received, SessionListener
-from groundstation.recorder import Recorder, RecorderConfig
+from groundstation.recording.recorder import Recorder, RecorderConfig
+from groundstation.session.events import EventKind, LinkEvent, Received, SessionListener
 from protocol import DumpKind, EndReason, Frame, FrameFlag, Message, Mode, definitions_hash
 from protocol import messages as m
 from protocol.frame import build_inner

@@ -19,8 +19,8 @@ from typing import Any
 import pytest
 from typer.testing import CliRunner
 
-from groundstation.cli import app
-from groundstation.keys import write_key_file
+from groundstation.cli.app import app
+from groundstation.session.keys import write_key_file
 from tests.reliability.recordings import DIVE_MAIN, ROOT
 
 BROKEN_AGENT = Path(__file__).with_name("broken_agent.py")

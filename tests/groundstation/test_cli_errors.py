@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
-from groundstation.cli import app
+from groundstation.cli.app import app
 from tests.groundstation.fake_agent import FakeAgent
 from tests.reliability.recordings import DIVE_MAIN, ROOT
 

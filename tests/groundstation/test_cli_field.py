@@ -17,10 +17,10 @@ import typer
 from rich.markup import render
 from typer.testing import CliRunner, Result
 
-from groundstation.cli import app
+from groundstation.cli.app import app
 from tests.groundstation.fake_agent import FakeAgent
 
-DIVE = [sys.executable, "-m", "groundstation.cli"]
+DIVE = [sys.executable, "-m", "groundstation.cli.app"]
 
 
 def dive(*args: str, cwd: Path | None = None, timeout: float = 60.0) -> subprocess.CompletedProcess[str]:
@@ -73,15 +73,16 @@ def test_version_short_help_and_units_in_help() -> None:
 
 @pytest.mark.parametrize("command", ["sim", "study"])
 def test_the_forwarded_simulator_commands_take_dash_h_too(command: str) -> None:
-    done = subprocess.run([sys.executable, "-c", "import sys; sys.argv[0] = 'dive'; from groundstation import cli; "
-                           "cli.main()", command, "-h"], capture_output=True, text=True, timeout=60,
+    done = subprocess.run([sys.executable, "-c", "import sys; sys.argv[0] = 'dive'; "
+                           "from groundstation.cli import app as cli; cli.main()", command, "-h"],
+                          capture_output=True, text=True, timeout=60,
                           env={**os.environ, "COLUMNS": "100"})
     assert done.returncode == 0, done.stderr
     assert f"Usage: dive {command}" in done.stdout
 
 
 def test_help_imports_neither_rerun_nor_numba_nor_matplotlib() -> None:
-    done = subprocess.run([sys.executable, "-X", "importtime", "-m", "groundstation.cli", "--help"],
+    done = subprocess.run([sys.executable, "-X", "importtime", "-m", "groundstation.cli.app", "--help"],
                           capture_output=True, text=True, timeout=60)
     assert done.returncode == 0
     imported = {line.split("|")[-1].strip() for line in done.stderr.splitlines() if line.startswith("import time")}
@@ -95,7 +96,7 @@ def test_help_imports_neither_rerun_nor_numba_nor_matplotlib() -> None:
 def test_help_without_the_markdown_renderer_is_the_help_typer_prints(argv: list[str]) -> None:
     """main() loads Typer's help with stand-ins for the renderers dive never uses: the text must not change."""
     def help_text(entry: str) -> str:
-        code = f"import sys; sys.argv[0] = 'dive'; from groundstation import cli; cli.{entry}"
+        code = f"import sys; sys.argv[0] = 'dive'; from groundstation.cli import app as cli; cli.{entry}"
         done = subprocess.run([sys.executable, "-c", code, *argv], capture_output=True, text=True, timeout=60,
                               env={**os.environ, "COLUMNS": "100"})
         assert done.returncode == 0, done.stderr

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-from groundstation.dumps import UNKNOWN_GRID_STATES, snapshot_bytes
+from groundstation.session.dumps import UNKNOWN_GRID_STATES, snapshot_bytes
 from learning import LearnerConfig
 from learning.config import n_states
 from learning.learner import learner_memory_bytes

@@ -8,9 +8,9 @@ import numpy as np
 from matplotlib.image import imread
 from typer.testing import CliRunner
 
-from groundstation.cli import app
-from groundstation.dump_plot import write_dump_png
-from groundstation.heatmap import POLICY_COLOURS, UNTRIED, dump_grid, value_palette
+from groundstation.cli.app import app
+from groundstation.view.dump_plot import write_dump_png
+from groundstation.view.heatmap import POLICY_COLOURS, UNTRIED, dump_grid, value_palette
 from protocol import DumpKind
 
 

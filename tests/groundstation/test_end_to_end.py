@@ -14,12 +14,12 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
-from groundstation.cli import app
-from groundstation.loginfo import summarize
+from groundstation.cli.app import app
 from groundstation.mcap_io import is_complete
-from groundstation.recorder import RecorderConfig
-from groundstation.runner import RunConfig, run
-from groundstation.session import SessionConfig
+from groundstation.recording.info import summarize
+from groundstation.recording.recorder import RecorderConfig
+from groundstation.run.job import RunConfig, run
+from groundstation.session.agent_session import SessionConfig
 from tests.groundstation.test_recording import validate_with_mcap_library
 
 pytestmark = pytest.mark.slow
@@ -77,7 +77,7 @@ def test_reconnect_with_backfill_leaves_a_complete_recording(tmp_path: Path) -> 
 
 def test_kill_9_leaves_a_readable_file_that_recover_finishes(tmp_path: Path) -> None:
     env = {**os.environ, "DIVE_CACHE_DIR": str(tmp_path / "cache")}
-    child = subprocess.Popen([sys.executable, "-m", "groundstation.cli", "run", "--speed", "5", "--seed", "3",
+    child = subprocess.Popen([sys.executable, "-m", "groundstation.cli.app", "run", "--speed", "5", "--seed", "3",
                               "--out", str(tmp_path)], env=env, stdout=subprocess.DEVNULL,
                              stderr=subprocess.DEVNULL, start_new_session=True)
     try:

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from groundstation.gaps import BackfillPlanner
+from groundstation.session.gaps import BackfillPlanner
 
 
 def _learning_episode(planner: BackfillPlanner, episode: int, samples: range, *, start: bool, end: bool) -> None:

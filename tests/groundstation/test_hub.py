@@ -18,11 +18,11 @@ from pathlib import Path
 
 import pytest
 
-from groundstation.loginfo import summarize
 from groundstation.mcap_io import read_recording
+from groundstation.recording.info import summarize
 from tests.groundstation.fake_agent import FakeAgent
 
-DIVE = [sys.executable, "-m", "groundstation.cli"]
+DIVE = [sys.executable, "-m", "groundstation.cli.app"]
 
 
 def _env(runtime: Path) -> dict[str, str]:

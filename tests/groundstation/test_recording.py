@@ -10,13 +10,13 @@ import jsonschema
 import numpy as np
 from mcap.reader import make_reader
 
-from groundstation.export import export_csv, export_npz
-from groundstation.loginfo import summarize
-from groundstation.marker import send_marker
+from groundstation.links.runs import find_run
 from groundstation.mcap_io import is_complete, read_recording, recover
-from groundstation.recorder import RecorderConfig
-from groundstation.runner import RunConfig, run
-from groundstation.runs import find_run
+from groundstation.recording.export import export_csv, export_npz
+from groundstation.recording.info import summarize
+from groundstation.recording.recorder import RecorderConfig
+from groundstation.run.job import RunConfig, run
+from groundstation.run.marker import send_marker
 from tests.groundstation.fake_agent import FakeAgent
 
 

@@ -12,7 +12,7 @@ import pytest
 
 from groundstation import open_recording
 from groundstation.errors import RecordingError
-from groundstation.loginfo import summarize
+from groundstation.recording.info import summarize
 from tests.reliability.recordings import dive
 from tests.simulator.agent_client import ROOT
 
@@ -88,8 +88,8 @@ def test_minari_dataset_loads_with_minari(two_boots: Path, tmp_path: Path) -> No
 
 
 def test_observation_bounds_are_the_environments() -> None:
-    import simulator.gym_env as gym_env
-    from groundstation import minari_export
+    import simulator.gym.env as gym_env
+    from groundstation.recording import minari_export
 
     assert tuple(gym_env._OBS_LOW) == minari_export.OBS_LOW and tuple(gym_env._OBS_HIGH) == minari_export.OBS_HIGH
 

@@ -11,7 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from groundstation.mcap_io import McapFileWriter, read_recording
-from groundstation.recorder import message_json
+from groundstation.recording.recorder import message_json
 from protocol import Message, messages
 from tests.protocol.strategies import any_message
 

@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
-from groundstation.cli import app
+from groundstation.cli.app import app
 from tests.groundstation.rrd_readback import rows_per_entity
 from tests.groundstation.synthetic_agent import Traffic, generate, record
 

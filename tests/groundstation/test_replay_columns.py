@@ -7,9 +7,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from groundstation import replay
 from groundstation.mcap_io import RecordingContents
-from groundstation.view_model import Batch
+from groundstation.view import replay
+from groundstation.view.model import Batch
 from tests.groundstation.synthetic_agent import generate, record
 
 

@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
-from groundstation.cli import app
+from groundstation.cli.app import app
 from tests.groundstation.synthetic_agent import START_NS, Traffic, generate, record
 
 SPEED = 100  # the agent's clock runs 100x the host's, as with `dive run --speed 100`

@@ -8,9 +8,9 @@ import time
 import pytest
 from rich.console import Console
 
-from groundstation import run_progress
-from groundstation.run_progress import RunDisplay
-from groundstation.runner import RunStatus
+from groundstation.cli import progress as run_progress
+from groundstation.cli.progress import RunDisplay
+from groundstation.run.job import RunStatus
 
 
 def _display(monkeypatch: pytest.MonkeyPatch) -> tuple[io.StringIO, RunDisplay]:

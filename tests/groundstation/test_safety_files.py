@@ -13,14 +13,14 @@ from pathlib import Path
 import pytest
 import zstandard
 
-from groundstation import replay as rp
 from groundstation.errors import RecordingExistsError
-from groundstation.events import Received
-from groundstation.export import export_csv
-from groundstation.loginfo import summarize
 from groundstation.mcap_io import MAGIC, McapFileWriter, iter_messages, recover
-from groundstation.recorder import Recorder, RecorderConfig
-from groundstation.runner import RunConfig, run
+from groundstation.recording.export import export_csv
+from groundstation.recording.info import summarize
+from groundstation.recording.recorder import Recorder, RecorderConfig
+from groundstation.run.job import RunConfig, run
+from groundstation.session.events import Received
+from groundstation.view import replay as rp
 from protocol import DumpKind, Frame, Message, Mode, definitions_hash
 from protocol import messages as m
 from protocol.frame import build_inner

@@ -13,13 +13,13 @@ from pathlib import Path
 import pytest
 
 from groundstation.errors import AgentChangedError
-from groundstation.events import EventKind, LinkEvent, Received, Sent
 from groundstation.links import make_link
-from groundstation.loginfo import summarize
 from groundstation.mcap_io import iter_messages
-from groundstation.recorder import Recorder, RecorderConfig
-from groundstation.runner import RunConfig, run
-from groundstation.session import Session, SessionConfig
+from groundstation.recording.info import summarize
+from groundstation.recording.recorder import Recorder, RecorderConfig
+from groundstation.run.job import RunConfig, run
+from groundstation.session.agent_session import Session, SessionConfig
+from groundstation.session.events import EventKind, LinkEvent, Received, Sent
 from protocol import DumpKind, Message, Mode
 from protocol import messages as m
 from tests.groundstation.fake_agent import FakeAgent

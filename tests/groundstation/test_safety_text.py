@@ -11,16 +11,16 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
-from groundstation.cli import app
-from groundstation.events import EventKind, LinkEvent
-from groundstation.hub import Hub
-from groundstation.keys import write_key_file
+from groundstation.cli.app import app
 from groundstation.links import make_link
+from groundstation.links.runs import RunInfo
 from groundstation.links.tcp import parse_host_port
-from groundstation.marker import send_marker
-from groundstation.runs import RunInfo
+from groundstation.run.hub import Hub
+from groundstation.run.marker import send_marker
 from groundstation.safe_output import SafeConsole, one_line, printable
-from groundstation.session import Session, SessionConfig
+from groundstation.session.agent_session import Session, SessionConfig
+from groundstation.session.events import EventKind, LinkEvent
+from groundstation.session.keys import write_key_file
 from protocol import AckResult, FrameEncoder
 from protocol import messages as m
 from tests.groundstation.fake_agent import FakeAgent
@@ -121,9 +121,9 @@ def test_a_key_file_others_can_read_is_refused_with_the_chmod_to_run(tmp_path: P
 
 
 def test_no_repr_holds_the_key_bytes(tmp_path: Path) -> None:
-    from groundstation.keys import read_key_file
-    from groundstation.runner import RunConfig
-    from groundstation.session import SessionConfig
+    from groundstation.run.job import RunConfig
+    from groundstation.session.agent_session import SessionConfig
+    from groundstation.session.keys import read_key_file
 
     key = read_key_file(write_key_file(tmp_path / "k.key"))
     shown = repr(RunConfig(session=SessionConfig(key=key)))

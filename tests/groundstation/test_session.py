@@ -6,14 +6,14 @@ import time
 
 import pytest
 
-from groundstation.clock import ClockModel
-from groundstation.dumps import KEPT_DUMPS
 from groundstation.errors import CommandError, IncompatibleAgentError, LinkError, ParameterError
-from groundstation.events import EventKind, LinkEvent, Received, Sent
-from groundstation.gaps import SampleRanges
 from groundstation.links import make_link
-from groundstation.params import cache_path
-from groundstation.session import Session, SessionConfig
+from groundstation.session.agent_session import Session, SessionConfig
+from groundstation.session.clock import ClockModel
+from groundstation.session.dumps import KEPT_DUMPS
+from groundstation.session.events import EventKind, LinkEvent, Received, Sent
+from groundstation.session.gaps import SampleRanges
+from groundstation.session.params import cache_path
 from protocol import DumpKind
 from protocol import messages as m
 from tests.groundstation.fake_agent import FakeAgent

@@ -11,12 +11,12 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from groundstation import replay as rp
-from groundstation.cli import app
+from groundstation.cli.app import app
 from groundstation.mcap_io import RecordingContents, iter_messages
-from groundstation.recorder import Recorder, RecorderConfig
-from groundstation.recording import open_recording
-from groundstation.recording_files import expand
+from groundstation.recording.files import expand
+from groundstation.recording.recorder import Recorder, RecorderConfig
+from groundstation.recording.tables import open_recording
+from groundstation.view import replay as rp
 from protocol import Frame
 from protocol import messages as m
 from protocol.frame import build_inner

@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from groundstation.cli import app
-from groundstation.events import Received
-from groundstation.rerun_view import RerunView, ViewConfig
+from groundstation.cli.app import app
+from groundstation.session.events import Received
+from groundstation.view.rerun_sink import RerunView, ViewConfig
 from protocol import DumpKind, EndReason, Frame, Message, Mode, ParamType, definitions_hash
 from protocol import messages as m
 from protocol.frame import build_inner

@@ -9,12 +9,12 @@ import pytest
 from mcap.reader import make_reader
 from typer.testing import CliRunner
 
-from groundstation.cli import app
-from groundstation.events import Received
+from groundstation.cli.app import app
 from groundstation.links import make_link
-from groundstation.recorder import Recorder, RecorderConfig
-from groundstation.rerun_view import RerunView, ViewConfig
-from groundstation.session import Session
+from groundstation.recording.recorder import Recorder, RecorderConfig
+from groundstation.session.agent_session import Session
+from groundstation.session.events import Received
+from groundstation.view.rerun_sink import RerunView, ViewConfig
 from protocol import DumpKind
 from protocol import messages as m
 from tests.groundstation.rrd_readback import rows_per_entity

@@ -8,8 +8,8 @@ import pytest
 from mcap.reader import make_reader
 from typer.testing import CliRunner
 
-from groundstation.cli import app
-from groundstation.rerun_view import RerunView, ViewConfig
+from groundstation.cli.app import app
+from groundstation.view.rerun_sink import RerunView, ViewConfig
 from protocol import messages as m
 from tests.groundstation.rrd_readback import rows_per_entity, timelines
 from tests.groundstation.synthetic_agent import Traffic, generate, record

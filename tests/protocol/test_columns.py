@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from groundstation.columns import message_array
+from groundstation.recording.columns import message_array
 from protocol import FrameEncoder, StreamDecoder
 from protocol.columns import columns, payload_records
 from protocol.messages import Sample, Text

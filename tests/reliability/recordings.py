@@ -13,7 +13,7 @@ from mcap.reader import make_reader
 
 from tests.simulator.agent_client import ROOT
 
-DIVE_MAIN = "import sys; sys.argv[0] = 'dive'; from groundstation.cli import main; main()"
+DIVE_MAIN = "import sys; sys.argv[0] = 'dive'; from groundstation.cli.app import main; main()"
 
 
 def dive(*args: str, env: dict[str, str] | None = None, timeout_s: float = 240) -> subprocess.CompletedProcess[str]:

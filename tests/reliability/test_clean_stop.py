@@ -12,9 +12,9 @@ from pathlib import Path
 
 import pytest
 
-from groundstation.loginfo import summarize
+from groundstation.recording.info import summarize
 from simulator.parameters import preset
-from simulator.server import AgentServer, ServeConfig
+from simulator.serve.loop import AgentServer, ServeConfig
 from tests.reliability.recordings import DIVE_MAIN, ROOT
 
 

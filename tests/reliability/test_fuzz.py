@@ -10,7 +10,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from groundstation.links.memory import MemoryLink
-from groundstation.session import Session
+from groundstation.session.agent_session import Session
 from protocol import AckResult, FrameEncoder, Mode, Signer, StreamDecoder, definitions, messages
 from protocol.frame import MAX_CHUNK
 from protocol.registry import Direction, Message

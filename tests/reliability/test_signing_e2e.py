@@ -13,9 +13,9 @@ from pathlib import Path
 
 import pytest
 
-from groundstation.events import LinkEvent, Received, Sent
 from groundstation.links import make_link
-from groundstation.session import Session, SessionConfig
+from groundstation.session.agent_session import Session, SessionConfig
+from groundstation.session.events import LinkEvent, Received, Sent
 from protocol import AckResult, FrameEncoder, Signer
 from protocol import messages as m
 from protocol.cobs import cobs_decode, cobs_encode
@@ -24,7 +24,7 @@ from protocol.signing import parse_key
 from tests.simulator.agent_client import ROOT, AgentClient, running
 
 OTHER_KEY = bytes(range(32))
-DIVE_MAIN = "import sys; sys.argv[0] = 'dive'; from groundstation.cli import main; main()"
+DIVE_MAIN = "import sys; sys.argv[0] = 'dive'; from groundstation.cli.app import main; main()"
 
 
 class SentFrames:

@@ -1,6 +1,6 @@
 """A deterministic trace of the virtual agent: every wire byte and on-board log record for a seed and a command script.
 
-The agent is built as `simulator.server.AgentServer` builds it (same seeding, same link and program), without
+The agent is built as `simulator.serve.loop.AgentServer` builds it (same seeding, same link and program), without
 a transport: the script says after which control step each ground frame arrives, so the trace does not depend
 on wall time. `python -m tests.simulator.agent_trace` prints the fixture the byte-identity test compares with.
 """
@@ -18,11 +18,11 @@ import numpy as np
 from learning import LearnerConfig, learner_preset
 from protocol import DumpKind, FrameEncoder, messages
 from protocol.registry import Message
-from simulator.agent_link import AgentLink
-from simulator.agent_mission import MissionConfig
-from simulator.log_ring import LogRing
-from simulator.onboard import OnboardProgram
-from simulator.onboard_hw import SimulatedHardware
+from simulator.agent.hardware import SimulatedHardware
+from simulator.agent.link import AgentLink
+from simulator.agent.log_ring import LogRing
+from simulator.agent.mission import MissionConfig
+from simulator.agent.program import OnboardProgram
 from simulator.parameters import preset
 
 FIXTURE = Path(__file__).parent / "fixtures" / "agent_trace.json"

@@ -6,12 +6,12 @@ from __future__ import annotations
 import numpy as np
 
 from learning import Learner, LearnerConfig
-from simulator.env import DivingEnv
+from simulator.gym.task import DivingEnv
 from simulator.parameters import PlantParams
 
 
 def python_loop_trial(params: PlantParams, config: LearnerConfig, seed: int, trial: int, episodes: int) -> list[float]:
-    """Each episode's time in the region, as simulator.study seeds trial `trial` of `seed`."""
+    """Each episode's time in the region, as simulator.study.runner seeds trial `trial` of `seed`."""
     learner = Learner(config, np.random.default_rng([seed, trial, 0]))
     env = DivingEnv(params, config, np.random.default_rng([seed, trial, 1]))
     durations = []

@@ -12,10 +12,10 @@ from collections.abc import Callable
 import pytest
 
 from protocol import compiled, messages
-from simulator import onboard_batch_kernel
-from simulator.agent_link import AgentLink
-from simulator.onboard import OnboardProgram
-from simulator.onboard_batch import StepBatcher
+from simulator.agent import batch_kernel as onboard_batch_kernel
+from simulator.agent.batch import StepBatcher
+from simulator.agent.link import AgentLink
+from simulator.agent.program import OnboardProgram
 from tests.simulator import agent_trace
 
 EXPECTED = {(t["preset"], t["seed"]): t for t in json.loads(agent_trace.FIXTURE.read_text())}

@@ -7,10 +7,10 @@ import pytest
 
 from learning import Learner, learner_preset
 from protocol import DumpKind
-from simulator.agent_dumps import DumpStore, snapshot_bytes
-from simulator.agent_mission import MissionConfig
-from simulator.onboard import OnboardProgram
-from simulator.onboard_hw import SimulatedHardware
+from simulator.agent.dumps import DumpStore, snapshot_bytes
+from simulator.agent.hardware import SimulatedHardware
+from simulator.agent.mission import MissionConfig
+from simulator.agent.program import OnboardProgram
 from simulator.parameters import preset
 from tests.simulator.test_onboard_fast_path import CheckingDownlink
 

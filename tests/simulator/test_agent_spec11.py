@@ -17,10 +17,10 @@ from protocol.crc import crc16_ccitt_false
 from protocol.errors import CobsError
 from protocol.parameters import f32
 from protocol.signing import timestamp_from_unix_ns
-from simulator.agent_link import AgentLink
-from simulator.agent_mission import MissionConfig
-from simulator.onboard import OnboardProgram
-from simulator.onboard_hw import SimulatedHardware
+from simulator.agent.hardware import SimulatedHardware
+from simulator.agent.link import AgentLink
+from simulator.agent.mission import MissionConfig
+from simulator.agent.program import OnboardProgram
 from simulator.parameters import preset
 from tests.simulator.agent_client import AgentClient, connected
 from tests.vectors.generate_receive import RECEIVE_VECTORS_PATH

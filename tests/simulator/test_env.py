@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from learning import LearnerConfig
-from simulator.env import DivingEnv
 from simulator.errors import SimulatorError
+from simulator.gym.task import DivingEnv
 from simulator.parameters import preset
 
 CONFIG = LearnerConfig()

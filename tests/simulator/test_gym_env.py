@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
 
-import simulator.gym_env  # noqa: F401  registers DivingAgent-v0
-from simulator.gym_env import DiscreteState, DivingAgentEnv, ObserverInTheLoop
+import simulator.gym  # noqa: F401  registers DivingAgent-v0
+from simulator.gym.env import DiscreteState, DivingAgentEnv, ObserverInTheLoop
 
 
 def _check(env: gymnasium.Env) -> None:

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from simulator.log_ring import LogRing
+from simulator.agent.log_ring import LogRing
 
 
 def _fill(ring: LogRing, samples: int) -> None:

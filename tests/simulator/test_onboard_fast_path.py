@@ -9,15 +9,15 @@ from learning import LearnerConfig
 from learning.spec import direct_entry
 from protocol import messages
 from protocol.registry import Message
-from simulator.agent_mission import MissionConfig
-from simulator.observer import SlidingModeObserver
-from simulator.onboard import OnboardProgram
-from simulator.onboard_hw import SimulatedHardware
-from simulator.onboard_kernel import recovery_period_kernel
+from simulator.agent.hardware import SimulatedHardware
+from simulator.agent.kernel import recovery_period_kernel
+from simulator.agent.mission import MissionConfig
+from simulator.agent.program import OnboardProgram
 from simulator.parameters import preset
-from simulator.plant import Plant
-from simulator.recovery import RecoveryController
-from simulator.sensor import PressureSensor, depth_from_pressure
+from simulator.plant.model import Plant
+from simulator.plant.observer import SlidingModeObserver
+from simulator.plant.recovery import RecoveryController
+from simulator.plant.sensor import PressureSensor, depth_from_pressure
 
 
 class CheckingDownlink:

@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 
 from learning import LearnerConfig
-from simulator.agent_mission import MissionConfig
-from simulator.onboard import Scope
+from simulator.agent.mission import MissionConfig
+from simulator.agent.params_table import ParamTable
+from simulator.agent.program import Scope
 from simulator.parameters import preset
-from simulator.params_table import ParamTable
 
 
 def _table() -> ParamTable:

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from simulator.parameters import neutral_alpha_deg, preset
-from simulator.plant import Plant
+from simulator.plant.model import Plant
 
 PARAMS = preset("paper")
 

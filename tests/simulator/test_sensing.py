@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from simulator.observer import SlidingModeObserver
 from simulator.parameters import neutral_alpha_deg, preset
-from simulator.plant import Plant
-from simulator.recovery import RecoveryController
-from simulator.sensor import PressureSensor, depth_from_pressure
+from simulator.plant.model import Plant
+from simulator.plant.observer import SlidingModeObserver
+from simulator.plant.recovery import RecoveryController
+from simulator.plant.sensor import PressureSensor, depth_from_pressure
 
 HARDWARE = preset("hardware")
 

@@ -13,8 +13,8 @@ from typer.testing import CliRunner
 from learning import LearnerConfig, learner_preset
 from simulator.cli import app
 from simulator.parameters import preset
-from simulator.study import run_study
-from simulator.study_stats import moving_average, per_trial, stable_from
+from simulator.study.runner import run_study
+from simulator.study.stats import moving_average, per_trial, stable_from
 from tests.simulator.python_trial import python_loop_trial
 
 PAPER = preset("paper")

@@ -13,9 +13,9 @@ from typer.testing import CliRunner
 from learning import learner_preset
 from simulator.cli import app
 from simulator.parameters import preset
-from simulator.study import run_study
-from simulator.study_stats import summarise
-from simulator.study_sweep import load_sweep, run_sweep
+from simulator.study.runner import run_study
+from simulator.study.stats import summarise
+from simulator.study.sweep import load_sweep, run_sweep
 from tests.simulator.python_trial import python_loop_trial
 
 
