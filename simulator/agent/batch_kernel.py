@@ -6,7 +6,7 @@ onboard.py runs them, one after another, until something needs the Python progra
 mode (the recovery controller settled or gave up, an episode ended), a dive limit, a HEARTBEAT due, the
 batch's step or agent-time budget. Each SAMPLE is packed in messages.Sample's layout, framed (header,
 CRC-16/CCITT-FALSE, COBS, delimiter), appended to the on-board log (log_ring.py) and written to one
-wire buffer: the same bytes, frame for frame, as the Python path (tests/simulator/test_agent_batch.py).
+wire buffer: the same bytes, frame for frame, as the Python path (tests/simulator/agent/test_batch.py).
 
 Where a step stops early (an event or a limit) it stops after its SAMPLE, where the Python step
 would act on it; the Python program finishes that step (onboard_batch.py).

@@ -23,7 +23,7 @@ from groundstation.cli.app import app
 from groundstation.session.keys import write_key_file
 from tests.reliability.recordings import DIVE_MAIN, ROOT
 
-BROKEN_AGENT = Path(__file__).with_name("broken_agent.py")
+BROKEN_AGENT = Path(__file__).resolve().parent.parent / "broken_agent.py"
 START_TIMEOUT_S = 90.0  # the first start of a virtual agent compiles its numba kernels
 
 

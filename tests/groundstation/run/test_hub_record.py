@@ -13,7 +13,7 @@ import pytest
 
 from groundstation.mcap_io import iter_messages
 from tests.groundstation.fake_agent import FakeAgent
-from tests.groundstation.test_hub import DIVE, _env, running
+from tests.groundstation.run.test_hub import DIVE, _env, running
 
 
 def _samples(folder: Path) -> dict[int, bytes]:
