@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import subprocess
+import sys
 import warnings
 
 import gymnasium
@@ -84,3 +86,13 @@ def test_tabular_example_learns_through_the_gymnasium_api() -> None:
 
     durations = train(episodes=8, seed=0, preset="paper")
     assert len(durations) == 8 and all(0.0 < d <= 300.0 for d in durations)
+
+
+def test_the_environment_is_reached_by_its_package_and_by_its_old_path() -> None:
+    """gymnasium's module:id form imports simulator.gym itself; simulator.gym_env is the old path's alias."""
+    script = ("import gymnasium; env = gymnasium.make('simulator.gym:DivingAgent-v0'); "
+              "import simulator.gym_env as old; import simulator.gym.env as new; "
+              "assert old.DivingAgentEnv is new.DivingAgentEnv; print(type(env.unwrapped).__name__)")
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "DivingAgentEnv"
