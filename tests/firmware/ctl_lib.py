@@ -55,6 +55,26 @@ class LearnerConfigC(ctypes.Structure):
     ]
 
 
+def c_config(lib: ctypes.CDLL, config: LearnerConfig) -> LearnerConfigC:
+    """The Python config as learner_config_t."""
+    c = LearnerConfigC()
+    lib.learner_default_config(ctypes.byref(c))
+    c.z_cells, c.zdot_cells, c.act_bins = config.z_cells, config.zdot_cells, config.actuator_bins
+    c.slots = config.sparse_slots
+    c.z_tol_m, c.zdot_tol_mps, c.gamma = config.z_tol_m, config.zdot_tol_mps, config.gamma
+    c.vi_tol, c.term_reward = config.vi_tolerance, config.terminal_reward
+    c.p_explore_start, c.p_explore_end = config.p_explore_start, config.p_explore_end
+    c.explore_decay_episodes, c.untried_q = config.explore_decay_episodes, config.untried_q_value
+    c.known_count, c.random_ties = config.known_count, config.random_ties
+    c.depth_only_terminal, c.in_place_sweeps = config.depth_only_terminal, config.in_place_sweeps
+    c.explore_literal_gt, c.policy_argmin = config.explore_literal_gt, config.policy_argmin
+    c.alg4_printed, c.max_sweeps = config.alg4_printed, config.max_sweeps
+    c.shared_model, c.ties_per_step = config.shared_model, config.ties_per_step
+    c.dirichlet_w, c.count_bonus = config.dirichlet_weight, config.count_bonus
+    c.vel_diff_steps, c.vel_penalty = config.velocity_diff_steps, config.velocity_penalty
+    return c
+
+
 class PlantParamsC(ctypes.Structure):
     _fields_ = [(name, ctypes.c_double) for name in (
         "mass_kg", "added_mass_kg", "water_density_kgpm3", "gravity_mps2", "trim_error_fraction",

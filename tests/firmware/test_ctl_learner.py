@@ -18,7 +18,7 @@ import pytest
 from learning import Learner, LearnerConfig, learner_memory_bytes, n_states
 from learning.presets import learner_preset
 from learning.rng import new_stream
-from tests.firmware.ctl_lib import LearnerConfigC, Recording, build_ctl_library, record_python
+from tests.firmware.ctl_lib import LearnerConfigC, Recording, build_ctl_library, c_config, record_python
 
 SEED = 20261123
 # float32 (C) against float64 (Python): values accumulate rounding over hundreds of sweeps, and the
@@ -31,26 +31,6 @@ NEAR_TIE = 1e-3
 @pytest.fixture(scope="module")
 def ctl(tmp_path_factory: pytest.TempPathFactory) -> ctypes.CDLL:
     return build_ctl_library(tmp_path_factory.mktemp("ctl"))
-
-
-def c_config(lib: ctypes.CDLL, config: LearnerConfig) -> LearnerConfigC:
-    """The Python config as learner_config_t."""
-    c = LearnerConfigC()
-    lib.learner_default_config(ctypes.byref(c))
-    c.z_cells, c.zdot_cells, c.act_bins = config.z_cells, config.zdot_cells, config.actuator_bins
-    c.slots = config.sparse_slots
-    c.z_tol_m, c.zdot_tol_mps, c.gamma = config.z_tol_m, config.zdot_tol_mps, config.gamma
-    c.vi_tol, c.term_reward = config.vi_tolerance, config.terminal_reward
-    c.p_explore_start, c.p_explore_end = config.p_explore_start, config.p_explore_end
-    c.explore_decay_episodes, c.untried_q = config.explore_decay_episodes, config.untried_q_value
-    c.known_count, c.random_ties = config.known_count, config.random_ties
-    c.depth_only_terminal, c.in_place_sweeps = config.depth_only_terminal, config.in_place_sweeps
-    c.explore_literal_gt, c.policy_argmin = config.explore_literal_gt, config.policy_argmin
-    c.alg4_printed, c.max_sweeps = config.alg4_printed, config.max_sweeps
-    c.shared_model, c.ties_per_step = config.shared_model, config.ties_per_step
-    c.dirichlet_w, c.count_bonus = config.dirichlet_weight, config.count_bonus
-    c.vel_diff_steps, c.vel_penalty = config.velocity_diff_steps, config.velocity_penalty
-    return c
 
 
 def test_default_config_is_the_python_default(ctl: ctypes.CDLL) -> None:
