@@ -5,7 +5,7 @@ from __future__ import annotations
 import ctypes
 import shutil
 import subprocess
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 
 import numpy as np
@@ -55,23 +55,25 @@ class LearnerConfigC(ctypes.Structure):
     ]
 
 
+# LearnerConfig fields that learner_config_t names otherwise; every other field has its C twin under its own name,
+# but model_form (the firmware's model is always the sparse form).
+C_NAMES = {"sparse_slots": "slots", "actuator_bins": "act_bins", "vi_tolerance": "vi_tol",
+           "terminal_reward": "term_reward", "untried_q_value": "untried_q", "dirichlet_weight": "dirichlet_w",
+           "velocity_diff_steps": "vel_diff_steps", "velocity_penalty": "vel_penalty"}
+NO_C_TWIN = ("model_form",)
+
+
+def c_field_names() -> dict[str, str]:
+    """LearnerConfig field -> its learner_config_t field, for every field that has one."""
+    return {f.name: C_NAMES.get(f.name, f.name) for f in fields(LearnerConfig) if f.name not in NO_C_TWIN}
+
+
 def c_config(lib: ctypes.CDLL, config: LearnerConfig) -> LearnerConfigC:
-    """The Python config as learner_config_t."""
+    """The Python config as learner_config_t: the C default, then every LearnerConfig field at its C name."""
     c = LearnerConfigC()
     lib.learner_default_config(ctypes.byref(c))
-    c.z_cells, c.zdot_cells, c.act_bins = config.z_cells, config.zdot_cells, config.actuator_bins
-    c.slots = config.sparse_slots
-    c.z_tol_m, c.zdot_tol_mps, c.gamma = config.z_tol_m, config.zdot_tol_mps, config.gamma
-    c.vi_tol, c.term_reward = config.vi_tolerance, config.terminal_reward
-    c.p_explore_start, c.p_explore_end = config.p_explore_start, config.p_explore_end
-    c.explore_decay_episodes, c.untried_q = config.explore_decay_episodes, config.untried_q_value
-    c.known_count, c.random_ties = config.known_count, config.random_ties
-    c.depth_only_terminal, c.in_place_sweeps = config.depth_only_terminal, config.in_place_sweeps
-    c.explore_literal_gt, c.policy_argmin = config.explore_literal_gt, config.policy_argmin
-    c.alg4_printed, c.max_sweeps = config.alg4_printed, config.max_sweeps
-    c.shared_model, c.ties_per_step = config.shared_model, config.ties_per_step
-    c.dirichlet_w, c.count_bonus = config.dirichlet_weight, config.count_bonus
-    c.vel_diff_steps, c.vel_penalty = config.velocity_diff_steps, config.velocity_penalty
+    for name, c_name in c_field_names().items():  # test_field_names_cover_python_config: each c_name exists
+        setattr(c, c_name, getattr(config, name))
     return c
 
 

@@ -10,7 +10,7 @@ A second run uses the deterministic tie rule (random_ties off: a tie picks a1 in
 from __future__ import annotations
 
 import ctypes
-from dataclasses import fields, replace
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -18,7 +18,7 @@ import pytest
 from learning import Learner, LearnerConfig, learner_memory_bytes, n_states
 from learning.presets import learner_preset
 from learning.rng import new_stream
-from tests.firmware.ctl_lib import LearnerConfigC, Recording, build_ctl_library, c_config, record_python
+from tests.firmware.ctl_lib import LearnerConfigC, Recording, build_ctl_library, c_config, c_field_names, record_python
 
 SEED = 20261123
 # float32 (C) against float64 (Python): values accumulate rounding over hundreds of sweeps, and the
@@ -155,13 +155,9 @@ def test_state_index_and_reward_match(ctl: ctypes.CDLL) -> None:
 def test_field_names_cover_python_config() -> None:
     """Every LearnerConfig field has its C twin (model_form is the sparse form the firmware always uses)."""
     c_names = {f[0] for f in LearnerConfigC._fields_}
-    renamed = {"sparse_slots": "slots", "actuator_bins": "act_bins", "vi_tolerance": "vi_tol",
-               "terminal_reward": "term_reward", "untried_q_value": "untried_q", "dirichlet_weight": "dirichlet_w",
-               "velocity_diff_steps": "vel_diff_steps", "velocity_penalty": "vel_penalty"}
-    for f in fields(LearnerConfig):
-        if f.name in ("model_form", "z_cells", "zdot_cells") or renamed.get(f.name, f.name) in c_names:
-            continue
-        raise AssertionError(f"LearnerConfig.{f.name} has no field in learner_config_t")
+    for name, c_name in c_field_names().items():
+        assert c_name in c_names, f"LearnerConfig.{name} has no field {c_name} in learner_config_t"
+    assert len(c_field_names()) == len(LearnerConfigC._fields_)  # and every C field has its Python twin
 
 
 @pytest.mark.slow
