@@ -3,11 +3,9 @@
 
 #include <string.h>
 
-#include "commands.h"
 #include "config.h"
 #include "hal.h"
 #include "logring.h"
-#include "modes.h"
 #include "signing.h"
 #include "text.h"
 #include "wire.h"
@@ -27,6 +25,7 @@ static frame_t g_rx;                       /* the frame being handled */
 static uint8_t g_inner[PROTO_MAX_INNER];   /* the frame being sent */
 static uint8_t g_wire[FRAME_WIRE_MAX];
 static answered_t g_answered[LINK_ACK_MEMORY];
+static const link_upcalls_t *g_up;        /* the command handlers and the mode machine (agent.c) */
 static uint8_t g_answered_next;
 static uint32_t g_node_id;
 static uint32_t g_boot_id;
@@ -92,7 +91,7 @@ static void send_heartbeat(void) {
     const frame_stats_t *s = &g_decoder.stats;
     msg_heartbeat_t m;
     m.uptime_ms = (uint32_t)(hal_time_us() / 1000u);
-    m.mode = modes_mode();
+    m.mode = g_up->mode();
     float battery_v = hal_battery_v();
     m.battery_mv = (uint16_t)(battery_v > 0.0f ? battery_v * 1000.0f + 0.5f : 0.0f);
     m.rx_frames = s->frames;
@@ -100,12 +99,13 @@ static void send_heartbeat(void) {
     m.rx_lost = s->lost;
     m.log_first_sample = log.first_sample;
     m.log_next_sample = log.next_sample;
-    m.episode = modes_episode();
+    m.episode = g_up->episode();
     m.signing_rejects = g_signing_rejects;
     link_send(MSG_HEARTBEAT_ID, payload, msg_heartbeat_pack(&m, payload), 0);
 }
 
-void link_init(uint32_t node_id, const uint8_t *key_or_null) {
+void link_init(uint32_t node_id, const uint8_t *key_or_null, const link_upcalls_t *up) {
+    g_up = up;
     frame_decoder_init(&g_decoder);
     memset(&g_encoder, 0, sizeof g_encoder);
     memset(g_answered, 0, sizeof g_answered);
@@ -195,7 +195,7 @@ static void handle_command(const frame_t *f) {
         alive();
     }
     verdict_t v;
-    commands_handle(f, false, &v);
+    g_up->command(f, false, &v);
     answered_t *slot = &g_answered[g_answered_next];
     g_answered_next = (uint8_t)((g_answered_next + 1u) % LINK_ACK_MEMORY);
     slot->msg_id = f->msg_id;
@@ -203,7 +203,7 @@ static void handle_command(const frame_t *f) {
     slot->result = v.result;
     slot->used = true;
     send_ack(f, v.result, v.reason);
-    if (v.result == ACK_RESULT_ACCEPTED) { commands_handle(f, true, &v); }
+    if (v.result == ACK_RESULT_ACCEPTED) { g_up->command(f, true, &v); }
 }
 
 static void handle_timesync(const frame_t *f) {
@@ -241,7 +241,7 @@ void link_poll(void) {
             if (frame_decoder_push(&g_decoder, buf[i], &g_rx)) { handle_frame(&g_rx); }
         }
     }
-    (void)commands_pump(COMMANDS_REPLIES_PER_POLL);
+    g_up->pump_replies();
     if (!g_heard && hal_link_time_us() >= g_next_hello_us) { send_hello(); }  /* until the ground is heard */
 }
 

@@ -8,12 +8,26 @@
 #include <stdint.h>
 
 #include "frame.h"
+#include "params.h"
 
 #define LINK_ACK_MEMORY 16u          /* the last 16 (msg_id, seq, result) answered */
 #define LINK_HELLO_REPEAT_US 1000000u  /* HELLO once per second of link time until the ground is heard */
 #define LINK_HEARTBEAT_US 1000000u   /* HEARTBEAT once per second of agent time */
 
-void link_init(uint32_t node_id, const uint8_t *key_or_null);
+/* What the link calls upward: it sits below the command handlers and the mode machine, and agent.c wires
+   them in, so that this header names nothing above it. */
+typedef struct {
+    /* The verdict for a command frame; with apply set (after its ACK went out) it is also carried out. */
+    void (*command)(const frame_t *f, bool apply, verdict_t *v);
+    /* Sends the reply frames one poll may send (after the frames read in that poll were handled). */
+    void (*pump_replies)(void);
+    /* The mode and the episode a HEARTBEAT reports. */
+    uint8_t (*mode)(void);
+    uint32_t (*episode)(void);
+} link_upcalls_t;
+
+/* up: in static storage (the link keeps the pointer). */
+void link_init(uint32_t node_id, const uint8_t *key_or_null, const link_upcalls_t *up);
 /* A new link (TCP connection, port opened): sequence tracking restarts, HELLO goes out. */
 void link_reset(void);
 /* Reads the bytes the board has and handles every frame in them; pending replies; the HELLO repeat. */

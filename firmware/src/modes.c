@@ -18,7 +18,6 @@ surface_on_link_loss -> SURFACING (an episode in progress ends ABORTED). */
 
 #include <string.h>
 
-#include "commands.h"
 #include "config.h"
 #include "dumps.h"
 #include "hal.h"
@@ -68,6 +67,7 @@ typedef struct {
 } modes_t;
 
 static modes_t g;
+static modes_episode_dumps_t g_episode_dumps;  /* the command handlers' (agent.c) */
 
 static bool held(uint8_t mode) { return mode == MODE_RECOVERING || mode == MODE_HOVER || mode == MODE_PAUSED; }
 static bool diving(uint8_t mode) { return held(mode) || mode == MODE_LEARNING; }
@@ -211,7 +211,7 @@ static void plan(bool to_completion) {
     }
     if (!learner_planning() && g.dumps_after_planning) {
         g.dumps_after_planning = false;
-        commands_episode_dumps();
+        g_episode_dumps();
     }
 }
 
@@ -305,8 +305,9 @@ static void check_limits(void) {
     }
 }
 
-void modes_init(void) {
+void modes_init(modes_episode_dumps_t episode_dumps) {
     memset(&g, 0, sizeof g);
+    g_episode_dumps = episode_dumps;
     rng_seed(&g.rng, ((uint64_t)hal_entropy() << 32) | hal_entropy());
     learner_config_t c;
     params_learner_config(&c);

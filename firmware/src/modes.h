@@ -7,7 +7,11 @@
 
 #include "params.h"
 
-void     modes_init(void);
+/* What the mode machine calls upward, wired by agent.c: the VALUES and POLICY dumps once an episode's
+   planning is done (dump_each_episode). */
+typedef void (*modes_episode_dumps_t)(void);
+
+void     modes_init(modes_episode_dumps_t episode_dumps);
 /* One control step of the current mode; returns the period in us until the next step. */
 uint32_t modes_step(void);
 uint8_t  modes_mode(void);

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import io
 import json
 import os
 import struct
@@ -233,6 +232,27 @@ def iter_messages(path: Path, topics: set[str] | None = None,
                                   channel.message_encoding, schema.name if schema else "")
 
 
+_RECORD_HEAD = struct.Struct("<BQ")  # opcode, length
+_MESSAGE_FIXED = struct.Struct("<HIQQ")  # channel id, sequence, log time, publish time
+_CATALOG_RECORDS = (Opcode.SCHEMA, Opcode.CHANNEL)
+
+
+def _raw_records(data: bytes) -> Iterator[tuple[int, int, int]]:
+    """(opcode, body start, body end) of each record in a run of records (a summary section, a chunk's data),
+    without parsing a body; struct.error at a cut record head. A body's end may pass the data's (a cut body)."""
+    size, at = len(data), 0
+    while at < size:
+        opcode, length = _RECORD_HEAD.unpack_from(data, at)
+        start = at + _RECORD_HEAD.size
+        at = start + length
+        yield opcode, start, at
+
+
+def _catalog_record(opcode: int, body: bytes) -> Schema | Channel:
+    """A Schema or Channel record parsed from its body (opcode in _CATALOG_RECORDS)."""
+    return (Schema if opcode == Opcode.SCHEMA else Channel).read(ReadDataStream(BytesIO(body)))
+
+
 _FOOTER_BYTES = 1 + 8 + 8 + 8 + 4  # opcode, length, summary_start, summary_offset_start, summary_crc
 
 
@@ -254,22 +274,15 @@ def _summary_channels(path: Path) -> list[Schema | Channel]:
             stream.seek(summary_start)
             section = stream.read(end - summary_start)
         found: list[Schema | Channel] = []
-        view = memoryview(section)
-        offset = 0
-        while offset + 9 <= len(view):
-            opcode, length = view[offset], struct.unpack_from("<Q", view, offset + 1)[0]
-            body = bytes(view[offset + 9: offset + 9 + length])
-            offset += 9 + length
-            if opcode in (0x03, 0x04) and len(body) == length:
-                record = (Schema if opcode == 0x03 else Channel).read(ReadDataStream(io.BytesIO(body)))
-                found.append(record)
+        try:
+            for opcode, start, stop in _raw_records(section):
+                if opcode in _CATALOG_RECORDS and stop <= len(section):
+                    found.append(_catalog_record(opcode, section[start:stop]))
+        except struct.error:
+            pass  # a cut record head ends the section: the records before it stand
         return found
     except Exception:  # noqa: BLE001 a damaged summary only means the stream's own channel records are used
         return []
-
-
-_RECORD_HEAD = struct.Struct("<BQ")  # opcode, length
-_MESSAGE_FIXED = struct.Struct("<HIQQ")  # channel id, sequence, log time, publish time
 
 
 def iter_topic_data(path: Path, topics: set[str],
@@ -286,22 +299,15 @@ def iter_topic_data(path: Path, topics: set[str],
     damaged = [0]
     for record in _filling(info, path, damaged, chunk_data=True):
         if isinstance(record, _ChunkData):
-            size = len(record)
-            at = 0
             try:
-                while at < size:
-                    opcode, length = _RECORD_HEAD.unpack_from(record, at)
-                    start = at + 9
-                    at = start + length
+                for opcode, start, end in _raw_records(record):
                     if opcode == Opcode.MESSAGE:
                         channel_id, _, log_time, _ = _MESSAGE_FIXED.unpack_from(record, start)
                         topic = wanted.get(channel_id)
                         if topic is not None:
-                            yield topic, log_time, record[start + 22 : at]
-                    elif opcode == Opcode.SCHEMA:
-                        known(Schema.read(ReadDataStream(BytesIO(record[start:at]))))
-                    elif opcode == Opcode.CHANNEL:
-                        known(Channel.read(ReadDataStream(BytesIO(record[start:at]))))
+                            yield topic, log_time, record[start + _MESSAGE_FIXED.size : end]
+                    elif opcode in _CATALOG_RECORDS:
+                        known(_catalog_record(opcode, record[start:end]))
             except (struct.error, McapError, ValueError, EOFError, KeyError, IndexError):
                 damaged[0] += 1  # a chunk that passed its CRC yet does not parse: its messages so far stand
         elif isinstance(record, Message):

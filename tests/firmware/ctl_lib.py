@@ -5,7 +5,7 @@ from __future__ import annotations
 import ctypes
 import shutil
 import subprocess
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 
 import numpy as np
@@ -53,6 +53,28 @@ class LearnerConfigC(ctypes.Structure):
         ("shared_model", ctypes.c_bool), ("ties_per_step", ctypes.c_bool), ("dirichlet_w", ctypes.c_float),
         ("count_bonus", ctypes.c_float), ("vel_diff_steps", ctypes.c_uint8), ("vel_penalty", ctypes.c_float),
     ]
+
+
+# LearnerConfig fields that learner_config_t names otherwise; every other field has its C twin under its own name,
+# but model_form (the firmware's model is always the sparse form).
+C_NAMES = {"sparse_slots": "slots", "actuator_bins": "act_bins", "vi_tolerance": "vi_tol",
+           "terminal_reward": "term_reward", "untried_q_value": "untried_q", "dirichlet_weight": "dirichlet_w",
+           "velocity_diff_steps": "vel_diff_steps", "velocity_penalty": "vel_penalty"}
+NO_C_TWIN = ("model_form",)
+
+
+def c_field_names() -> dict[str, str]:
+    """LearnerConfig field -> its learner_config_t field, for every field that has one."""
+    return {f.name: C_NAMES.get(f.name, f.name) for f in fields(LearnerConfig) if f.name not in NO_C_TWIN}
+
+
+def c_config(lib: ctypes.CDLL, config: LearnerConfig) -> LearnerConfigC:
+    """The Python config as learner_config_t: the C default, then every LearnerConfig field at its C name."""
+    c = LearnerConfigC()
+    lib.learner_default_config(ctypes.byref(c))
+    for name, c_name in c_field_names().items():  # test_field_names_cover_python_config: each c_name exists
+        setattr(c, c_name, getattr(config, name))
+    return c
 
 
 class PlantParamsC(ctypes.Structure):

@@ -10,7 +10,7 @@ A second run uses the deterministic tie rule (random_ties off: a tie picks a1 in
 from __future__ import annotations
 
 import ctypes
-from dataclasses import fields, replace
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -18,7 +18,7 @@ import pytest
 from learning import Learner, LearnerConfig, learner_memory_bytes, n_states
 from learning.presets import learner_preset
 from learning.rng import new_stream
-from tests.firmware.ctl_lib import LearnerConfigC, Recording, build_ctl_library, record_python
+from tests.firmware.ctl_lib import LearnerConfigC, Recording, build_ctl_library, c_config, c_field_names, record_python
 
 SEED = 20261123
 # float32 (C) against float64 (Python): values accumulate rounding over hundreds of sweeps, and the
@@ -31,26 +31,6 @@ NEAR_TIE = 1e-3
 @pytest.fixture(scope="module")
 def ctl(tmp_path_factory: pytest.TempPathFactory) -> ctypes.CDLL:
     return build_ctl_library(tmp_path_factory.mktemp("ctl"))
-
-
-def c_config(lib: ctypes.CDLL, config: LearnerConfig) -> LearnerConfigC:
-    """The Python config as learner_config_t."""
-    c = LearnerConfigC()
-    lib.learner_default_config(ctypes.byref(c))
-    c.z_cells, c.zdot_cells, c.act_bins = config.z_cells, config.zdot_cells, config.actuator_bins
-    c.slots = config.sparse_slots
-    c.z_tol_m, c.zdot_tol_mps, c.gamma = config.z_tol_m, config.zdot_tol_mps, config.gamma
-    c.vi_tol, c.term_reward = config.vi_tolerance, config.terminal_reward
-    c.p_explore_start, c.p_explore_end = config.p_explore_start, config.p_explore_end
-    c.explore_decay_episodes, c.untried_q = config.explore_decay_episodes, config.untried_q_value
-    c.known_count, c.random_ties = config.known_count, config.random_ties
-    c.depth_only_terminal, c.in_place_sweeps = config.depth_only_terminal, config.in_place_sweeps
-    c.explore_literal_gt, c.policy_argmin = config.explore_literal_gt, config.policy_argmin
-    c.alg4_printed, c.max_sweeps = config.alg4_printed, config.max_sweeps
-    c.shared_model, c.ties_per_step = config.shared_model, config.ties_per_step
-    c.dirichlet_w, c.count_bonus = config.dirichlet_weight, config.count_bonus
-    c.vel_diff_steps, c.vel_penalty = config.velocity_diff_steps, config.velocity_penalty
-    return c
 
 
 def test_default_config_is_the_python_default(ctl: ctypes.CDLL) -> None:
@@ -175,13 +155,9 @@ def test_state_index_and_reward_match(ctl: ctypes.CDLL) -> None:
 def test_field_names_cover_python_config() -> None:
     """Every LearnerConfig field has its C twin (model_form is the sparse form the firmware always uses)."""
     c_names = {f[0] for f in LearnerConfigC._fields_}
-    renamed = {"sparse_slots": "slots", "actuator_bins": "act_bins", "vi_tolerance": "vi_tol",
-               "terminal_reward": "term_reward", "untried_q_value": "untried_q", "dirichlet_weight": "dirichlet_w",
-               "velocity_diff_steps": "vel_diff_steps", "velocity_penalty": "vel_penalty"}
-    for f in fields(LearnerConfig):
-        if f.name in ("model_form", "z_cells", "zdot_cells") or renamed.get(f.name, f.name) in c_names:
-            continue
-        raise AssertionError(f"LearnerConfig.{f.name} has no field in learner_config_t")
+    for name, c_name in c_field_names().items():
+        assert c_name in c_names, f"LearnerConfig.{name} has no field {c_name} in learner_config_t"
+    assert len(c_field_names()) == len(LearnerConfigC._fields_)  # and every C field has its Python twin
 
 
 @pytest.mark.slow

@@ -39,8 +39,14 @@ from simulator.agent.params_table import check_ram
 from simulator.errors import ParamsError
 from simulator.serve.firmware_host import load_library
 from tests.firmware.core_build import use_firmware_cache
-from tests.firmware.ctl_lib import FIRMWARE, LearnerConfigC, Recording, build_ctl_library, record_python
-from tests.firmware.test_ctl_learner import c_config
+from tests.firmware.ctl_lib import (
+    FIRMWARE,
+    LearnerConfigC,
+    Recording,
+    build_ctl_library,
+    c_config,
+    record_python,
+)
 
 SEED = 20261124
 SHARED_PRESETS = ("shared", "shared-bins3", "shared-bins13", "shared-bins13-diff4", "shared-dirichlet",

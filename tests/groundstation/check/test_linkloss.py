@@ -16,7 +16,7 @@ from groundstation.check import linkloss
 from groundstation.check.probe import Probe
 from groundstation.links import Link, make_link
 from protocol import Mode
-from tests.groundstation.check.test_checks import BROKEN_AGENT, agent, by_result, check
+from tests.groundstation.check_helpers import BROKEN_AGENT, agent, by_result, check
 
 ACK_READ_LATE_S = 0.35  # more than half of the check's link_timeout_s, less than all of it
 

@@ -20,7 +20,7 @@ from groundstation.recording.info import summarize
 from groundstation.recording.recorder import RecorderConfig
 from groundstation.run.job import RunConfig, run
 from groundstation.session.agent_session import SessionConfig
-from tests.groundstation.recording.test_recorder import validate_with_mcap_library
+from tests.groundstation.mcap_validation import validate_with_mcap_library
 
 pytestmark = pytest.mark.slow
 FAST = {"success_time_s": "5"}  # short episodes keep the suite quick

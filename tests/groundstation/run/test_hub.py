@@ -7,13 +7,9 @@ Real processes and real TCP: a fake agent with one slot, `dive run` as a child p
 from __future__ import annotations
 
 import json
-import os
 import signal
 import subprocess
-import sys
 import time
-from collections.abc import Iterator
-from contextlib import contextmanager
 from pathlib import Path
 
 import pytest
@@ -21,41 +17,7 @@ import pytest
 from groundstation.mcap_io import read_recording
 from groundstation.recording.info import summarize
 from tests.groundstation.fake_agent import FakeAgent
-
-DIVE = [sys.executable, "-m", "groundstation.cli.app"]
-
-
-def _env(runtime: Path) -> dict[str, str]:
-    env = {k: v for k, v in os.environ.items() if k not in ("DIVE_URL", "DIVE_KEY_FILE")}
-    return {**env, "DIVE_RUNTIME_DIR": str(runtime), "COLUMNS": "200"}
-
-
-def dive(runtime: Path, *args: str, timeout: float = 30.0) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([*DIVE, *args], env=_env(runtime), capture_output=True, text=True, timeout=timeout)
-
-
-@contextmanager
-def running(runtime: Path, url: str, out: Path) -> Iterator[subprocess.Popen[str]]:
-    """`dive run URL` until the block ends with a Ctrl-C (SIGINT)."""
-    before = set((runtime / "runs").glob("*.json")) if (runtime / "runs").is_dir() else set()
-    proc = subprocess.Popen([*DIVE, "run", url, "--out", str(out)], env=_env(runtime), stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True)
-    try:
-        deadline = time.monotonic() + 30
-        while time.monotonic() < deadline and proc.poll() is None:
-            if set((runtime / "runs").glob("*.json")) - before:
-                break
-            time.sleep(0.05)
-        assert proc.poll() is None, proc.communicate()
-        yield proc
-    finally:
-        if proc.poll() is None:
-            proc.send_signal(signal.SIGINT)
-        try:
-            proc.wait(30)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
+from tests.groundstation.hub_helpers import DIVE, dive, dive_env, running
 
 
 def _one_line_failure(done: subprocess.CompletedProcess[str], text: str, code: int = 1) -> None:
@@ -71,7 +33,7 @@ def test_tools_attach_to_the_running_session_without_taking_the_agents_link(tmp_
     try:
         with running(runtime, agent.url, tmp_path / "rec") as run:
             viewer = subprocess.Popen([*DIVE, "view", "--viewer", "none", "--rrd", str(tmp_path / "live.rrd")],
-                                      env=_env(runtime), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                                      env=dive_env(runtime), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
             [announced] = (runtime / "runs").glob("*.json")
             recording = json.loads(announced.read_text())["recording"]
             info = dive(runtime, "log", "info", recording)  # the file the run is still writing

@@ -13,7 +13,7 @@ import pytest
 
 from groundstation.mcap_io import iter_messages
 from tests.groundstation.fake_agent import FakeAgent
-from tests.groundstation.run.test_hub import DIVE, _env, running
+from tests.groundstation.hub_helpers import DIVE, dive_env, running
 
 
 def _samples(folder: Path) -> dict[int, bytes]:
@@ -35,7 +35,7 @@ def test_a_second_recorder_through_the_hub_records_the_same_samples(tmp_path: Pa
     try:
         with running(runtime, agent.url, tmp_path / "run") as run:
             second = subprocess.Popen([*DIVE, "record", "--out", str(tmp_path / "second"), "--split-mb", "0.05"],
-                                      env=_env(runtime), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                                      env=dive_env(runtime), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
             deadline = time.monotonic() + 60
             # The agent learns on and both recorders take its frames, until the second has begun its second part.
             while time.monotonic() < deadline and len(list((tmp_path / "second").glob("*.mcap"))) < 2:

@@ -7,8 +7,6 @@ import pytest
 
 from learning import LearnerConfig
 from learning.spec import direct_entry
-from protocol import messages
-from protocol.registry import Message
 from simulator.agent.hardware import SimulatedHardware
 from simulator.agent.kernel import recovery_period_kernel
 from simulator.agent.mission import MissionConfig
@@ -18,44 +16,7 @@ from simulator.plant.model import Plant
 from simulator.plant.observer import SlidingModeObserver
 from simulator.plant.recovery import RecoveryController
 from simulator.plant.sensor import PressureSensor, depth_from_pressure
-
-
-class CheckingDownlink:
-    """Keeps every frame's payload and checks each SAMPLE against the message built from the program's state."""
-
-    def __init__(self) -> None:
-        self.program: OnboardProgram | None = None
-        self.payloads: list[bytes] = []
-        self.samples = 0
-
-    def log_frame(self, message: Message, sample: int, is_sample: bool) -> None:
-        self.payloads.append(message.pack())
-
-    def log_payload(self, msg_id: int, payload: bytes, sample: int, is_sample: bool) -> None:
-        assert self.program is not None and msg_id == messages.Sample.MSG_ID
-        prog, hw = self.program, self.program.hw
-        sent = messages.Sample.unpack(payload)
-        built = messages.Sample(
-            t_us=hw.t_us, sample=sample, episode=prog.episode, step=sent.step, pressure_pa=prog.pressure_pa,
-            depth_m=prog.depth_m, velocity_mps=prog.velocity_mps, actuator_deg=hw.actuator_deg,
-            actuator_cmd_deg=hw.actuator_cmd_deg, reward=sent.reward, state=sent.state, action=sent.action,
-            mode=int(prog.mode),
-        )
-        assert payload == built.pack()
-        self.payloads.append(payload)
-        self.samples += 1
-
-    def send(self, message: Message) -> None:
-        self.payloads.append(message.pack())
-
-    def episode_dumps(self) -> None:
-        pass
-
-    def link_silence_s(self) -> float:
-        return 0.0
-
-    def model_changed(self) -> None:
-        pass
+from tests.simulator.checking_downlink import CheckingDownlink
 
 
 def _run(preset_name: str, seed: int, steps: int) -> CheckingDownlink:

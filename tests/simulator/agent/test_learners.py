@@ -12,7 +12,7 @@ from simulator.agent.hardware import SimulatedHardware
 from simulator.agent.mission import MissionConfig
 from simulator.agent.program import OnboardProgram
 from simulator.parameters import preset
-from tests.simulator.agent.test_fast_path import CheckingDownlink
+from tests.simulator.checking_downlink import CheckingDownlink
 
 
 @pytest.mark.slow  # two agents of 8000 steps each
