@@ -23,14 +23,15 @@ log_app = typer.Typer(help="Inspect, export and repair recordings.", no_args_is_
 def log_info(files: Annotated[list[Path], typer.Argument(help="recordings, or folders of them")],
              as_json: Annotated[bool, typer.Option("--json", help="machine-readable")] = False) -> None:
     """Sessions, duration, episodes with outcome and length, samples, loss, backfill and missing samples."""
-    from groundstation.recording.files import being_recorded, expand, json_summary
-    from groundstation.recording.info import format_summary, summarize
+    from groundstation.cli.bar import SlowBar
+    from groundstation.recording.files import being_recorded, expand, group_recordings, json_summary
+    from groundstation.recording.info import format_summary
+    from groundstation.recording.summaries import combine, format_combined, summarize_files
 
-    summaries = []
-    for path in expand(files):
-        summary = summarize(path)
-        writer = None if summary.complete else being_recorded(path)
-        summaries.append((summary, writer))
+    paths = expand(files)
+    with SlowBar(f"summarising {len(paths)} file(s)") as bar:
+        done = summarize_files(paths, bar.update)
+    summaries = [(s, None if s.complete else being_recorded(Path(s.path))) for s in done]
     if as_json:
         rows = [{**json_summary(s.as_dict()), "being_recorded_by": w} for s, w in summaries]
         out.print_json(json.dumps(rows[0] if len(rows) == 1 else rows))
@@ -40,6 +41,9 @@ def log_info(files: Annotated[list[Path], typer.Argument(help="recordings, or fo
         if writer is not None:  # no footer yet because it is still being written, not because it was cut short
             text = text.replace("  (truncated: run `dive log recover`)", f"  (being recorded by {writer})", 1)
         out.print(text)
+    if len(paths) > 1:
+        for line in combine(done, [[str(f) for f in r.files] for r in group_recordings(paths)]):
+            out.print(format_combined(line))
 
 
 class ExportFormat(StrEnum):
