@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 from enum import StrEnum
 from pathlib import Path
 from typing import Annotated
@@ -58,38 +59,48 @@ def log_export(files: Annotated[list[Path], typer.Argument(help="recordings, or 
                format: Annotated[ExportFormat, typer.Option(
                    help="csv: samples; npz: offline-RL transitions; minari: a Minari dataset (FILE may be a folder)")]
                = ExportFormat.csv,
-               out_path: Annotated[Path | None, typer.Option(
-                   "--out", help="output file (one recording only) or a folder for the outputs; for minari the "
-                   "datasets folder (default: Minari's own)")] = None,
+               out_text: Annotated[str | None, typer.Option(
+                   "--out", help="output file (one recording only) or a folder for the outputs (a name ending in / "
+                   "is a folder, made if missing); for minari the datasets folder (default: Minari's own)")] = None,
                ) -> None:
     """Export samples as CSV, (s, a, r, s', terminated, truncated) transitions as .npz, or a Minari dataset.
 
     Several recordings (or a folder) give one output file each, beside each recording; the parts of a split
     recording given together make one (NAME.csv beside NAME-part001.mcap), episodes across parts kept whole.
     """
+    from groundstation.cli.bar import SlowBar
     from groundstation.recording.export import export_csv, export_npz
     from groundstation.recording.files import expand, group_recordings
 
     if format == ExportFormat.minari:
         if len(files) != 1:
             raise UsageError("minari exports one recording or one folder at a time")
-        _export_minari(files[0], out_path)
+        _export_minari(files[0], None if out_text is None else Path(out_text))
         return
+    out_path = None if out_text is None else Path(out_text)
     recordings = group_recordings(expand(files))
     folder = out_path if out_path is not None and out_path.is_dir() else None  # as cp does: the usual names, in it
+    if out_text is not None and out_path is not None and out_text.endswith(("/", os.sep)) and folder is None:
+        try:
+            out_path.mkdir(parents=True)
+        except OSError as e:
+            raise GroundStationError(f"cannot make the folder {out_text}: {e.strerror or e}") from e
+        folder = out_path
     if out_path is not None and folder is None and len(recordings) > 1:
         raise UsageError(f"--out names one file, but {len(recordings)} recordings were given (or name a folder)")
-    for recording in recordings:
-        first = recording.files[0]
-        name = first.stem if len(recording.files) == 1 else recording.name
-        target = first.with_name(f"{name}.{format.value}")
-        if folder is not None:
-            target = folder / target.name
-        elif out_path is not None:
-            target = out_path
-        with replaced_atomically(target, source=first) as temporary:
-            rows = (export_csv if format == ExportFormat.csv else export_npz)(recording.files, temporary)
-        out.print(f"{target} ({rows} rows)")
+    with SlowBar(f"exporting {len(recordings)} recording(s)", unit="recordings") as bar:
+        for done, recording in enumerate(recordings):
+            bar.update(done, len(recordings), f"exporting {recording.files[0].name}")
+            first = recording.files[0]
+            name = first.stem if len(recording.files) == 1 else recording.name
+            target = first.with_name(f"{name}.{format.value}")
+            if folder is not None:
+                target = folder / target.name
+            elif out_path is not None:
+                target = out_path
+            with replaced_atomically(target, source=first) as temporary:
+                rows = (export_csv if format == ExportFormat.csv else export_npz)(recording.files, temporary)
+            out.print(f"{target} ({rows} rows)")
 
 
 def _export_minari(file: Path, root: Path | None) -> None:

@@ -115,7 +115,7 @@ def _env_kwargs(recording: Recording) -> dict[str, Any]:
 def _episode_buffers(recording: Recording, buffer_type: type) -> tuple[list[Any], int]:
     samples = recording.samples()
     learning = samples[samples["mode"] == int(Mode.LEARNING)] if len(samples) else samples
-    step_deg = _action_step_deg(recording)
+    step_deg = action_step_deg(recording)
     buffers: list[Any] = []
     left_out = 0
     for row in recording.episodes():
@@ -134,13 +134,8 @@ def _buffer(buffer_type: type, episode_id: int, rows: NDArray[np.void], outcome:
     actions = rows["action"][:-1].astype(np.int64)
     if np.any(actions == int(Action.NONE)):
         actions = np.where(actions == int(Action.NONE), 0, actions)  # cannot happen inside an episode
-    cmd = rows["actuator_cmd_deg"].astype(np.float64)
-    first = int(rows["action"][0])
-    # SAMPLE t carries the command after action t; the window centre is the command before the first.
-    centre = cmd[0] - (step_deg if first == int(Action.INCREASE_VOLUME) else -step_deg)
-    before = np.concatenate(([centre], cmd[:-1]))
-    observations = np.column_stack([rows["depth_m"], rows["velocity_mps"], before - centre])
-    observations = np.clip(observations, OBS_LOW, OBS_HIGH)
+    observations = episode_observations(rows["depth_m"], rows["velocity_mps"], rows["actuator_cmd_deg"],
+                                        int(rows["action"][0]), step_deg)
     n = len(actions)
     terminations = np.zeros(n, dtype=bool)
     truncations = np.zeros(n, dtype=bool)
@@ -154,7 +149,21 @@ def _buffer(buffer_type: type, episode_id: int, rows: NDArray[np.void], outcome:
     )
 
 
-def _action_step_deg(recording: Recording) -> float:
+def episode_observations(depth_m: Any, velocity_mps: Any, cmd_deg: Any, first_action: int, step_deg: float
+                         ) -> NDArray[np.float64]:
+    """DivingAgent-v0's observations of one episode's LEARNING samples in order: [depth, velocity, actuator
+    command before the step minus the episode's window centre], clipped to the environment's bounds."""
+    cmd = np.asarray(cmd_deg, dtype=np.float64)
+    # SAMPLE t carries the command after action t; the window centre is the command before the first.
+    centre = cmd[0] - (step_deg if first_action == int(Action.INCREASE_VOLUME) else -step_deg)
+    before = np.concatenate(([centre], cmd[:-1]))
+    observations = np.column_stack([np.asarray(depth_m, dtype=np.float64),
+                                    np.asarray(velocity_mps, dtype=np.float64), before - centre])
+    return np.clip(observations, OBS_LOW, OBS_HIGH)
+
+
+def action_step_deg(recording: Recording) -> float:
+    """The learner's actuator step: the recorded parameter, else the median step of its LEARNING samples."""
     value = recording.parameters.get("action_step_deg")
     if value is not None:
         return float(value)
