@@ -122,10 +122,14 @@ def export_npz(source: Path | list[Path], target: Path) -> int:
 
 
 def _observe(learning: list[dict[str, object]], recording: Recording) -> None:
-    """Each row's actuator offset as DivingAgent-v0 observes it (`_offset_deg`), episode by episode."""
+    """Each row's actuator offset as DivingAgent-v0 observes it (`_offset_deg`), episode by episode; NaN when the
+    recording states no action step and its learner never moved the actuator (the window centre is unknown)."""
     if not learning:
         return
-    step_deg = action_step_deg(recording)
+    try:
+        step_deg = action_step_deg(recording)
+    except RecordingError:  # no step stated and none taken: the offset from the window centre is unknown
+        step_deg = float("nan")
     start = 0
     for end in range(1, len(learning) + 1):
         if end < len(learning) and (learning[end]["boot"], learning[end]["episode"]) == \
