@@ -104,15 +104,26 @@ def log_export(files: Annotated[list[Path], typer.Argument(help="recordings, or 
 
 
 def _export_minari(file: Path, root: Path | None) -> None:
-    from groundstation.recording.minari_export import dataset_id_for, export_minari
+    """One dataset per environment among the recordings (a folder may hold paper, hardware and firmware runs)."""
+    from groundstation.cli.bar import SlowBar
+    from groundstation.recording.files import expand, group_recordings
+    from groundstation.recording.minari_export import export_minari, plan_groups
     from groundstation.recording.tables import open_recording
 
     if not file.exists():
         raise GroundStationError(f"no such recording: {file}")
-    result = export_minari(open_recording(file), dataset_id_for(file), root)
-    left = f", {result.left_out} left out (holes or no end)" if result.left_out else ""
-    out.print(f"Minari dataset {result.dataset_id} in {result.root}: {result.episodes} episodes, "
-              f"{result.steps} steps{left}", markup=False, soft_wrap=True)
+    groups, differ = plan_groups(group_recordings(expand([file])), file.stem)
+    if differ:
+        out.print(f"{len(groups)} environments among the recordings ({'; '.join(differ)}): one dataset each",
+                  markup=False, soft_wrap=True)
+    with SlowBar(f"exporting {len(groups)} Minari dataset(s)", unit="datasets") as bar:
+        for done, group in enumerate(groups):
+            bar.update(done, len(groups), f"exporting {group.dataset_id}")
+            files = [f for r in group.recordings for f in r.files]
+            result = export_minari(open_recording(*files), group.dataset_id, root)
+            left = f", {result.left_out} left out (holes or no end)" if result.left_out else ""
+            out.print(f"Minari dataset {result.dataset_id} in {result.root}: {result.episodes} episodes, "
+                      f"{result.steps} steps{left}", markup=False, soft_wrap=True)
     root_hint = f"MINARI_DATASETS_PATH={result.root} " if root is not None else ""
     out.print(f"load it: {root_hint}python -c \"import minari; minari.load_dataset('{result.dataset_id}')\"",
               markup=False, soft_wrap=True)

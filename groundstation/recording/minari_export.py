@@ -28,6 +28,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from groundstation.errors import RecordingError
+from groundstation.recording.environments import differences, environment, group_name, tidy_number
+from groundstation.recording.files import RecordingParts
 from groundstation.recording.tables import Recording
 from protocol import Action, EndReason, Mode
 
@@ -52,6 +54,29 @@ def dataset_id_for(path: Path) -> str:
     """A Minari dataset id from a recording's file name: diving_agent/<name>-v0."""
     name = re.sub(r"[^A-Za-z0-9_]+", "_", path.stem).strip("_") or "recording"
     return f"{NAMESPACE}/{name}-v0"
+
+
+@dataclass(frozen=True)
+class MinariGroup:
+    """Recordings of one environment, exported as one dataset."""
+
+    dataset_id: str
+    environment: dict[str, str]
+    recordings: list[RecordingParts]
+
+
+def plan_groups(recordings: list[RecordingParts], name: str) -> tuple[list[MinariGroup], list[str]]:
+    """The recordings grouped by environment (environments.py), one dataset id each, and what differs among the
+    groups ([] for one group). One group keeps the dataset name `name`; several add each group's name to it."""
+    groups: dict[tuple[tuple[str, str], ...], list[RecordingParts]] = {}
+    for recording in recordings:
+        groups.setdefault(tuple(sorted(environment(recording.header).items())), []).append(recording)
+    envs = [dict(key) for key in groups]
+    base = re.sub(r"[^A-Za-z0-9_]+", "_", name).strip("_") or "recording"
+    planned = [MinariGroup(f"{NAMESPACE}/{base}-v0" if len(groups) == 1 else
+                           f"{NAMESPACE}/{base}_{group_name(env, envs)}-v0", env, members)
+               for env, members in zip(envs, groups.values(), strict=True)]
+    return planned, differences(envs)
 
 
 def export_minari(recording: Recording, dataset_id: str, root: Path | None) -> MinariExport:
@@ -93,22 +118,29 @@ def _create(minari: Any, dataset_id: str, buffers: list[Any], env_spec: Any, gym
         algorithm_name=f"on-board learner of {agent.get('name', 'the agent')} (node {agent.get('node_id', '?')})",
         author="dive log export", data_format="arrow",
         description=(f"Learning episodes recorded by dive from {', '.join(str(f) for f in recording.files)}; "
-                     f"boots {recording.boots}; agent {agent}; parameters {recording.parameters}"),
+                     f"boots {recording.boots}; environment {environment(recording.metadata)}; agent {agent}; "
+                     f"parameters { {k: tidy_number(v) for k, v in recording.parameters.items()} }"),
     )
 
 
 def _env_kwargs(recording: Recording) -> dict[str, Any]:
-    """make() options of DivingAgent-v0 that match the recorded task, from the agent's parameters."""
+    """make() options of DivingAgent-v0 that match the recorded task: the plant preset and learner the run named
+    (a sim:// run; a real agent's plant is the water: the default plant stands in), the agent's parameters."""
     params = recording.parameters
+    env = environment(recording.metadata)
     kwargs: dict[str, Any] = {}
+    if env["preset"] != "unknown":
+        kwargs["preset"] = env["preset"]
+    if env["learner"] != "unknown":
+        kwargs["learner"] = env["learner"]
     for name in ("z_tol_m", "zdot_tol_mps"):
         if name in params:
-            kwargs[name] = float(params[name])
+            kwargs[name] = float(tidy_number(params[name]))
     for wire_name, option in (("z_cells", "z_cells"), ("zdot_cells", "zdot_cells"), ("act_bins", "actuator_bins")):
         if wire_name in params:
             kwargs[option] = int(float(params[wire_name]))
     if "target_depth_m" in params:
-        kwargs["params"] = {"target_depth_m": float(params["target_depth_m"])}
+        kwargs["params"] = {"target_depth_m": float(tidy_number(params["target_depth_m"]))}
     return kwargs
 
 
