@@ -10,6 +10,8 @@ from __future__ import annotations
 import math
 import re
 
+import numpy as np
+
 Header = dict[str, list[dict[str, str]]]
 
 # sim:// options that change how a run is played, not the environment (groundstation/links/sim.py: `dive sim`)
@@ -22,14 +24,23 @@ TASK_PARAMETERS = ("target_depth_m", "z_tol_m", "zdot_tol_mps", "z_cells", "zdot
 
 
 def tidy_number(text: str) -> str:
-    """A recorded number as people write it: a float32 parameter's 0.10000000149011612 is 0.1 (7 digits)."""
+    """A recorded number as people write it: a float32 parameter's 0.10000000149011612 is 0.1 (the shortest text
+    that is the same float32), 10.0 is 10; anything else unchanged."""
     try:
         value = float(text)
     except ValueError:
         return text
     if not math.isfinite(value):
         return text
-    return f"{value:.7g}" if value != int(value) or abs(value) >= 1e15 else str(int(value))
+    if value == int(value) and abs(value) < 2**53:
+        return str(int(value))
+    single = np.float32(value)
+    return str(single) if float(single) == value else repr(value)
+
+
+def tidy_value(value: float) -> float:
+    """tidy_number for a number: a float32 value as the float its shortest text means (9.8, not 9.800000190734863)."""
+    return float(tidy_number(repr(value))) if math.isfinite(value) else value
 
 
 def environment(header: Header) -> dict[str, str]:

@@ -115,12 +115,18 @@ def _create(minari: Any, dataset_id: str, buffers: list[Any], env_spec: Any, gym
         dataset_id=dataset_id, buffer=buffers, env=env_spec,
         observation_space=gymnasium.spaces.Box(np.array(OBS_LOW), np.array(OBS_HIGH), dtype=np.float64),
         action_space=gymnasium.spaces.Discrete(2),
-        algorithm_name=f"on-board learner of {agent.get('name', 'the agent')} (node {agent.get('node_id', '?')})",
+        algorithm_name=f"on-board learner of {agent.get('name', 'the agent')} (node {_hex(agent.get('node_id', '?'))})",
         author="dive log export", data_format="arrow",
         description=(f"Learning episodes recorded by dive from {', '.join(str(f) for f in recording.files)}; "
-                     f"boots {recording.boots}; environment {environment(recording.metadata)}; agent {agent}; "
+                     f"boots {recording.boots}; environment {environment(recording.metadata)}; "
+                     f"agent { {k: _hex(v) if k in ('node_id', 'boot_id') else v for k, v in agent.items()} }; "
                      f"parameters { {k: tidy_number(v) for k, v in recording.parameters.items()} }"),
     )
+
+
+def _hex(text: str) -> str:
+    """A node or boot id in hex, as dive status, log info and the file names show it."""
+    return f"{int(text):08x}" if text.isdigit() else text
 
 
 def _env_kwargs(recording: Recording) -> dict[str, Any]:
