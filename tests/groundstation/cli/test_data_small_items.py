@@ -50,3 +50,24 @@ def test_log_info_json_has_no_float32_noise_and_ids_in_hex(tmp_path: Path) -> No
     assert "9.800000190734863" not in done.stdout
     assert summary["agent"]["boot_id"] == "0000002a" and summary["agent"]["node_id"] == "00000007"
     assert summary["boots"][0]["boot_id"] == "0000002a"
+
+
+def test_a_replay_window_past_the_end_is_one_line_and_writes_nothing(tmp_path: Path) -> None:
+    from tests.groundstation.synthetic_agent import generate, play_session
+
+    path = tmp_path / "r.mcap"
+    recorder = Recorder(RecorderConfig(path=path))
+    recorder.set_parameters({"z_cells": 10.0, "zdot_cells": 10.0})  # the header's table: setup items, not frames
+    try:
+        play_session(generate(duration_s=120.0), [recorder])
+    finally:
+        recorder.close()
+    for window in (["--from", "2h"], ["--from", "e500", "--to", "e600"]):
+        rrd = tmp_path / "w.rrd"
+        done = dive("replay", str(path), "--rrd", str(rrd), *window)
+        lines = done.stderr.strip().splitlines()
+        assert done.returncode == 1 and len(lines) == 1, done.stderr
+        assert "nothing to show in" in lines[0] and "the recording spans 120 s of agent time" in lines[0], lines
+        assert not rrd.exists()
+    inside = dive("replay", str(path), "--rrd", str(tmp_path / "in.rrd"), "--from", "60s")
+    assert inside.returncode == 0 and (tmp_path / "in.rrd").stat().st_size > 0, inside.stderr
