@@ -6,7 +6,7 @@ import json
 import os
 from enum import StrEnum
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 
@@ -14,6 +14,9 @@ from groundstation.cli.common import existing, one_line_errors, out
 from groundstation.cli.validate import UsageError
 from groundstation.errors import GroundStationError
 from groundstation.recording.safe_files import replaced_atomically, unused_name
+
+if TYPE_CHECKING:
+    from groundstation.recording.files import RecordingParts
 
 log_app = typer.Typer(help="Inspect, export and repair recordings.", no_args_is_help=True,
                       context_settings={"help_option_names": ["-h", "--help"]})
@@ -51,13 +54,15 @@ class ExportFormat(StrEnum):
     csv = "csv"
     npz = "npz"
     minari = "minari"
+    parquet = "parquet"
 
 
 @log_app.command("export")
 @one_line_errors
 def log_export(files: Annotated[list[Path], typer.Argument(help="recordings, or folders of them")],
                format: Annotated[ExportFormat, typer.Option(
-                   help="csv: samples; npz: offline-RL transitions; minari: a Minari dataset (FILE may be a folder)")]
+                   help="csv: samples; npz: offline-RL transitions; minari: a Minari dataset per environment; "
+                   "parquet: a table per topic, a folder of recordings as one dataset (FILE may be a folder)")]
                = ExportFormat.csv,
                out_text: Annotated[str | None, typer.Option(
                    "--out", help="output file (one recording only) or a folder for the outputs (a name ending in / "
@@ -79,6 +84,9 @@ def log_export(files: Annotated[list[Path], typer.Argument(help="recordings, or 
         return
     out_path = None if out_text is None else Path(out_text)
     recordings = group_recordings(expand(files))
+    if format == ExportFormat.parquet:
+        _export_parquet(recordings, out_path or recordings[0].files[0].parent / "parquet")
+        return
     folder = out_path if out_path is not None and out_path.is_dir() else None  # as cp does: the usual names, in it
     if out_text is not None and out_path is not None and out_text.endswith(("/", os.sep)) and folder is None:
         try:
@@ -101,6 +109,24 @@ def log_export(files: Annotated[list[Path], typer.Argument(help="recordings, or 
             with replaced_atomically(target, source=first) as temporary:
                 rows = (export_csv if format == ExportFormat.csv else export_npz)(recording.files, temporary)
             out.print(f"{target} ({rows} rows)")
+
+
+def _export_parquet(recordings: list[RecordingParts], folder: Path) -> None:
+    """Each recording's tables into `folder` (made if missing), one file per recording in each table's folder."""
+    from groundstation.cli.bar import SlowBar
+    from groundstation.recording.parquet_export import export_parquet
+    from groundstation.recording.tables import open_recording
+
+    if folder.exists() and not folder.is_dir():
+        raise UsageError(f"--out {folder} is a file: parquet tables go into a folder")
+    with SlowBar(f"exporting {len(recordings)} recording(s) to Parquet", unit="recordings") as bar:
+        for done, recording in enumerate(recordings):
+            bar.update(done, len(recordings), f"exporting {recording.files[0].name}")
+            name = recording.files[0].stem if len(recording.files) == 1 else recording.name
+            written = export_parquet(open_recording(*recording.files), name, folder)
+            out.print(f"{folder}: {name} ({written.get('samples', 0)} samples, {written.get('episodes', 0)} "
+                      f"episodes, {len(written)} tables)", markup=False, soft_wrap=True)
+    out.print(f"query it: duckdb -c \"FROM '{folder}/episodes/*.parquet'\"", markup=False, soft_wrap=True)
 
 
 def _export_minari(file: Path, root: Path | None) -> None:
