@@ -136,8 +136,8 @@ class Tally:
         if self.shown == 0 and (start is not None or end is not None):
             window = " ".join(part for part in (f"--from {start}" if start else "", f"--to {end}" if end else "")
                               if part)
-            raise ReplayError(f"nothing to show in {window}: the recording spans {self.span_s:.0f} s of agent time "
-                              f"and episodes up to {self.last_episode}")
+            raise ReplayError(f"the window {window} holds no agent frames: the recording spans {self.span_s:.0f} s "
+                              f"of agent time and episodes up to {self.last_episode}")
 
 
 def select(items: Iterator[Item], start: Bound | None, end: Bound | None,
