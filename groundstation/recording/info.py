@@ -36,6 +36,8 @@ class BootSummary:
     first_sample: int | None = None
     end_sample: int | None = None
     boot_id: int | None = None  # the agent's own id of this boot (its HELLO's boot_id), when recorded
+    # The sample indices held, as [start, end) ranges: to combine files exactly (summaries.py); not in --json.
+    held: list[tuple[int, int]] = field(default_factory=list, repr=False, compare=False)
 
 
 @dataclass
@@ -63,7 +65,10 @@ class RecordingSummary:
     part: int = 0  # of a split recording (dive run --split-mb/--split-minutes): 1, 2, ...; 0 = not split
 
     def as_dict(self) -> dict[str, Any]:
-        return asdict(self)
+        out = asdict(self)
+        for boot in out["boots"]:
+            del boot["held"]
+        return out
 
 
 class _Boot:
@@ -76,6 +81,7 @@ class _Boot:
         s = self.summary
         s.samples_missing = sum(b - a for a, b in self.held.missing())
         s.first_sample, s.end_sample = self.held.first, self.held.end
+        s.held = self.held.ranges()
         return s
 
 
@@ -102,7 +108,7 @@ def summarize(path: Path, progress: Callable[[int, int], None] | None = None) ->
     finished = []
     for counts in totals.boots:
         boot = BootSummary(counts.boot, counts.samples, counts.backfilled, counts.held.missing(), counts.impossible,
-                           counts.held.first, counts.held.end, counts.boot_id)
+                           counts.held.first, counts.held.end, counts.boot_id, counts.held.ranges())
         finished.append(boot)
     _finish(summary, finished, totals.first_ns, totals.last_ns, totals.first_us, totals.last_us, indexed.metadata)
     return summary

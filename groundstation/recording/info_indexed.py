@@ -79,6 +79,9 @@ class HeldIndices:
     def end(self) -> int | None:
         return int(self.ends[-1]) if len(self.ends) else None
 
+    def ranges(self) -> list[tuple[int, int]]:
+        return [(int(a), int(b)) for a, b in zip(self.starts, self.ends, strict=True)]
+
     def missing(self) -> int:
         return int(self.ends[-1] - self.starts[0] - np.sum(self.ends - self.starts)) if len(self.starts) else 0
 

@@ -9,7 +9,7 @@ from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
-from groundstation.recording.info import RecordingSummary, summarize
+from groundstation.recording.info import BootSummary, RecordingSummary, summarize
 
 # Below this much data a second process costs more than it saves (its start and imports take ~0.3 s).
 PARALLEL_FROM_BYTES = 32 * 1024 * 1024
@@ -109,29 +109,39 @@ def combine(summaries: list[RecordingSummary], recordings: list[list[str]]) -> l
 
 
 def _combined(what: str, parts: list[RecordingSummary]) -> Combined:
-    spans: dict[int | None, tuple[int, int, int]] = {}
-    for s in parts:
-        for b in s.boots:
-            if b.first_sample is None or b.end_sample is None:
-                continue
-            lo, hi, held = spans.get(b.boot_id, (b.first_sample, b.end_sample, 0))
-            spans[b.boot_id] = (min(lo, b.first_sample), max(hi, b.end_sample), held + b.samples)
-    missing = sum(max(0, hi - lo - held) for lo, hi, held in spans.values())
+    boots = [b for s in parts for b in s.boots]
+    held, missing = _union(boots)
     return Combined(what, len(parts), sum(s.duration_s for s in parts), sum(s.agent_duration_s for s in parts),
-                    sum(s.samples for s in parts), sum(s.samples_backfilled for s in parts), missing,
+                    held, sum(s.samples_backfilled for s in parts), missing,
                     sum(len(s.episodes) for s in parts), sum(s.successes for s in parts))
 
 
 def _boot_line(node_id: str, boot_id: int, holders: list[RecordingSummary]) -> Combined:
     mine = [b for s in holders for b in s.boots if b.boot_id == boot_id]
-    lo = min(b.first_sample for b in mine if b.first_sample is not None)
-    hi = max(b.end_sample for b in mine if b.end_sample is not None)
-    held = sum(b.samples for b in mine)
+    held, missing = _union(mine)
     node = f"{int(node_id):08x}" if node_id.isdigit() else node_id
     return Combined(f"agent {node} boot {boot_id:08x}", len(holders), sum(s.duration_s for s in holders),
                     sum(s.agent_duration_s for s in holders), held, sum(b.samples_backfilled for b in mine),
-                    max(0, hi - lo - held), sum(len(s.episodes) for s in holders),
-                    sum(s.successes for s in holders))
+                    missing, sum(len(s.episodes) for s in holders), sum(s.successes for s in holders))
+
+
+def _union(boots: list[BootSummary]) -> tuple[int, int]:
+    """(samples held, samples missing) of boots' held ranges together, per agent boot: a sample two files hold
+    (a second recorder's copy) counts once, a hole at a part boundary counts as missing."""
+    by_boot: dict[int | None, list[tuple[int, int]]] = {}
+    for boot in boots:
+        by_boot.setdefault(boot.boot_id, []).extend(boot.held)
+    held = missing = 0
+    for ranges in by_boot.values():
+        merged: list[list[int]] = []
+        for start, end in sorted(ranges):
+            if merged and start <= merged[-1][1]:
+                merged[-1][1] = max(merged[-1][1], end)
+            else:
+                merged.append([start, end])
+        held += sum(end - start for start, end in merged)
+        missing += sum(b[0] - a[1] for a, b in zip(merged, merged[1:], strict=False))
+    return held, missing
 
 
 def format_combined(c: Combined) -> str:

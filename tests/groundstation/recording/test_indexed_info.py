@@ -96,6 +96,7 @@ def test_the_indexed_summary_is_the_streamed_one(make: object, tmp_path: Path) -
     assert open_indexed(path) is not None  # the fast path is the one taken
     indexed, streamed = summarize(path), summarize_stream(path)
     assert indexed == streamed
+    assert [b.held for b in indexed.boots] == [b.held for b in streamed.boots]  # the ranges combine() unites
     assert indexed.samples > 0
 
 
@@ -155,3 +156,16 @@ def test_a_folder_of_split_parts_gets_a_combined_line(tmp_path: Path, monkeypatc
     monkeypatch.setattr(summaries, "PARALLEL_FROM_BYTES", 0)
     monkeypatch.setattr(summaries, "workers", lambda: 2)
     assert summaries.summarize_files(parts) == serial
+
+
+def test_two_recorders_of_one_boot_count_each_sample_once(tmp_path: Path) -> None:
+    """dive run and a dive record beside it hold the same samples: the boot's line counts them once."""
+    for name, indices in (("run", range(0, 300)), ("record", range(100, 400))):
+        recorder = Recorder(RecorderConfig(path=tmp_path / f"{name}.mcap"))
+        recorder.on_received(_received(hello(9), 0))
+        for i in indices:
+            recorder.on_received(_received(sample(i), i + 1))
+        recorder.close()
+    text = " ".join(CliRunner().invoke(app, ["log", "info", str(tmp_path)]).stdout.split())
+    assert "agent 00000007 boot 00000009: 2 files" in text
+    assert "samples 400 (0 backfilled, 0 still missing)" in text
