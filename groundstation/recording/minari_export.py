@@ -70,13 +70,28 @@ def plan_groups(recordings: list[RecordingParts], name: str) -> tuple[list[Minar
     groups ([] for one group). One group keeps the dataset name `name`; several add each group's name to it."""
     groups: dict[tuple[tuple[str, str], ...], list[RecordingParts]] = {}
     for recording in recordings:
-        groups.setdefault(tuple(sorted(environment(recording.header).items())), []).append(recording)
+        groups.setdefault(tuple(sorted(environment(_metadata(recording)).items())), []).append(recording)
     envs = [dict(key) for key in groups]
     base = re.sub(r"[^A-Za-z0-9_]+", "_", name).strip("_") or "recording"
     planned = [MinariGroup(f"{NAMESPACE}/{base}-v0" if len(groups) == 1 else
                            f"{NAMESPACE}/{base}_{group_name(env, envs)}-v0", env, members)
                for env, members in zip(envs, groups.values(), strict=True)]
     return planned, differences(envs)
+
+
+def _metadata(recording: RecordingParts) -> dict[str, list[dict[str, str]]]:
+    """Every metadata record of the recording's files, in order: the header's, and the parameter table the run
+    wrote once the agent had sent it (often after the header; a header alone would split one environment in two)."""
+    from groundstation.mcap_io import read_recording
+    from groundstation.mcap_io.indexed import open_indexed
+
+    merged: dict[str, list[dict[str, str]]] = {}
+    for path in recording.files:
+        indexed = open_indexed(path)
+        metadata = indexed.metadata if indexed is not None else read_recording(path, set()).metadata
+        for name, entries in metadata.items():
+            merged.setdefault(name, []).extend(entries)
+    return merged
 
 
 def export_minari(recording: Recording, dataset_id: str, root: Path | None) -> MinariExport:
