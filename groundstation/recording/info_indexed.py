@@ -211,7 +211,9 @@ def _samples(chunk: IndexedChunk, sample_id: int | None, raw_id: int, totals: In
     rows = chunk.index[sample_id]  # type: ignore[index]
     offsets = rows[:, 1].astype(np.int64)
     buf = np.frombuffer(chunk.data, dtype=np.uint8)
-    twin = offsets + 9 + _gather(buf, offsets + 1, "<u8").astype(np.int64)
+    lengths = _gather(buf, offsets + 1, "<u8")
+    lengths = np.where(lengths < len(buf), lengths, len(buf)).astype(np.int64)  # a hostile length stays in the chunk
+    twin = offsets + 9 + lengths
     fits = twin + MESSAGE_DATA_AT + _SAMPLE_INNER <= len(buf)
     ok = np.zeros(len(offsets), dtype=bool)
     at = twin[fits]

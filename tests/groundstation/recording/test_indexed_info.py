@@ -5,17 +5,20 @@ per boot that spans files. Real recordings by the real recorder, read back from 
 from __future__ import annotations
 
 import json
+import struct
 import tracemalloc
 from pathlib import Path
 
+import numpy as np
 import pytest
 from typer.testing import CliRunner
 
 from groundstation.cli.app import app
 from groundstation.mcap_io import McapFileWriter
-from groundstation.mcap_io.indexed import open_indexed
+from groundstation.mcap_io.indexed import IndexedChunk, open_indexed
 from groundstation.recording import summaries
 from groundstation.recording.info import summarize, summarize_stream
+from groundstation.recording.info_indexed import IndexedTotals, _samples
 from groundstation.recording.recorder import Recorder, RecorderConfig
 from groundstation.session.events import Received
 from protocol import Frame, FrameFlag, Message
@@ -169,3 +172,12 @@ def test_two_recorders_of_one_boot_count_each_sample_once(tmp_path: Path) -> Non
     text = " ".join(CliRunner().invoke(app, ["log", "info", str(tmp_path)]).stdout.split())
     assert "agent 00000007 boot 00000009: 2 files" in text
     assert "samples 400 (0 backfilled, 0 still missing)" in text
+
+
+def test_a_hostile_message_length_in_a_chunk_is_a_malformed_message() -> None:
+    """A chunk whose CRC holds but whose SAMPLE record claims 2**63 bytes: counted as malformed, nothing read."""
+    record = struct.pack("<BQHIQQ", 0x05, 2**63 + 5, 1, 0, 5, 5) + b"{}"
+    chunk = IndexedChunk(record, {1: np.array([[5, 0]], dtype=np.uint64)}, len(record))
+    totals = IndexedTotals()
+    offsets, *_ = _samples(chunk, 1, 2, totals)
+    assert len(offsets) == 0 and totals.malformed == 1
