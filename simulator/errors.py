@@ -19,6 +19,10 @@ class StudyError(SimulatorError):
     """A study that cannot run: bad trial counts, an unwritable output folder."""
 
 
+class ClusterUnreachableError(SimulatorError, ConnectionError):
+    """The Dask scheduler named by --cluster does not answer (a failure, exit 1, not bad usage)."""
+
+
 def say_error(message: str) -> None:
     """One line on stderr, named after the program as it was called: `dive: ...` under `dive sim` / `dive study`
     (as every dive command says it), `python -m simulator: ...` when started on its own."""

@@ -12,7 +12,7 @@ import typer
 from groundstation.cli import view as view_cli
 from groundstation.cli.common import UrlArg, err, one_line_errors
 from groundstation.cli.signals import stop_on_signals
-from groundstation.cli.validate import UsageError, parse_speed
+from groundstation.cli.validate import UsageError, check_presets, parse_speed
 from groundstation.safe_output import printable
 from groundstation.session.keys import KeyFileOption, resolve_key
 from groundstation.view.options import Viewer
@@ -58,6 +58,7 @@ def run_command(
 
     if speed is not None:
         parse_speed(speed)  # now, not 10 s later inside the virtual agent
+    check_presets(preset, learner)
     url = _with_sim_options(url, speed=speed, seed=seed, preset=preset, learner=learner)
     values: dict[str, str] = load_params_file(params) if params else {}
     for name, value in (("target_depth_m", target_depth), ("z_tol_m", z_tol), ("zdot_tol_mps", zdot_tol),

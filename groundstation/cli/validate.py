@@ -35,3 +35,19 @@ def parse_speed(text: str) -> float | None:
     if not speed > 0 or speed == float("inf"):
         raise UsageError(f"bad speed {text!r}: give a factor such as 1, 10 or max")
     return speed
+
+
+# The simulator's plant presets (simulator.parameters.preset_names(); a test keeps the two equal): groundstation
+# starts the simulator as a process and never imports it, and a wrong name must be refused before that start.
+PLANT_PRESETS = ("hardware", "paper")
+
+
+def check_presets(preset: str | None, learner: str | None) -> None:
+    """A plant or learner preset the virtual agent does not know is one line (exit 2) before it is started."""
+    if preset is not None and preset not in PLANT_PRESETS:
+        raise UsageError(f"unknown --preset {preset!r}; choose one of {', '.join(PLANT_PRESETS)}")
+    if learner is not None:
+        from learning.presets import learner_names
+
+        if learner not in learner_names():
+            raise UsageError(f"unknown --learner {learner!r}; choose one of {', '.join(learner_names())}")

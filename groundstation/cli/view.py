@@ -163,7 +163,8 @@ def replay(
         config = ViewConfig(viewer=default_viewer(viewer, rrd), rrd=rrd, web_port=web_port, grpc_port=grpc_port)
         check_viewer_ports(config.viewer, web_port, grpc_port)
         statuses = [RecordingContents() for _ in parts.files]
-        items = rp.select(rp.read_parts(parts, statuses), *bounds)
+        tally = rp.Tally()
+        items = rp.select(rp.read_parts(parts, statuses), *bounds, tally)
         shown = parts.files[0].name if len(parts.files) == 1 else f"{parts.name} ({len(parts.files)} parts)"
         began = time.perf_counter()
         partial = rrd if rrd is not None and not rrd.exists() else None  # removed again if nothing is shown
@@ -183,6 +184,8 @@ def replay(
                 view.send(batch)
             else:
                 count = rp.play(items, view.feed_model, factor)
+            if bounds != (None, None):
+                tally.check_window(start, end)
             rp.check_nonempty(count, parts.files[0] if len(parts.files) == 1 else shown, statuses[0])
             for path, status in zip(parts.files, statuses, strict=True):
                 if status.truncated:

@@ -69,21 +69,34 @@ class _BoundedFile:
 
 def _chunk_data(chunk: Chunk, budget: list[int], path: Path) -> bytes | None:
     """A chunk's data, decompressed within its declared size and the file's budget; None if it is damaged."""
-    if chunk.uncompressed_size > budget[0]:
+    return decompress_chunk(chunk.compression, chunk.data, chunk.uncompressed_size, chunk.uncompressed_crc,
+                            budget, path)
+
+
+def decompress_chunk(compression: str, data: bytes, uncompressed_size: int, uncompressed_crc: int,
+                     budget: list[int], path: Path) -> bytes | None:
+    """Chunk data decompressed within its declared size and the file's budget (budget[0] bytes left, lowered by
+    what this takes); None if it is damaged. RecordingTooLargeError when the declared size exceeds the budget."""
+    if uncompressed_size > budget[0]:
         raise RecordingTooLargeError(
             f"{path}: its chunks claim more than {DECODED_PER_DISK_BYTE} times the file's size when decompressed "
             "(a damaged or hostile file); not read further")
-    if chunk.compression == "zstd":
-        with zstandard.ZstdDecompressor().stream_reader(chunk.data) as reader:
-            data = reader.read(chunk.uncompressed_size + 1)
-    elif chunk.compression == "":
-        data = chunk.data
+    if compression == "zstd":
+        with zstandard.ZstdDecompressor().stream_reader(data) as reader:
+            out = reader.read(uncompressed_size + 1)
+    elif compression == "":
+        out = data
     else:
         return None
-    budget[0] -= len(data)
-    if len(data) != chunk.uncompressed_size or (chunk.uncompressed_crc and zlib.crc32(data) != chunk.uncompressed_crc):
+    budget[0] -= len(out)
+    if len(out) != uncompressed_size or (uncompressed_crc and zlib.crc32(out) != uncompressed_crc):
         return None
-    return bytes(data)
+    return bytes(out)
+
+
+def decode_budget(size: int) -> list[int]:
+    """The bytes a file of `size` bytes may decompress to in all (see DECODED_PER_DISK_BYTE), as a mutable cell."""
+    return [max(DECODED_FLOOR_BYTES, DECODED_PER_DISK_BYTE * size)]
 
 
 def _chunk_records(chunk: Chunk, budget: list[int], path: Path) -> list[Any]:
@@ -125,7 +138,7 @@ def _records(path: Path, damaged: list[int] | None = None, chunk_data: bool = Fa
         raise RecordingError(f"no such recording: {path}") from e
     except OSError as e:
         raise RecordingError(f"cannot read {path}: {e.strerror or e}") from e
-    budget = [max(DECODED_FLOOR_BYTES, DECODED_PER_DISK_BYTE * size)]
+    budget = decode_budget(size)
     with stream:
         try:
             reader = _Reader(_BoundedFile(stream, size), skip_magic=False, emit_chunks=True,  # type: ignore[arg-type]

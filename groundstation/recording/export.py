@@ -8,13 +8,14 @@ from pathlib import Path
 import numpy as np
 
 from groundstation.errors import RecordingError
-from groundstation.recording.tables import open_recording
+from groundstation.recording.minari_export import OBS_HIGH, OBS_LOW, action_step_deg, episode_observations
+from groundstation.recording.tables import Recording, open_recording
 from protocol import Action, EndReason, Mode
 
 _REASONS = {reason.name.lower(): int(reason) for reason in EndReason}
 
 
-def _samples_and_ends(paths: list[Path]) -> tuple[list[dict[str, object]], dict[tuple[int, int], int]]:
+def _samples_and_ends(paths: list[Path]) -> tuple[list[dict[str, object]], dict[tuple[int, int], int], Recording]:
     """Samples by (boot, index), each once, in order; episode end reasons by (boot, episode).
 
     Read through open_recording (the notebook API), so the CLI and a notebook see the same rows: sample and
@@ -28,7 +29,7 @@ def _samples_and_ends(paths: list[Path]) -> tuple[list[dict[str, object]], dict[
     rows = [dict(zip(columns, values, strict=True)) for values in table[columns].tolist()]
     ends = {(int(e["boot"]), int(e["episode"])): _REASONS[str(e["outcome"])]
             for e in recording.episodes() if str(e["outcome"]) in _REASONS}
-    return rows, ends
+    return rows, ends, recording
 
 
 def _files(source: Path | list[Path]) -> tuple[list[Path], str]:
@@ -40,7 +41,7 @@ def _files(source: Path | list[Path]) -> tuple[list[Path], str]:
 def export_csv(source: Path | list[Path], target: Path) -> int:
     """The samples of a recording (a file, or the parts of a split one together) as CSV, one row each."""
     files, path = _files(source)
-    rows, _ = _samples_and_ends(files)
+    rows, _, _ = _samples_and_ends(files)
     if not rows:
         raise RecordingError(f"{path} holds no samples to export")
     columns = [c for c in rows[0] if c not in ("_seq", "_flags")]
@@ -63,11 +64,12 @@ def export_npz(source: Path | list[Path], target: Path) -> int:
     that crosses from one part into the next is kept whole.
     """
     files, path = _files(source)
-    rows, ends = _samples_and_ends(files)
+    rows, ends, recording = _samples_and_ends(files)
     learning = [r for r in rows if r["mode"] == Mode.LEARNING and (r["boot"], r["episode"]) in ends]
+    _observe(learning, recording)
     cols: dict[str, list[float]] = {k: [] for k in (
         "boot", "episode", "state", "action", "reward", "next_state", "terminated", "truncated",
-        "depth_m", "velocity_mps", "next_depth_m", "next_velocity_mps")}
+        "depth_m", "velocity_mps", "next_depth_m", "next_velocity_mps", "offset_deg", "next_offset_deg")}
     for now, nxt in zip(learning, learning[1:], strict=False):
         if nxt["boot"] != now["boot"] or nxt["episode"] != now["episode"] \
                 or nxt["sample"] != int(now["sample"]) + 1:  # type: ignore[call-overload]
@@ -79,6 +81,7 @@ def export_npz(source: Path | list[Path], target: Path) -> int:
                   "reward": nxt["reward"],
                   "next_state": nxt["state"], "depth_m": now["depth_m"], "velocity_mps": now["velocity_mps"],
                   "next_depth_m": nxt["depth_m"], "next_velocity_mps": nxt["velocity_mps"],
+                  "offset_deg": now["_offset_deg"], "next_offset_deg": nxt["_offset_deg"],
                   "terminated": 0, "truncated": 0}
         try:  # a recorded NaN is null; a value of the wrong type leaves the transition out
             numbers = {key: float("nan") if value is None else float(value)  # type: ignore[arg-type]
@@ -99,16 +102,44 @@ def export_npz(source: Path | list[Path], target: Path) -> int:
             truncated[index[-1]] = reason != EndReason.FAILURE
     if not len(episodes):
         raise RecordingError(f"{path} holds no learning transitions to export")
+    observation = np.column_stack([cols["depth_m"], cols["velocity_mps"], cols["offset_deg"]])
+    next_observation = np.column_stack([cols["next_depth_m"], cols["next_velocity_mps"], cols["next_offset_deg"]])
     try:
-        np.savez_compressed(
-            target, boot=boots, episode=episodes,
-            state=np.asarray(cols["state"], dtype=np.int64), action=np.asarray(cols["action"], dtype=np.int64),
-            reward=np.asarray(cols["reward"], dtype=np.float32),
-            next_state=np.asarray(cols["next_state"], dtype=np.int64),
-            terminated=terminated, truncated=truncated,
-            observation=np.column_stack([cols["depth_m"], cols["velocity_mps"]]).astype(np.float32),
-            next_observation=np.column_stack([cols["next_depth_m"], cols["next_velocity_mps"]]).astype(np.float32),
-        )
+        with target.open("wb") as f:  # a file, not a name: numpy would add ".npz" to a name without it
+            np.savez_compressed(
+                f, boot=boots, episode=episodes,
+                state=np.asarray(cols["state"], dtype=np.int64), action=np.asarray(cols["action"], dtype=np.int64),
+                reward=np.asarray(cols["reward"], dtype=np.float32),
+                next_state=np.asarray(cols["next_state"], dtype=np.int64),
+                terminated=terminated, truncated=truncated,
+                # DivingAgent-v0's (and the Minari export's) observation: depth, velocity, actuator offset
+                observation=np.clip(observation, OBS_LOW, OBS_HIGH),
+                next_observation=np.clip(next_observation, OBS_LOW, OBS_HIGH),
+            )
     except OSError as e:
         raise RecordingError(f"cannot write {target}: {e.strerror or e}") from e
     return len(episodes)
+
+
+def _observe(learning: list[dict[str, object]], recording: Recording) -> None:
+    """Each row's actuator offset as DivingAgent-v0 observes it (`_offset_deg`), episode by episode; NaN when the
+    recording states no action step and its learner never moved the actuator (the window centre is unknown)."""
+    if not learning:
+        return
+    try:
+        step_deg = action_step_deg(recording)
+    except RecordingError:  # no step stated and none taken: the offset from the window centre is unknown
+        step_deg = float("nan")
+    start = 0
+    for end in range(1, len(learning) + 1):
+        if end < len(learning) and (learning[end]["boot"], learning[end]["episode"]) == \
+                (learning[start]["boot"], learning[start]["episode"]):
+            continue
+        rows = learning[start:end]
+        cmd = [float(r["actuator_cmd_deg"]) if r["actuator_cmd_deg"] is not None else np.nan  # type: ignore[arg-type]
+               for r in rows]
+        observed = episode_observations(np.zeros(len(rows)), np.zeros(len(rows)), cmd, int(rows[0]["action"]),  # type: ignore[call-overload]
+                                        step_deg)
+        for row, offset in zip(rows, observed[:, 2], strict=True):
+            row["_offset_deg"] = float(offset)
+        start = end

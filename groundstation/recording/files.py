@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from groundstation.errors import GroundStationError
+from groundstation.recording.environments import tidy_value
 
 _HEX_IDS = ("node_id", "boot_id")  # shown in hex everywhere else (dive status, file names)
 
@@ -110,7 +111,7 @@ def _number(text: Any) -> Any:
             value_f = float(text)
         except ValueError:
             return text
-        return value_f if math.isfinite(value_f) else text
+        return tidy_value(value_f) if math.isfinite(value_f) else text  # float32 parameters without their noise
     return value
 
 
@@ -123,4 +124,6 @@ def json_summary(summary: dict[str, Any]) -> dict[str, Any]:
             agent[key] = f"{agent[key]:08x}"
     out["agent"] = agent
     out["parameters"] = {k: _number(v) for k, v in dict(summary.get("parameters", {})).items()}
+    out["boots"] = [{**boot, "boot_id": f"{boot['boot_id']:08x}" if isinstance(boot.get("boot_id"), int) else None}
+                    for boot in summary.get("boots", [])]
     return out

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -34,6 +35,9 @@ class BootSummary:
     samples_impossible: int = 0  # indices the agent cannot have reached (ignored; see exactness.py)
     first_sample: int | None = None
     end_sample: int | None = None
+    boot_id: int | None = None  # the agent's own id of this boot (its HELLO's boot_id), when recorded
+    # The sample indices held, as [start, end) ranges: to combine files exactly (summaries.py); not in --json.
+    held: list[tuple[int, int]] = field(default_factory=list, repr=False, compare=False)
 
 
 @dataclass
@@ -61,12 +65,15 @@ class RecordingSummary:
     part: int = 0  # of a split recording (dive run --split-mb/--split-minutes): 1, 2, ...; 0 = not split
 
     def as_dict(self) -> dict[str, Any]:
-        return asdict(self)
+        out = asdict(self)
+        for boot in out["boots"]:
+            del boot["held"]
+        return out
 
 
 class _Boot:
-    def __init__(self, number: int) -> None:
-        self.summary = BootSummary(number)
+    def __init__(self, number: int, boot_id: int | None = None) -> None:
+        self.summary = BootSummary(number, boot_id=boot_id)
         self.held = SampleRanges()
         self.check = SampleIndexCheck()
 
@@ -74,10 +81,41 @@ class _Boot:
         s = self.summary
         s.samples_missing = sum(b - a for a, b in self.held.missing())
         s.first_sample, s.end_sample = self.held.first, self.held.end
+        s.held = self.held.ranges()
         return s
 
 
-def summarize(path: Path) -> RecordingSummary:
+def summarize(path: Path, progress: Callable[[int, int], None] | None = None) -> RecordingSummary:
+    """What the recording at `path` holds: through its indexes when it is a finished file (fast, constant memory),
+    else (cut short, being written, written by another tool) by reading it as a stream.
+
+    progress(done, total) is called with compressed bytes read as the indexed read goes on.
+    """
+    from groundstation.mcap_io.indexed import open_indexed
+    from groundstation.recording.info_indexed import summarize_indexed
+
+    indexed = open_indexed(path)
+    if indexed is None:
+        return summarize_stream(path)
+    total = indexed.compressed_bytes
+    totals = summarize_indexed(indexed, None if progress is None else lambda done: progress(done, total))
+    if indexed.indexed_messages != indexed.message_count:  # a message outside the indexes: read every message
+        return summarize_stream(path)
+    summary = RecordingSummary(str(path), complete=True, sessions=totals.sessions, link_losses=totals.link_losses,
+                               messages=totals.messages, frames_lost=totals.frames_lost, rejects=totals.rejects,
+                               topics=totals.topics, malformed=totals.malformed, damaged_chunks=totals.damaged_chunks)
+    summary.episodes = [_episode(body) for body in totals.episodes]
+    finished = []
+    for counts in totals.boots:
+        boot = BootSummary(counts.boot, counts.samples, counts.backfilled, counts.held.missing(), counts.impossible,
+                           counts.held.first, counts.held.end, counts.boot_id, counts.held.ranges())
+        finished.append(boot)
+    _finish(summary, finished, totals.first_ns, totals.last_ns, totals.first_us, totals.last_us, indexed.metadata)
+    return summary
+
+
+def summarize_stream(path: Path) -> RecordingSummary:
+    """summarize() by reading every message in file order (any file, however damaged or cut short)."""
     info = RecordingContents()
     summary = RecordingSummary(str(path), complete=True)
     boots = Boots()
@@ -89,6 +127,7 @@ def summarize(path: Path) -> RecordingSummary:
     for msg in iter_messages(path, None, info):
         if not summary.messages:  # the header is read by now: a split part begins in the boot its header names
             boots.header(info.metadata)
+            boot.summary.boot_id = boots.boot_id
         summary.messages += 1
         summary.topics[msg.topic] = summary.topics.get(msg.topic, 0) + 1
         first_ns = msg.log_time_ns if first_ns is None else min(first_ns, msg.log_time_ns)
@@ -112,11 +151,7 @@ def summarize(path: Path) -> RecordingSummary:
         elif msg.topic == "/agent/EPISODE_END":
             body = json_fields(msg, integers=("episode", "reason", "steps"), numbers=("duration_s", "episode_return"))
             if body is not None:
-                reason = body["reason"]
-                outcome = EndReason(reason).name.lower() if reason in (1, 2, 3) else str(reason)
-                summary.episodes.append(EpisodeSummary(body["episode"], outcome, body["steps"],
-                                                       body["duration_s"] or 0.0, body["episode_return"] or 0.0,
-                                                       bool(body.get("_backfilled"))))
+                summary.episodes.append(_episode(body))
         elif msg.topic == "/agent/HELLO":
             # The agent's HELLO on connect and its answer to ours are one session: the first after a start or a loss.
             if new_session:
@@ -124,7 +159,8 @@ def summarize(path: Path) -> RecordingSummary:
                 new_session = False
             if boots.hello(msg):
                 finished.append(boot.finish())
-                boot = _Boot(boots.current)
+                boot = _Boot(boots.current, boots.boot_id)
+            boot.summary.boot_id = boots.boot_id  # the first HELLO of a file without a header names boot 1
         elif msg.topic == "/event":
             body = json_fields(msg)
             if body is not None and body.get("kind") == "link_lost":
@@ -139,9 +175,23 @@ def summarize(path: Path) -> RecordingSummary:
         if body is None:
             summary.malformed += 1
     finished.append(boot.finish())
-    summary.boots = [b for b in finished if b.samples or b.samples_impossible or len(finished) == 1]
     summary.complete = not info.truncated
     summary.damaged_chunks = info.damaged_chunks
+    _finish(summary, finished, first_ns, last_ns, first_us, last_us, info.metadata)
+    return summary
+
+
+def _episode(body: dict[str, Any]) -> EpisodeSummary:
+    reason = body["reason"]
+    outcome = EndReason(reason).name.lower() if reason in (1, 2, 3) else str(reason)
+    return EpisodeSummary(body["episode"], outcome, body["steps"], body["duration_s"] or 0.0,
+                          body["episode_return"] or 0.0, bool(body.get("_backfilled")))
+
+
+def _finish(summary: RecordingSummary, finished: list[BootSummary], first_ns: int | None, last_ns: int | None,
+            first_us: int | None, last_us: int | None, metadata: dict[str, list[dict[str, str]]]) -> None:
+    """What both readers derive alike: totals over boots, durations, episodes in order, header fields."""
+    summary.boots = [b for b in finished if b.samples or b.samples_impossible or len(finished) == 1]
     summary.episodes.sort(key=lambda e: e.episode)
     summary.successes = sum(e.outcome == "success" for e in summary.episodes)
     summary.samples = sum(b.samples for b in finished)
@@ -150,13 +200,12 @@ def summarize(path: Path) -> RecordingSummary:
     summary.duration_s = (last_ns - first_ns) / 1e9 if first_ns is not None and last_ns is not None else 0.0
     if first_us is not None and last_us is not None:
         summary.agent_duration_s = (last_us - first_us) / 1e6
-    session = (info.metadata.get("session") or [{}])[0]
+    session = (metadata.get("session") or [{}])[0]
     if session.get("split") == "true" and session.get("part", "").isdigit():
         summary.part = int(session["part"])
     for name, key in (("agent_hello", "agent"), ("parameters", "parameters")):
-        if info.metadata.get(name):
-            setattr(summary, key, info.metadata[name][-1])
-    return summary
+        if metadata.get(name):
+            setattr(summary, key, metadata[name][-1])
 
 
 def _count(value: object) -> int:

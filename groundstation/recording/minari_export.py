@@ -28,6 +28,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from groundstation.errors import RecordingError
+from groundstation.recording.environments import differences, environment, group_name, tidy_number
+from groundstation.recording.files import RecordingParts
 from groundstation.recording.tables import Recording
 from protocol import Action, EndReason, Mode
 
@@ -52,6 +54,44 @@ def dataset_id_for(path: Path) -> str:
     """A Minari dataset id from a recording's file name: diving_agent/<name>-v0."""
     name = re.sub(r"[^A-Za-z0-9_]+", "_", path.stem).strip("_") or "recording"
     return f"{NAMESPACE}/{name}-v0"
+
+
+@dataclass(frozen=True)
+class MinariGroup:
+    """Recordings of one environment, exported as one dataset."""
+
+    dataset_id: str
+    environment: dict[str, str]
+    recordings: list[RecordingParts]
+
+
+def plan_groups(recordings: list[RecordingParts], name: str) -> tuple[list[MinariGroup], list[str]]:
+    """The recordings grouped by environment (environments.py), one dataset id each, and what differs among the
+    groups ([] for one group). One group keeps the dataset name `name`; several add each group's name to it."""
+    groups: dict[tuple[tuple[str, str], ...], list[RecordingParts]] = {}
+    for recording in recordings:
+        groups.setdefault(tuple(sorted(environment(_metadata(recording)).items())), []).append(recording)
+    envs = [dict(key) for key in groups]
+    base = re.sub(r"[^A-Za-z0-9_]+", "_", name).strip("_") or "recording"
+    planned = [MinariGroup(f"{NAMESPACE}/{base}-v0" if len(groups) == 1 else
+                           f"{NAMESPACE}/{base}_{group_name(env, envs)}-v0", env, members)
+               for env, members in zip(envs, groups.values(), strict=True)]
+    return planned, differences(envs)
+
+
+def _metadata(recording: RecordingParts) -> dict[str, list[dict[str, str]]]:
+    """Every metadata record of the recording's files, in order: the header's, and the parameter table the run
+    wrote once the agent had sent it (often after the header; a header alone would split one environment in two)."""
+    from groundstation.mcap_io import read_recording
+    from groundstation.mcap_io.indexed import open_indexed
+
+    merged: dict[str, list[dict[str, str]]] = {}
+    for path in recording.files:
+        indexed = open_indexed(path)
+        metadata = indexed.metadata if indexed is not None else read_recording(path, set()).metadata
+        for name, entries in metadata.items():
+            merged.setdefault(name, []).extend(entries)
+    return merged
 
 
 def export_minari(recording: Recording, dataset_id: str, root: Path | None) -> MinariExport:
@@ -90,32 +130,45 @@ def _create(minari: Any, dataset_id: str, buffers: list[Any], env_spec: Any, gym
         dataset_id=dataset_id, buffer=buffers, env=env_spec,
         observation_space=gymnasium.spaces.Box(np.array(OBS_LOW), np.array(OBS_HIGH), dtype=np.float64),
         action_space=gymnasium.spaces.Discrete(2),
-        algorithm_name=f"on-board learner of {agent.get('name', 'the agent')} (node {agent.get('node_id', '?')})",
+        algorithm_name=f"on-board learner of {agent.get('name', 'the agent')} (node {_hex(agent.get('node_id', '?'))})",
         author="dive log export", data_format="arrow",
         description=(f"Learning episodes recorded by dive from {', '.join(str(f) for f in recording.files)}; "
-                     f"boots {recording.boots}; agent {agent}; parameters {recording.parameters}"),
+                     f"boots {recording.boots}; environment {environment(recording.metadata)}; "
+                     f"agent { {k: _hex(v) if k in ('node_id', 'boot_id') else v for k, v in agent.items()} }; "
+                     f"parameters { {k: tidy_number(v) for k, v in recording.parameters.items()} }"),
     )
 
 
+def _hex(text: str) -> str:
+    """A node or boot id in hex, as dive status, log info and the file names show it."""
+    return f"{int(text):08x}" if text.isdigit() else text
+
+
 def _env_kwargs(recording: Recording) -> dict[str, Any]:
-    """make() options of DivingAgent-v0 that match the recorded task, from the agent's parameters."""
+    """make() options of DivingAgent-v0 that match the recorded task: the plant preset and learner the run named
+    (a sim:// run; a real agent's plant is the water: the default plant stands in), the agent's parameters."""
     params = recording.parameters
+    env = environment(recording.metadata)
     kwargs: dict[str, Any] = {}
+    if env["preset"] != "unknown":
+        kwargs["preset"] = env["preset"]
+    if env["learner"] != "unknown":
+        kwargs["learner"] = env["learner"]
     for name in ("z_tol_m", "zdot_tol_mps"):
         if name in params:
-            kwargs[name] = float(params[name])
+            kwargs[name] = float(tidy_number(params[name]))
     for wire_name, option in (("z_cells", "z_cells"), ("zdot_cells", "zdot_cells"), ("act_bins", "actuator_bins")):
         if wire_name in params:
             kwargs[option] = int(float(params[wire_name]))
     if "target_depth_m" in params:
-        kwargs["params"] = {"target_depth_m": float(params["target_depth_m"])}
+        kwargs["params"] = {"target_depth_m": float(tidy_number(params["target_depth_m"]))}
     return kwargs
 
 
 def _episode_buffers(recording: Recording, buffer_type: type) -> tuple[list[Any], int]:
     samples = recording.samples()
     learning = samples[samples["mode"] == int(Mode.LEARNING)] if len(samples) else samples
-    step_deg = _action_step_deg(recording)
+    step_deg = action_step_deg(recording)
     buffers: list[Any] = []
     left_out = 0
     for row in recording.episodes():
@@ -134,13 +187,8 @@ def _buffer(buffer_type: type, episode_id: int, rows: NDArray[np.void], outcome:
     actions = rows["action"][:-1].astype(np.int64)
     if np.any(actions == int(Action.NONE)):
         actions = np.where(actions == int(Action.NONE), 0, actions)  # cannot happen inside an episode
-    cmd = rows["actuator_cmd_deg"].astype(np.float64)
-    first = int(rows["action"][0])
-    # SAMPLE t carries the command after action t; the window centre is the command before the first.
-    centre = cmd[0] - (step_deg if first == int(Action.INCREASE_VOLUME) else -step_deg)
-    before = np.concatenate(([centre], cmd[:-1]))
-    observations = np.column_stack([rows["depth_m"], rows["velocity_mps"], before - centre])
-    observations = np.clip(observations, OBS_LOW, OBS_HIGH)
+    observations = episode_observations(rows["depth_m"], rows["velocity_mps"], rows["actuator_cmd_deg"],
+                                        int(rows["action"][0]), step_deg)
     n = len(actions)
     terminations = np.zeros(n, dtype=bool)
     truncations = np.zeros(n, dtype=bool)
@@ -154,7 +202,21 @@ def _buffer(buffer_type: type, episode_id: int, rows: NDArray[np.void], outcome:
     )
 
 
-def _action_step_deg(recording: Recording) -> float:
+def episode_observations(depth_m: Any, velocity_mps: Any, cmd_deg: Any, first_action: int, step_deg: float
+                         ) -> NDArray[np.float64]:
+    """DivingAgent-v0's observations of one episode's LEARNING samples in order: [depth, velocity, actuator
+    command before the step minus the episode's window centre], clipped to the environment's bounds."""
+    cmd = np.asarray(cmd_deg, dtype=np.float64)
+    # SAMPLE t carries the command after action t; the window centre is the command before the first.
+    centre = cmd[0] - (step_deg if first_action == int(Action.INCREASE_VOLUME) else -step_deg)
+    before = np.concatenate(([centre], cmd[:-1]))
+    observations = np.column_stack([np.asarray(depth_m, dtype=np.float64),
+                                    np.asarray(velocity_mps, dtype=np.float64), before - centre])
+    return np.clip(observations, OBS_LOW, OBS_HIGH)
+
+
+def action_step_deg(recording: Recording) -> float:
+    """The learner's actuator step: the recorded parameter, else the median step of its LEARNING samples."""
     value = recording.parameters.get("action_step_deg")
     if value is not None:
         return float(value)

@@ -42,6 +42,11 @@ class Boots:
         self.current = 1
         self._boot_id: int | None = None
 
+    @property
+    def boot_id(self) -> int | None:
+        """The agent's boot id of the current boot, once a HELLO or header named it."""
+        return self._boot_id
+
     def hello(self, msg: RecordedMessage) -> bool:
         """Follow a /agent/HELLO; True if it starts a new boot."""
         body = json_fields(msg, integers=("boot_id",))

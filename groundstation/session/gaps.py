@@ -23,6 +23,10 @@ class SampleRanges:
     def first(self) -> int | None:
         return self._starts[0] if self._starts else None
 
+    def ranges(self) -> list[tuple[int, int]]:
+        """The [start, end) ranges held, in order."""
+        return list(zip(self._starts, self._ends, strict=True))
+
     @property
     def end(self) -> int | None:
         """One past the highest index held."""

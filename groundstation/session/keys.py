@@ -72,7 +72,7 @@ def keygen(
     out: Annotated[Path, typer.Option("--out", help="key file to write (64 hex digits, mode 0600)")] = DEFAULT_KEY_FILE,
     force: Annotated[bool, typer.Option(help="replace an existing key file")] = False,
 ) -> None:
-    """Write a new random signing key; give it to the agent (serve --key-file) and to dive (--key-file)."""
+    """Write a new random signing key; give it to the agent (dive sim --key-file) and to dive (--key-file)."""
     try:
         path = write_key_file(out, force)
     except KeyFileError as e:
@@ -80,4 +80,4 @@ def keygen(
         raise typer.Exit(1) from None
     typer.echo(one_line(path))
     shown = one_line(path)
-    typer.echo(f"agent: python -m simulator serve --key-file {shown}; ground: export {KEY_FILE_ENV}={shown}", err=True)
+    typer.echo(f"agent: dive sim --key-file {shown}; ground: export {KEY_FILE_ENV}={shown}", err=True)

@@ -123,7 +123,25 @@ def check_order(start: Bound | None, end: Bound | None) -> None:
         raise ReplayError(f"--from {start.offset_s:g} s is after --to {end.offset_s:g} s (agent time)")
 
 
-def select(items: Iterator[Item], start: Bound | None, end: Bound | None) -> Iterator[Item]:
+@dataclass
+class Tally:
+    """What select() passed over: items shown (setup left out), and how far the recording reached."""
+
+    shown: int = 0
+    span_s: float = 0.0  # agent time from the first frame to the last read
+    last_episode: int = 0
+
+    def check_window(self, start: str | None, end: str | None) -> None:
+        """A window that holds nothing is an error (a past-the-end --from wrote an almost empty .rrd)."""
+        if self.shown == 0 and (start is not None or end is not None):
+            window = " ".join(part for part in (f"--from {start}" if start else "", f"--to {end}" if end else "")
+                              if part)
+            raise ReplayError(f"the window {window} holds no agent frames: the recording spans {self.span_s:.0f} s "
+                              f"of agent time and episodes up to {self.last_episode}")
+
+
+def select(items: Iterator[Item], start: Bound | None, end: Bound | None,
+           tally: Tally | None = None) -> Iterator[Item]:
     """Only the items inside [start, end]: episodes by the agent's episode number, times in agent time.
 
     Agent time (the messages' own clock) is the timeline the viewer shows and --speed plays: at --speed max a
@@ -143,6 +161,8 @@ def select(items: Iterator[Item], start: Bound | None, end: Bound | None) -> Ite
             latest_s = item.agent_time_s
         episode = item.episode if item.episode is not None else episode
         offset_s = latest_s - first_s if first_s is not None else 0.0
+        if tally is not None:
+            tally.span_s, tally.last_episode = max(tally.span_s, offset_s), max(tally.last_episode, episode)
         if start is not None and (
             (start.episode is not None and episode < start.episode)
             or (start.offset_s is not None and offset_s < start.offset_s)
@@ -152,6 +172,8 @@ def select(items: Iterator[Item], start: Bound | None, end: Bound | None) -> Ite
             break
         if end is not None and end.offset_s is not None and offset_s > end.offset_s:
             continue
+        if tally is not None:
+            tally.shown += 1
         yield item
 
 

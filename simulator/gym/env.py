@@ -12,8 +12,20 @@ a dict, e.g. {"target_depth_m": 0.5}) and `render_mode` (`"rgb_array"`).
 Observation: [measured depth m, velocity the learner sees m/s, actuator command minus the window's
 centre deg]: what the agent itself knows. With the `hardware` preset the velocity is the sliding
 mode observer's estimate (the observer is in the loop); with `paper` it is the true velocity, as
-the paper's simulation had it. Reward and episode ends are the paper's (terminated on leaving the
-learning region, truncated at the success time).
+the paper's simulation had it. Episode ends are the paper's (terminated on leaving the learning
+region, truncated at the success time: a success).
+
+Reward, `reward=` of `make`:
+- `"paper"` (default): the paper's (eq. 2), -|z - z_d| per step and `terminal_reward` (-10) on leaving
+  the region. It serves the paper's planner, but its return is no measure of success: a 300 s success
+  returns about -30, a failure after a second about -11, so an off-the-shelf agent maximising return
+  learns to fail fast.
+- `"hold"`: +control period (0.1 s) for every step that ends inside the region, 0 on the step that
+  leaves it: the return is the time held in seconds, largest for a success. Use it to train
+  Gymnasium agents (PPO, DQN ...) on the task.
+
+`info` carries `success` (the episode ended by holding for the success time) and `time_held_s` (time
+in the region so far) under either reward.
 """
 
 from __future__ import annotations
@@ -38,6 +50,7 @@ _LEARNER_FIELDS = (
     "z_tol_m", "zdot_tol_mps", "z_cells", "zdot_cells", "actuator_bins", "terminal_reward",
     "depth_only_terminal",
 )
+REWARDS = ("paper", "hold")  # see the module docstring
 _RENDER_STEPS = 3000  # the last 300 s at 0.1 s: one successful episode
 
 
@@ -48,8 +61,11 @@ class DivingAgentEnv(gymnasium.Env[NDArray[np.float64], np.int64]):
 
     def __init__(
         self, preset_name: str = "paper", learner: str = "paper", params: dict[str, Any] | None = None,
-        render_mode: str | None = None, **learner_options: Any,
+        render_mode: str | None = None, reward: str = "paper", **learner_options: Any,
     ) -> None:
+        if reward not in REWARDS:
+            raise ValueError(f"reward {reward!r} not known; use one of {', '.join(REWARDS)}")
+        self.reward = reward
         unknown = sorted(set(learner_options) - set(_LEARNER_FIELDS))
         if unknown:
             raise TypeError(f"unknown option(s) {', '.join(unknown)}; choose from {', '.join(_LEARNER_FIELDS)}")
@@ -82,6 +98,7 @@ class DivingAgentEnv(gymnasium.Env[NDArray[np.float64], np.int64]):
         self._seeded = True
         obs, info = self._task.reset(seed=seed)
         self._trace = [(0.0, float(obs[0]), float(obs[2]))]
+        info["time_held_s"], info["success"] = 0.0, False
         return self._clip(obs), info
 
     def step(
@@ -90,6 +107,12 @@ class DivingAgentEnv(gymnasium.Env[NDArray[np.float64], np.int64]):
         obs, reward, terminated, truncated, info = self._task.step(int(action))
         self._trace.append((float(info["time_s"]), float(obs[0]), float(obs[2])))
         del self._trace[:-_RENDER_STEPS]
+        period_s = self.plant.control_period_s
+        # The step that leaves the region is not time held; every step before it, and every step of a success, is.
+        info["time_held_s"] = float(info["time_s"]) - (period_s if terminated else 0.0)
+        info["success"] = bool(truncated and not terminated)
+        if self.reward == "hold":
+            reward = 0.0 if terminated else period_s
         return self._clip(obs), reward, terminated, truncated, info
 
     def render(self) -> NDArray[np.uint8] | None:  # type: ignore[override]

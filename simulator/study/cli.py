@@ -14,7 +14,7 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TaskID, TextC
 from rich.table import Table
 
 from learning import LearningError, learner_names
-from simulator.errors import SimulatorError, say_error
+from simulator.errors import ClusterUnreachableError, SimulatorError, say_error
 from simulator.parameters import load_params
 from simulator.study.compare import compare_rows, write_compare, write_overlay
 from simulator.study.options import Exploration, LearnerOptions, RunSpec, Ties, expand_runs
@@ -105,6 +105,9 @@ def study(
                 summaries.append(summary)
         if len(runs) > 1:
             rows = _write_comparison(runs, results, summaries, out_dir)
+    except ClusterUnreachableError as e:  # the input was right; the cluster is down
+        say_error(str(e))
+        raise typer.Exit(1) from None
     except (SimulatorError, LearningError) as e:
         say_error(str(e))
         raise typer.Exit(2) from None

@@ -19,18 +19,20 @@ from __future__ import annotations
 
 import csv
 import itertools
+import socket
 import time
 import tomllib
 from dataclasses import fields
 from pathlib import Path
 from typing import Any
+from urllib.parse import urlsplit
 
 import numpy as np
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
 from learning import LearnerConfig, LearningError, learner_preset
-from simulator.errors import SimulatorError, StudyError
+from simulator.errors import ClusterUnreachableError, SimulatorError, StudyError
 from simulator.parameters import preset, preset_names
 from simulator.study.output import prepare_out_dir
 from simulator.study.runner import run_study
@@ -107,11 +109,31 @@ def sweep_task(task: dict[str, Any]) -> dict[str, Any]:
     }
 
 
+PROBE_TIMEOUT_S = 3.0
+
+
+def check_reachable(cluster: str) -> None:
+    """A TCP scheduler address that nobody answers fails in seconds (Dask's Client waits its whole timeout first).
+    Other schemes (inproc://, tls://...) are left to Dask."""
+    parts = urlsplit(cluster if "://" in cluster else f"tcp://{cluster}")
+    if parts.scheme != "tcp" or parts.hostname is None:
+        return
+    try:
+        port = parts.port or 8786
+        with socket.create_connection((parts.hostname, port), timeout=PROBE_TIMEOUT_S):
+            pass
+    except (OSError, ValueError) as e:
+        why = e.strerror if isinstance(e, OSError) and e.strerror else str(e) or type(e).__name__
+        raise ClusterUnreachableError(f"cannot reach the Dask scheduler at {cluster}: {why}") from None
+
+
 def run_sweep(
     tasks: list[dict[str, Any]], cluster: str | None = None, console: Console | None = None
 ) -> list[dict[str, Any]]:
     """Every task's row, in task order: here one after another, or on the Dask scheduler at `cluster`."""
     rows: list[dict[str, Any] | None] = [None] * len(tasks)
+    if cluster is not None:
+        check_reachable(cluster)  # before a bar: a scheduler that is down is one line at once
     with Progress(
         TextColumn("[bold]sweep[/] {task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
         console=console or Console(stderr=True), transient=console is None,
@@ -130,7 +152,7 @@ def run_sweep(
             try:
                 client = Client(cluster, timeout=10)
             except (OSError, TimeoutError) as e:
-                raise SimulatorError(f"cannot reach the Dask scheduler at {cluster}: {e}") from None
+                raise ClusterUnreachableError(f"cannot reach the Dask scheduler at {cluster}: {e}") from None
             with client:
                 futures = client.map(sweep_task, tasks, pure=False)
                 index = {f.key: i for i, f in enumerate(futures)}

@@ -103,3 +103,17 @@ def test_a_sweep_gives_the_same_table_here_and_on_a_dask_cluster(tmp_path: Path)
     assert (tmp_path / "o" / "sweep.png").stat().st_size > 0
     with (tmp_path / "o" / "sweep.csv").open() as f:
         assert len(list(csv.DictReader(f))) == 4
+
+
+def test_an_unreachable_scheduler_is_a_failure_in_one_line_not_bad_usage(tmp_path: Path) -> None:
+    import socket
+
+    with socket.socket() as probe:  # a port nobody listens on once this closes
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    sweep = tmp_path / "sweep.toml"
+    sweep.write_text('trials = 1\nepisodes = 2\nseeds = [0]\nlearners = ["shared"]\n[grid]\nactuator_bins = [1]\n')
+    code, _, err = _run_cli("--sweep", str(sweep), "--out", str(tmp_path / "o"), "--cluster",
+                            f"tcp://127.0.0.1:{port}")
+    lines = err.strip().splitlines()
+    assert code == 1 and len(lines) == 1 and f"cannot reach the Dask scheduler at tcp://127.0.0.1:{port}" in lines[0]
