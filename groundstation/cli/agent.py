@@ -1,4 +1,4 @@
-"""The commands that talk to an agent: status, params, surface, hover, dump, and mark (to the running run)."""
+"""The commands that talk to an agent: status, params, dump, and mark (to the running run); controls: control.py."""
 
 from __future__ import annotations
 
@@ -45,7 +45,6 @@ def status(url: UrlArg = None, key_file: KeyFileOption = None) -> None:
 
 
 _PARAM_ACTIONS = ("get", "set", "save", "diff", "load")
-HOVER_RANGE_M = (0.0, 2.5)
 
 
 @one_line_errors
@@ -105,40 +104,6 @@ def _param_number(s: Session, name: str, text: str) -> float:
     p = s.params.get(name)
     value = parse_value(p, text)
     return struct.unpack("<f", struct.pack("<f", value))[0] if p.param_type == ParamType.F32 else value
-
-
-@one_line_errors
-def surface(url: UrlArg = None, key_file: KeyFileOption = None) -> None:
-    """Emergency surface: maximum volume now, in any mode."""
-    from protocol import messages as m
-
-    with agent_session(url, key_file) as s:
-        s.command(m.Surface())
-        name = s.link.url
-    out.print(f"surfacing ({name})")
-
-
-@one_line_errors
-def hover(args: Annotated[list[str], typer.Argument(
-              help="the depth to hold \\[m], after the agent's URL (as for params)", metavar="[URL] DEPTH",
-              show_default=False)],
-          key_file: KeyFileOption = None) -> None:
-    """Hold a depth with the recovery controller (no learning)."""
-    url, words = split_url(args)
-    if len(words) != 1:
-        raise UsageError("expected `dive hover [URL] DEPTH`")
-    try:
-        depth = float(words[0])
-    except ValueError:
-        raise UsageError(f"DEPTH must be a number of metres, not {words[0]!r}") from None
-    if not HOVER_RANGE_M[0] <= depth <= HOVER_RANGE_M[1]:  # the agent refuses it too (SPEC: CMD_HOVER)
-        raise GroundStationError(f"hover depth {depth:g} m is outside [{HOVER_RANGE_M[0]:g}, {HOVER_RANGE_M[1]:g}] m")
-    from protocol import messages as m
-
-    with agent_session(url, key_file) as s:
-        s.command(m.Hover(depth_m=depth))
-        name = s.link.url
-    out.print(f"hovering at {depth:g} m ({name})")
 
 
 class DumpChoice(StrEnum):

@@ -29,13 +29,13 @@ from groundstation.errors import LinkError
 from groundstation.run.marker import CONFIRMATION as MARKER_CONFIRMATION
 from groundstation.session.agent_session import Session
 from groundstation.session.events import LinkEvent, Received, Sent
-from protocol import FrameEncoder, FrameFlag, Message, StreamDecoder
+from protocol import AckResult, FrameEncoder, FrameFlag, Message, StreamDecoder
 from protocol import messages as m
 
 CLIENT_QUEUE_LIMIT = 4 * 1024 * 1024  # bytes queued for one client before it is dropped as too slow
 FORWARDED_MEMORY = 256  # forwarded commands remembered (for ACK mapping and client retries)
 _KEPT_FLAGS = int(FrameFlag.REPLAYED)
-_TAKE_OVER = (m.Surface, m.Stop, m.Hover, m.Pause)
+_TAKE_OVER_IDS = {kind.MSG_ID: kind.DEFINITION.name for kind in (m.Surface, m.Stop, m.Hover, m.Pause)}
 
 
 @dataclass(eq=False)
@@ -131,6 +131,7 @@ class Hub:
             if target is None:
                 return  # an answer to the run's own command
             client, client_seq = target
+            self._note_take_over(ack)
             mapped = m.Ack(cmd_msg_id=ack.cmd_msg_id, cmd_seq=client_seq, result=ack.result, reason=ack.reason)
             key = (id(client), ack.cmd_msg_id, client_seq)
             if key in self._by_client_seq:
@@ -138,6 +139,16 @@ class Hub:
             if client in self._clients:
                 client.outbuf += client.encoder.encode(mapped).wire
         self._wake()
+
+    def _note_take_over(self, ack: m.Ack) -> None:
+        """A tool's accepted CMD_SURFACE / STOP / HOVER / PAUSE takes the agent from the run; its CMD_START hands it
+        back. A refused one changes nothing (the agent goes on as it was)."""
+        if ack.result != AckResult.ACCEPTED:
+            return
+        if ack.cmd_msg_id in _TAKE_OVER_IDS:
+            self.taken_over = _TAKE_OVER_IDS[ack.cmd_msg_id]
+        elif ack.cmd_msg_id == m.StartLearning.MSG_ID:
+            self.taken_over = None
 
     # ------------------------------------------------------------------ the clients' side (the hub's thread)
     def _wake(self) -> None:
@@ -217,10 +228,6 @@ class Hub:
             # replay the on-board log from before it attached, over the agent's one link
         elif message.DEFINITION.needs_ack:
             self._forward_command(client, message, seq)
-            if isinstance(message, _TAKE_OVER):
-                self.taken_over = message.DEFINITION.name
-            elif isinstance(message, m.StartLearning):
-                self.taken_over = None
         # HEARTBEAT, ACK and anything else from a tool: the run's own session speaks for the ground
 
     def _forward_command(self, client: _Client, message: Message, seq: int) -> None:

@@ -61,6 +61,11 @@ class RunStatus:
     hub: str = ""  # hub://RUN once local tools can attach
     ends: list[tuple[int, str, float]] = field(default_factory=list)  # (episode, outcome, duration s) in order
 
+    @property
+    def completed(self) -> int:
+        """Episodes that used the run's budget: an aborted one (a pause, a surface) does not, as on the agent."""
+        return self.successes + self.failures
+
 
 class _Progress:
     """A session listener that counts episodes and keeps the latest link statistics."""
@@ -118,8 +123,8 @@ class _AgentWatch:
         self.first_episode = 0
         self.left_idle = False
         self.restarts = 0
-        self.hub: Hub | None = None  # a tool's CMD_SURFACE / STOP / HOVER through it: no restart
-        self._told = False
+        self.hub: Hub | None = None  # a tool's CMD_SURFACE / STOP / HOVER / PAUSE through it: no restart
+        self._operator: str | None = None  # the take-over last said
 
     def start(self) -> None:
         beat = self._wait_unless_surfacing()
@@ -133,6 +138,7 @@ class _AgentWatch:
         self.session.command(m.StartLearning(max_episodes=self.episodes), timeout_s=self.START_WAIT_S)
 
     def finished(self) -> bool:
+        self.follow_operator()
         beat = self.session.last_heartbeat
         if beat is None:
             return False
@@ -144,11 +150,7 @@ class _AgentWatch:
         done = beat.episode - self.first_episode
         if self.episodes and done >= self.episodes:
             return True
-        if self.hub is not None and self.hub.taken_over is not None:
-            if not self._told:
-                self._told = True
-                self.status.messages.append(f"{self.hub.taken_over} came from another tool: not starting the agent "
-                                            "again; still recording (Ctrl-C to stop)")
+        if self._operator is not None:
             return False
         if self.restarts >= self.MAX_RESTARTS:
             self.status.messages.append(f"the agent surfaced {self.restarts} times; stopping")
@@ -166,6 +168,35 @@ class _AgentWatch:
             self.left_idle = True  # try again on the next look
             self.status.messages.append(f"restart refused: {e}")
         return False
+
+    def follow_operator(self) -> None:
+        """One line when an operator takes the agent from the run through the hub, and when they hand it back."""
+        now = self.hub.taken_over if self.hub is not None else None
+        if now == self._operator:
+            return
+        self._operator = now
+        if now is None:
+            self.left_idle = False  # a heartbeat from before the operator's CMD_START is not the end of it
+            line = "the operator handed the agent back (CMD_START): the run goes on with its episodes"
+        elif now == "CMD_PAUSE":
+            line = ("the operator paused learning (CMD_PAUSE from another tool): the agent holds its depth; "
+                    "dive resume continues")
+        else:
+            line = (f"the operator took over ({now} from another tool): the run will not start the agent again, "
+                    "still recording; hand it back with: dive start")
+        self.status.messages.append(line)
+
+    def stop_if_still_learning(self) -> None:
+        """The run's episodes are done but the agent learns on (an operator's CMD_START had no budget): surface it."""
+        beat = self.session.last_heartbeat
+        if beat is None or beat.mode not in (Mode.LEARNING, Mode.RECOVERING, Mode.PAUSED):
+            return
+        if self.hub is not None and self.hub.taken_over is not None:
+            return  # the operator's
+        try:
+            self.session.command(m.Stop())
+        except (CommandError, LinkError):
+            pass  # the agent's own budget or link loss surfaces it
 
     def _wait_unless_surfacing(self) -> m.Heartbeat | None:
         """The agent's latest heartbeat (waiting up to 2 s for one), once it is not surfacing any more."""
@@ -251,7 +282,7 @@ def run(config: RunConfig, on_progress: Callable[[RunStatus], None] | None = Non
         watch.hub = hub
         watch.start()
         try:
-            while not stop.is_set() and not (config.episodes and status.episodes >= config.episodes):
+            while not stop.is_set() and not (config.episodes and status.completed >= config.episodes):
                 progress.changed.wait(0.2)
                 progress.changed.clear()
                 if announced is not None and str(recorder.paths[-1] if recorder.paths else "") != \
@@ -268,6 +299,8 @@ def run(config: RunConfig, on_progress: Callable[[RunStatus], None] | None = Non
                 session.command(m.Stop())
             except (CommandError, LinkError):
                 pass  # the recording is what matters now; the agent surfaces on link loss anyway
+        elif config.episodes and status.completed >= config.episodes and session.failure is None:
+            watch.stop_if_still_learning()
         missing = session.request_backfill(config.backfill_wait_s, final=True)
         backfilled = True
     except GroundStationError:

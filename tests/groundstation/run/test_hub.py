@@ -93,7 +93,7 @@ def test_tools_attach_to_the_running_session_without_taking_the_agents_link(tmp_
             assert viewer.returncode == 130, view_err
         _, run_err = run.communicate()
         assert run.returncode == 130, run_err  # stopped by Ctrl-C: the one convention
-        assert "another tool: not starting the agent again" in run_err  # the operator's surface stands
+        assert "took over (CMD_SURFACE from another tool)" in run_err  # the operator's surface stands
     finally:
         agent.close()
     assert agent.connections == 1  # every tool went through the run's one link
