@@ -54,14 +54,16 @@ def mode_name(s: Session) -> str:
     return Mode(beat.mode).name if beat.mode in Mode._value2member_map_ else f"mode {beat.mode}"
 
 
-def refused(name: str, error: CommandError, mode: str) -> GroundStationError:
+def refused(name: str, error: CommandError, mode: str, what: str = "") -> GroundStationError:
     """A NACK as one line: the agent's reason, its mode and what to do ("surface first: dive surface")."""
     from protocol import AckResult
 
     if error.result != AckResult.NOT_ALLOWED_IN_MODE:
         return error
     hint = HINTS.get((name, mode), "")
-    return GroundStationError(f"{name} refused: not allowed while the agent is {mode}" + (f"; {hint}" if hint else ""))
+    subject = f"{name} {what}".strip()
+    return GroundStationError(f"{subject} refused: not allowed while the agent is {mode}"
+                              + (f"; {hint}" if hint else ""))
 
 
 def known_mode(s: Session) -> str:
@@ -170,12 +172,12 @@ def reset_model(url: UrlArg = None,
     _run(url, key_file, m.ResetModel())
 
 
-def confirm_reset(what: str, yes: bool) -> None:
+def confirm_reset(what: str, yes: bool, flag: str = "--yes") -> None:
     """Ask on a terminal; elsewhere (a script, CI) only --yes (or --reset-model) goes ahead."""
     if yes:
         return
     if not sys.stdin.isatty():
-        raise UsageError(f"{what}: add --yes to go ahead (not on a terminal, so nobody can confirm)")
+        raise UsageError(f"{what}: add {flag} to go ahead (not on a terminal, so nobody can confirm)")
     if not typer.confirm(f"{what}. Go ahead?", default=False):
         raise GroundStationError("nothing changed")
 

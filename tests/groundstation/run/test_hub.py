@@ -83,10 +83,10 @@ def test_tools_attach_to_the_running_session_without_taking_the_agents_link(tmp_
             assert marked.returncode == 0 and f"marked in run {run.pid}" in marked.stdout, marked.stderr
             got = dive(runtime, "params", "get", "z_tol_m")
             assert got.returncode == 0 and "z_tol_m = " in got.stdout, got.stderr
-            negative = dive(runtime, "params", "set", "term_reward", "-5")  # a negative value without `--`
-            assert negative.returncode == 0 and "term_reward = -5" in negative.stdout, negative.stderr
             surfaced = dive(runtime, "surface")
             assert surfaced.returncode == 0 and f"surfacing (hub://{run.pid})" in surfaced.stdout, surfaced.stderr
+            negative = dive(runtime, "params", "set", "term_reward", "-5", "--reset-model")  # no `--` needed
+            assert negative.returncode == 0 and "term_reward = -5" in negative.stdout, negative.stderr
             time.sleep(1.0)
             viewer.send_signal(signal.SIGINT)
             _, view_err = viewer.communicate(timeout=30)
