@@ -24,9 +24,15 @@ if TYPE_CHECKING:
 @one_line_errors
 def status(url: UrlArg = None, key_file: KeyFileOption = None) -> None:
     """Show the agent's identity, mode, battery, on-board log and link quality."""
+    from groundstation.session.status_line import AgentStatus, status_line
+
     with agent_session(url, key_file) as s:
-        deadline = time.monotonic() + 2.5
-        while s.last_heartbeat is None and time.monotonic() < deadline:
+        agent = AgentStatus()
+        s.add_listener(s.rx_listener(lambda received: agent.update(received.message)))
+        start = time.monotonic()
+        # a heartbeat comes every second; a SAMPLE (the depth) in IDLE too, but a quiet agent is not waited for long
+        while (s.last_heartbeat is None and time.monotonic() < start + 2.5) or \
+                (agent.depth_m is None and time.monotonic() < start + 1.2):
             time.sleep(0.05)
         hello, hb = s.agent_hello, s.last_heartbeat
         assert hello is not None
@@ -42,6 +48,9 @@ def status(url: UrlArg = None, key_file: KeyFileOption = None) -> None:
         rtt = snap["rtt_median_ms"]
         out.print(f"{len(s.params)} parameters; link: {snap['rx_frames']} frames, {snap['rx_lost']} lost, "
                   f"{snap['rx_rejects']} rejected" + (f", rtt {rtt:.1f} ms" if rtt is not None else ""))
+        if agent.mode is None and hb is not None:
+            agent.update(hb)  # the heartbeat came before the listener
+        out.print(f"status: {status_line(agent, snap, s.link_up)}", soft_wrap=True, highlight=False)
 
 
 _PARAM_ACTIONS = ("get", "set", "save", "diff", "load")

@@ -15,10 +15,12 @@ from groundstation.errors import CommandError, GroundStationError, LinkError, Re
 from groundstation.links import make_link
 from groundstation.links.runs import RunInfo, announce, new_run, withdraw
 from groundstation.recording.recorder import Recorder, RecorderConfig
+from groundstation.run.alarms import AlarmConfig, Alarms
 from groundstation.run.hub import Hub
 from groundstation.safe_output import one_line
 from groundstation.session.agent_session import Session, SessionConfig
 from groundstation.session.events import EventKind, LinkEvent, Received, Sent, SessionListener
+from groundstation.session.status_line import AgentStatus
 from protocol import EndReason, Mode
 from protocol import messages as m
 
@@ -43,6 +45,7 @@ class RunConfig:
     backfill_wait_s: float = 10.0
     hub: bool = True  # serve the session to local tools (groundstation/run/hub.py)
     dumps_each_episode: bool = False  # a viewer is attached: the agent sends VALUES and POLICY after every episode
+    alarms: AlarmConfig = field(default_factory=AlarmConfig)
 
 
 @dataclass
@@ -60,6 +63,7 @@ class RunStatus:
     messages: list[str] = field(default_factory=list)
     hub: str = ""  # hub://RUN once local tools can attach
     ends: list[tuple[int, str, float]] = field(default_factory=list)  # (episode, outcome, duration s) in order
+    agent: AgentStatus = field(default_factory=AgentStatus)  # what the status line shows of the agent
 
     @property
     def completed(self) -> int:
@@ -77,6 +81,8 @@ class _Progress:
 
     def on_received(self, received: Received) -> None:
         msg = received.message
+        if not received.backfilled:
+            self.status.agent.update(msg)
         if isinstance(msg, m.Sample):
             self.status.samples += 1
         elif isinstance(msg, m.EpisodeEnd) and msg.episode not in self._episodes:
@@ -98,8 +104,8 @@ class _Progress:
             self.status.link = event.data.get("link", {})
         elif event.kind in (EventKind.LINK_LOST, EventKind.LINK_RESTORED, EventKind.RESYNCED, EventKind.ERROR):
             self.status.messages.append(f"{event.kind}: {event.detail}")
-        self.status.link_up = event.kind != EventKind.LINK_LOST if event.kind != EventKind.STATS else \
-            self.status.link_up
+        if event.kind in (EventKind.LINK_LOST, EventKind.LINK_RESTORED, EventKind.CONNECTED):
+            self.status.link_up = event.kind != EventKind.LINK_LOST
         self.changed.set()
 
 
@@ -267,6 +273,8 @@ def run(config: RunConfig, on_progress: Callable[[RunStatus], None] | None = Non
             session.add_listener(hub)
             announced = _announce(new_run(os.getpid(), hub.address, link.url), recorder)
             status.hub = f"hub://{announced.run}"
+        alarms = Alarms(session, status.messages.append, config.alarms)
+        session.add_listener(alarms)
         if on_progress is not None:
             on_progress(status)  # connected: the display stops waiting for a (compiling) virtual agent
         values = dict(config.params)
@@ -285,6 +293,7 @@ def run(config: RunConfig, on_progress: Callable[[RunStatus], None] | None = Non
             while not stop.is_set() and not (config.episodes and status.completed >= config.episodes):
                 progress.changed.wait(0.2)
                 progress.changed.clear()
+                alarms.check()
                 if announced is not None and str(recorder.paths[-1] if recorder.paths else "") != \
                         announced.recording:
                     announced = _announce(announced, recorder)

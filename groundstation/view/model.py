@@ -169,7 +169,8 @@ class ViewModel:
             self.link_stats(host_time_ns, data or {})
             return
         text = f"{kind}: {detail}" if detail else kind
-        self._row("log/events", (text, "WARN" if kind in ("link_lost", "error") else "INFO"), host_time_ns)
+        level = "ERROR" if kind == "alarm" else "WARN" if kind in ("link_lost", "error") else "INFO"
+        self._row("log/events", (text, level), host_time_ns)
 
     def link_stats(self, host_time_ns: int, stats: dict[str, Any]) -> None:
         """The ground station's link statistics: live STATS events and the /link topic carry
