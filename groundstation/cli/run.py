@@ -49,6 +49,12 @@ def run_command(
     split_minutes: Annotated[float, typer.Option(
         min=0, help="start a new file after this many minutes (0 = never)")] = 0.0,
     reconnect: Annotated[bool, typer.Option(help="reconnect after a link loss and backfill the gap")] = True,
+    dumps: Annotated[bool, typer.Option(
+        help="have the agent send its values and policy after every episode (recorded: the replay's heatmaps)")]
+        = True,
+    history_minutes: Annotated[float, typer.Option(
+        min=0, help="telemetry a tool attaching late (dive view) is given first, besides the episode table and the "
+                    "last dumps \\[min] (at most 2 MiB of it)")] = 2.0,
     alarm_depth: Annotated[float, typer.Option(
         min=0, help="alarm when the agent is deeper than this \\[m]")] = DEPTH_LIMIT_M,
     alarm_link_lost: Annotated[float, typer.Option(
@@ -60,6 +66,7 @@ def run_command(
     from groundstation.cli.progress import RunDisplay
     from groundstation.recording.recorder import RecorderConfig
     from groundstation.run.alarms import AlarmConfig
+    from groundstation.run.history import HistoryConfig
     from groundstation.run.job import RunConfig, load_params_file, run
     from groundstation.session.agent_session import SessionConfig
 
@@ -85,7 +92,8 @@ def run_command(
                                    grpc_port=grpc_port)
     config = RunConfig(url=url, episodes=episodes, params=values, recorder=recorder,
                        session=SessionConfig(reconnect=reconnect, key=resolve_key(key_file)),
-                       dumps_each_episode=view is not None,
+                       dumps_each_episode=dumps,
+                       history=HistoryConfig(window_s=history_minutes * 60.0),
                        alarms=AlarmConfig(link_lost_s=alarm_link_lost, silent_s=alarm_link_lost, depth_m=alarm_depth))
     stop, signalled = threading.Event(), list[str]()
     with stop_on_signals(stop, signalled), view_cli.closing_view(view), \

@@ -234,6 +234,12 @@ def view(
             session_config = SessionConfig(key=resolve_key(key_file), backfill=not link.url.startswith("hub://"))
             with Session(link, session_config, listeners=[live]) as session:
                 hello = session.agent_hello
+                if link.url.startswith("hub://"):
+                    from protocol import messages as m
+
+                    # the run's episode table, last dumps and recent telemetry first (run/history.py): the
+                    # learning curve and the heatmaps are whole from the start
+                    session.command(m.LogRequest(first_sample=0, end_sample=0xFFFFFFFF))
                 typer.echo(f"watching {one_line(hello.name) if hello else 'the agent'} at {one_line(link.url)}")
                 wait_for_interrupt("watching")
                 stopped = True

@@ -26,6 +26,7 @@ from collections import OrderedDict
 from dataclasses import dataclass, field
 
 from groundstation.errors import LinkError
+from groundstation.run.history import History
 from groundstation.run.marker import CONFIRMATION as MARKER_CONFIRMATION
 from groundstation.session.agent_session import Session
 from groundstation.session.events import LinkEvent, Received, Sent
@@ -77,6 +78,7 @@ class Hub:
         # The last command a tool sent that takes the agent out of learning (CMD_SURFACE, STOP, HOVER, PAUSE), or
         # None after a tool's CMD_START: the run must not start learning again behind an operator's back.
         self.taken_over: str | None = None
+        self.history: History | None = None  # what a tool's LOG_REQUEST is answered from (set by the run)
 
     # ------------------------------------------------------------------ life cycle
     def start(self) -> Hub:
@@ -224,11 +226,23 @@ class Hub:
             if message.receive_us == 0 and message.transmit_us == 0:
                 self._send(message)
         elif isinstance(message, m.LogRequest):
-            pass  # the run backfills for every tool (replayed frames are fanned out); a tool's own request would
-            # replay the on-board log from before it attached, over the agent's one link
+            # The run backfills for every tool (replayed frames are fanned out); a tool's own request is answered
+            # from the run's history (run/history.py), never from the on-board log over the agent's one link.
+            self._replay_history(client, message, seq)
         elif message.DEFINITION.needs_ack:
             self._forward_command(client, message, seq)
         # HEARTBEAT, ACK and anything else from a tool: the run's own session speaks for the ground
+
+    def _replay_history(self, client: _Client, request: m.LogRequest, seq: int) -> None:
+        ack = m.Ack(cmd_msg_id=request.MSG_ID, cmd_seq=seq, result=int(AckResult.ACCEPTED), reason="")
+        history = self.history
+        frames = history.replay(request.first_sample, request.end_sample) if history is not None else []
+        with self._lock:
+            client.outbuf += client.encoder.encode(ack).wire
+            for msg_id, payload in frames:
+                client.outbuf += client.encoder.encode_payload(msg_id, payload, _KEPT_FLAGS).wire
+            if history is not None:
+                client.outbuf += client.encoder.encode(history.log_range(len(frames))).wire
 
     def _forward_command(self, client: _Client, message: Message, seq: int) -> None:
         key = (id(client), message.MSG_ID, seq)

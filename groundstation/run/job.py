@@ -16,6 +16,7 @@ from groundstation.links import make_link
 from groundstation.links.runs import RunInfo, announce, new_run, withdraw
 from groundstation.recording.recorder import Recorder, RecorderConfig
 from groundstation.run.alarms import AlarmConfig, Alarms
+from groundstation.run.history import History, HistoryConfig
 from groundstation.run.hub import Hub
 from groundstation.safe_output import one_line
 from groundstation.session.agent_session import Session, SessionConfig
@@ -44,8 +45,11 @@ class RunConfig:
     session: SessionConfig = field(default_factory=SessionConfig)
     backfill_wait_s: float = 10.0
     hub: bool = True  # serve the session to local tools (groundstation/run/hub.py)
-    dumps_each_episode: bool = False  # a viewer is attached: the agent sends VALUES and POLICY after every episode
+    # The agent sends VALUES and POLICY after every episode, with or without a viewer: every recording replays
+    # whole (the heatmaps fill from these) and a tool attaching late gets the last ones (run/history.py).
+    dumps_each_episode: bool = True
     alarms: AlarmConfig = field(default_factory=AlarmConfig)
+    history: HistoryConfig = field(default_factory=HistoryConfig)  # what a tool attaching late is given first
 
 
 @dataclass
@@ -259,7 +263,8 @@ def run(config: RunConfig, on_progress: Callable[[RunStatus], None] | None = Non
     status = RunStatus()
     progress = _Progress(status)
     recorder = Recorder(config.recorder, session_info(link.url))
-    session = Session(link, config.session, [recorder, progress, *listeners])
+    history = History(config.history) if config.hub else None  # before the hub: nothing fanned out is missed
+    session = Session(link, config.session, [recorder, progress, *([history] if history else []), *listeners])
     interrupted = False
     missing = 0
     hub: Hub | None = None
@@ -269,7 +274,9 @@ def run(config: RunConfig, on_progress: Callable[[RunStatus], None] | None = Non
         session.connect()
         status.link_up = True
         if config.hub:
-            hub = Hub(session).start()
+            hub = Hub(session)
+            hub.history = history
+            hub.start()
             session.add_listener(hub)
             announced = _announce(new_run(os.getpid(), hub.address, link.url), recorder)
             status.hub = f"hub://{announced.run}"

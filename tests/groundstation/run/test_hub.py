@@ -97,7 +97,8 @@ def test_tools_attach_to_the_running_session_without_taking_the_agents_link(tmp_
     finally:
         agent.close()
     assert agent.connections == 1  # every tool went through the run's one link
-    assert agent.executed.count("CMD_SURFACE") == 1 and agent.executed.count("PARAM_SET") == 1
+    # PARAM_SET: the run's dump_each_episode (dumps after every episode by default) and the tool's term_reward
+    assert agent.executed.count("CMD_SURFACE") == 1 and agent.executed.count("PARAM_SET") == 2
     [recording] = sorted((tmp_path / "rec").glob("*.mcap"))
     contents = read_recording(recording, {"/marker", "/ground/CMD_SURFACE", "/ground/PARAM_SET"})
     topics = [m.topic for m in contents.messages]
