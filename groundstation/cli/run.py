@@ -32,7 +32,7 @@ def run_command(
     learner: Annotated[str | None, typer.Option(
         help="built-in virtual agent only: learner preset, paper (default), shared (paper plant), "
              "shared-z20-bins7-diff8-term100-vpen1 (hardware plant), ...; a wrong name lists them all")] = None,
-    viewer: view_cli.ViewerOption = None,
+    viewer: view_cli.RunViewerOption = None,
     rrd: Annotated[Path | None, typer.Option(help="also save the live Rerun stream to this .rrd file")] = None,
     web_port: view_cli.WebPortOption = 9090,
     grpc_port: view_cli.GrpcPortOption = 9876,
@@ -96,7 +96,7 @@ def run_command(
                        history=HistoryConfig(window_s=history_minutes * 60.0),
                        alarms=AlarmConfig(link_lost_s=alarm_link_lost, silent_s=alarm_link_lost, depth_m=alarm_depth))
     stop, signalled = threading.Event(), list[str]()
-    with stop_on_signals(stop, signalled), view_cli.closing_view(view), \
+    with stop_on_signals(stop, signalled), view_cli.closing_view(view, signalled), \
             RunDisplay(err, episodes, f"connecting to {url}", virtual=url.startswith("sim://")) as display:
         result = run(config, display.show, stop=stop, listeners=[view] if view is not None else [])
         for path in result.paths:  # before a served web viewer waits: the path is printed however the run ends
