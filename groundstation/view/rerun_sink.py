@@ -101,6 +101,10 @@ def blueprint(layout: Layout | None = None) -> rrb.Blueprint:
         rrb.TimeSeriesView(origin="action", name="Action"),
         rrb.TimeSeriesView(origin="reward", name="Reward"),
         rrb.TimeSeriesView(origin="link", name="Link: loss, RTT [s], backfilled samples"),
+        rrb.Horizontal(
+            rrb.TimeSeriesView(origin="battery", name="Battery [V]"),
+            rrb.TimeSeriesView(origin="mode", name="Mode (0 idle 1 learn 2 recover 3 hover 4 surface 5 pause)"),
+        ),
     )
     right = rrb.Vertical(
         rrb.TimeSeriesView(origin="learning_curve", name="Learning curve: duration per episode [s]"),
