@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import sys
 import time
+from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
 
 import typer
@@ -91,8 +92,8 @@ def send_control(s: Session, message: Message) -> str:
     return f"{name} accepted{reason} ({s.link.url}): the agent is {wait_for_mode(s)}"
 
 
-def _run(url: str | None, key_file: object, message: Message, then: str = "") -> None:
-    with agent_session(url, key_file) as s:  # type: ignore[arg-type]
+def _run(url: str | None, key_file: Path | None, message: Message, then: str = "") -> None:
+    with agent_session(url, key_file) as s:
         out.print(send_control(s, message) + then, soft_wrap=True, highlight=False)
 
 

@@ -65,7 +65,7 @@ def test_params_console_through_the_hub(tmp_path: Path) -> None:
     [recording] = sorted((tmp_path / "rec").glob("*.mcap"))
     contents = read_recording(recording, {"/ground/PARAM_SET", "/agent/TEXT"})
     sets = [m.json()["name"] for m in contents.messages if m.topic == "/ground/PARAM_SET"]
-    assert sets == ["success_time_s", "z_tol_m", "gamma"]  # the run's own, then the only two that differed
+    assert sets == ["success_time_s", "dump_each_episode", "z_tol_m", "gamma"]  # the run's, then the two that differ
     restarts = [m.json()["text"] for m in contents.messages if m.topic == "/agent/TEXT" and "restarted" in
                 m.json()["text"]]
     assert len(restarts) == 2, restarts
