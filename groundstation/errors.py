@@ -24,7 +24,11 @@ class IncompatibleAgentError(LinkError):
 
 
 class CommandError(GroundStationError):
-    """A command was refused (NACK) by the agent."""
+    """A command was refused (NACK) by the agent; `result` is the ACK's result code (None: no ACK came)."""
+
+    def __init__(self, message: str, result: int | None = None) -> None:
+        super().__init__(message)
+        self.result = result
 
 
 class CommandTimeout(CommandError, TimeoutError):

@@ -1,4 +1,4 @@
-"""The commands that talk to an agent: status, params, surface, hover, dump, and mark (to the running run)."""
+"""The commands that talk to an agent: status, params, dump, and mark (to the running run); controls: control.py."""
 
 from __future__ import annotations
 
@@ -24,9 +24,15 @@ if TYPE_CHECKING:
 @one_line_errors
 def status(url: UrlArg = None, key_file: KeyFileOption = None) -> None:
     """Show the agent's identity, mode, battery, on-board log and link quality."""
+    from groundstation.session.status_line import AgentStatus, status_line
+
     with agent_session(url, key_file) as s:
-        deadline = time.monotonic() + 2.5
-        while s.last_heartbeat is None and time.monotonic() < deadline:
+        agent = AgentStatus()
+        s.add_listener(s.rx_listener(lambda received: agent.update(received.message)))
+        start = time.monotonic()
+        # a heartbeat comes every second; a SAMPLE (the depth) in IDLE too, but a quiet agent is not waited for long
+        while (s.last_heartbeat is None and time.monotonic() < start + 2.5) or \
+                (agent.depth_m is None and time.monotonic() < start + 1.2):
             time.sleep(0.05)
         hello, hb = s.agent_hello, s.last_heartbeat
         assert hello is not None
@@ -42,10 +48,12 @@ def status(url: UrlArg = None, key_file: KeyFileOption = None) -> None:
         rtt = snap["rtt_median_ms"]
         out.print(f"{len(s.params)} parameters; link: {snap['rx_frames']} frames, {snap['rx_lost']} lost, "
                   f"{snap['rx_rejects']} rejected" + (f", rtt {rtt:.1f} ms" if rtt is not None else ""))
+        if agent.mode is None and hb is not None:
+            agent.update(hb)  # the heartbeat came before the listener
+        out.print(f"status: {status_line(agent, snap, s.link_up)}", soft_wrap=True, highlight=False)
 
 
 _PARAM_ACTIONS = ("get", "set", "save", "diff", "load")
-HOVER_RANGE_M = (0.0, 2.5)
 
 
 @one_line_errors
@@ -54,9 +62,13 @@ def params_command(
         help="get NAME, set NAME VALUE, save FILE, diff FILE or load FILE (none: list them all), after the "
              "agent's URL (default: $DIVE_URL, else the running `dive run`)",
         metavar="[URL] [ACTION ...]", show_default=False)] = None,
+    reset_model: Annotated[bool, typer.Option(
+        "--reset-model", help="go ahead when a set or load restarts the learner (it forgets what it learned); "
+                              "on a terminal you are asked instead")] = False,
     key_file: KeyFileOption = None,
 ) -> None:
-    """List the agent's parameters, get / set one, or save, compare with or load a TOML file of them."""
+    """List the agent's parameters (value, unit, range, whether a change resets learning, what each is), get / set
+    one, or save, compare with or load a TOML file of them. A value equal to the agent's is not sent."""
     from groundstation.session.paramfile import read_params, write_params
 
     url, words = split_url(list(args or []), _PARAM_ACTIONS)
@@ -70,75 +82,59 @@ def params_command(
     from_file = read_params(Path(rest[0])) if action in ("diff", "load") else {}
     with agent_session(url, key_file) as s:
         if action is None:
+            from groundstation.session.param_plan import describe
+
             for p in s.params:
-                name_shown = one_line(p.name)
-                out.print(f"{p.index:3d} {name_shown:24s} {p.display_value:>12s}   [{p.minimum:g} .. {p.maximum:g}]")
+                out.print(one_line(describe(p)), soft_wrap=True, highlight=False)
         elif action == "get":
             p = s.get_param(rest[0])
             out.print(f"{p.name} = {p.display_value}")
         elif action == "set":
-            p = s.set_param(rest[0], rest[1])
-            out.print(f"{p.name} = {p.display_value}")
+            _set_all(s, {rest[0]: rest[1]}, reset_model)
         elif action == "save":
             write_params(Path(rest[0]), s.params)
             out.print(f"{rest[0]}: {len(s.params)} parameters")
         elif action == "diff":
-            differ = [(n, s.params.get(n), v) for n, v in from_file.items()
-                      if _param_number(s, n, str(s.params.get(n).value)) != _param_number(s, n, v)]
-            for name, p, v in differ:
-                out.print(f"{name}: agent {p.display_value}, file {v}")
-            out.print(f"{len(differ)} of {len(from_file)} differ")
+            from groundstation.session.param_plan import plan
+
+            change = plan(s.params, from_file)
+            for p, _ in change.changes:
+                out.print(f"{p.name}: agent {p.display_value}, file {from_file[p.name]}")
+            out.print(f"{len(change.changes)} of {len(from_file)} differ"
+                      + (f"; loading it: {change.restart_warning()}" if change.restarts else ""))
         else:
-            for name in from_file:
-                s.params.get(name)  # every name checked (with did-you-mean) before the first is set
-            for name, value in from_file.items():
-                p = s.set_param(name, value)
-                out.print(f"{p.name} = {p.display_value}")
+            _set_all(s, from_file, reset_model)
 
 
-def _param_number(s: Session, name: str, text: str) -> float:
-    """A value as the agent stores it (F32 parameters as f32), to compare a file's value with the agent's."""
-    import struct
+def _set_all(s: Session, values: dict[str, str], reset_model: bool) -> None:
+    """Set what differs from the agent's values, after every check: names, values, the agent's mode, and a
+    confirmed learner restart. Nothing is sent when one check fails."""
+    from groundstation.cli.control import confirm_reset, refused
+    from groundstation.errors import CommandError
+    from groundstation.session.param_plan import mode_refusal, plan
 
-    from groundstation.session.params import ParamType, parse_value
+    change = plan(s.params, values)
+    if change.changes and s.last_heartbeat is None:
+        from groundstation.cli.control import wait_for_mode
 
-    p = s.params.get(name)
-    value = parse_value(p, text)
-    return struct.unpack("<f", struct.pack("<f", value))[0] if p.param_type == ParamType.F32 else value
+        wait_for_mode(s, 1.5)  # the mode decides what the agent refuses
+    mode = s.last_heartbeat.mode if s.last_heartbeat is not None else None
+    refused_now = change.refused_in(mode)
+    if refused_now and mode is not None:
+        raise mode_refusal(refused_now, mode)
+    warning = change.restart_warning()
+    if warning:
+        confirm_reset(warning, reset_model, "--reset-model")
+    for p in change.unchanged:
+        out.print(f"{p.name} = {p.display_value} (unchanged, not sent)")
+    for p, value in change.changes:
+        try:
+            done = s.set_param(p.name, value)
+        except CommandError as e:
+            from groundstation.cli.control import known_mode
 
-
-@one_line_errors
-def surface(url: UrlArg = None, key_file: KeyFileOption = None) -> None:
-    """Emergency surface: maximum volume now, in any mode."""
-    from protocol import messages as m
-
-    with agent_session(url, key_file) as s:
-        s.command(m.Surface())
-        name = s.link.url
-    out.print(f"surfacing ({name})")
-
-
-@one_line_errors
-def hover(args: Annotated[list[str], typer.Argument(
-              help="the depth to hold \\[m], after the agent's URL (as for params)", metavar="[URL] DEPTH",
-              show_default=False)],
-          key_file: KeyFileOption = None) -> None:
-    """Hold a depth with the recovery controller (no learning)."""
-    url, words = split_url(args)
-    if len(words) != 1:
-        raise UsageError("expected `dive hover [URL] DEPTH`")
-    try:
-        depth = float(words[0])
-    except ValueError:
-        raise UsageError(f"DEPTH must be a number of metres, not {words[0]!r}") from None
-    if not HOVER_RANGE_M[0] <= depth <= HOVER_RANGE_M[1]:  # the agent refuses it too (SPEC: CMD_HOVER)
-        raise GroundStationError(f"hover depth {depth:g} m is outside [{HOVER_RANGE_M[0]:g}, {HOVER_RANGE_M[1]:g}] m")
-    from protocol import messages as m
-
-    with agent_session(url, key_file) as s:
-        s.command(m.Hover(depth_m=depth))
-        name = s.link.url
-    out.print(f"hovering at {depth:g} m ({name})")
+            raise refused("PARAM_SET", e, known_mode(s), p.name) from None
+        out.print(f"{done.name} = {done.display_value}")
 
 
 class DumpChoice(StrEnum):

@@ -10,6 +10,7 @@ import typer
 
 from groundstation.cli import agent as cli_agent
 from groundstation.cli import check as cli_check
+from groundstation.cli import control as cli_control
 from groundstation.cli import log as cli_log
 from groundstation.cli import record as record_cli
 from groundstation.cli import run as cli_run
@@ -50,8 +51,14 @@ _FORWARD = {"allow_extra_args": True, "ignore_unknown_options": True, "help_opti
 app.command("run")(cli_run.run_command)
 app.command()(cli_agent.status)
 app.command("params", context_settings=TAKES_NEGATIVE)(cli_agent.params_command)
-app.command()(cli_agent.surface)
-app.command(context_settings=TAKES_NEGATIVE)(cli_agent.hover)
+app.command()(cli_control.start)
+app.command()(cli_control.pause)
+app.command()(cli_control.resume)
+app.command()(cli_control.stop)
+app.command(context_settings=TAKES_NEGATIVE)(cli_control.target)
+app.command()(cli_control.surface)
+app.command(context_settings=TAKES_NEGATIVE)(cli_control.hover)
+app.command("reset-model")(cli_control.reset_model)
 app.command()(cli_agent.dump)
 app.command()(cli_agent.mark)
 app.command("check")(cli_check.check_command)

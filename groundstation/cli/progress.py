@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import threading
+from dataclasses import replace
 from types import TracebackType
 
 from rich.console import Console
@@ -10,6 +11,7 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, SpinnerColumn
 
 from groundstation.run.job import RunStatus
 from groundstation.safe_output import in_markup, styled
+from groundstation.session.status_line import status_line
 
 SLOW_START_S = 3.0  # a virtual agent silent this long is loading, or on its first start compiling, its kernels
 SLOW_START_NOTE = ("the virtual agent is starting: its first start compiles the simulator (once; about 30 s on an "
@@ -17,13 +19,10 @@ SLOW_START_NOTE = ("the virtual agent is starting: its first start compiles the 
 
 
 def describe(s: RunStatus) -> str:
-    link = s.link
-    last = f"{s.last_duration_s:.1f} s {s.last_reason}" if s.last_duration_s is not None else "-"
-    rtt = link.get("rtt_median_ms")
-    quality = (f"loss {100 * link.get('loss_fraction', 0.0):.1f}%"
-               + (f" rtt {rtt:.1f} ms" if rtt is not None else "")) if link else "link -"
-    state = "" if s.link_up else " [red]link down[/]"
-    return f"episodes: {s.successes} ok / {s.failures} failed, last {last}, {quality}{state}"
+    """The status line (mode, episode, successes, battery, depth, link), in markup for the live bar."""
+    agent = replace(s.agent, successes=s.agent.successes if s.agent.successes is not None else s.successes)
+    line = in_markup(status_line(agent, s.link, s.link_up))
+    return line.replace("link down", "[red]link down[/]")
 
 
 class RunDisplay:
@@ -42,6 +41,7 @@ class RunDisplay:
         self._messages = 0
         self._episodes = 0
         self._hub = ""
+        self._mode: int | None = None
 
     def __enter__(self) -> RunDisplay:
         if self.live:
@@ -80,17 +80,20 @@ class RunDisplay:
         # is counted as said without being printed (an episode's line went missing that way).
         messages = len(status.messages)
         for line in status.messages[self._messages:messages]:  # agent text among them: data, never markup
-            printer.print(styled(line, "yellow"), soft_wrap=True)
+            printer.print(styled(line, "bold red" if line.startswith("ALARM:") else "yellow"), soft_wrap=True)
         self._messages = messages
+        total = f" of {self.episodes}" if self.episodes else ""
+        ends = len(status.ends)
+        for i in range(self._episodes, ends):  # above the live status line on a terminal
+            episode, outcome, duration_s = status.ends[i]
+            ok = sum(end[1] == "success" for end in status.ends[: i + 1])
+            printer.print(f"episode {episode}{total}: {outcome} after {duration_s:.1f} s ({ok} ok so far)",
+                          soft_wrap=True, highlight=False)
+        self._episodes = ends
         if self._progress is not None:
-            self._progress.update(self._task, completed=status.episodes,  # type: ignore[arg-type]
+            self._progress.update(self._task, completed=status.completed,  # type: ignore[arg-type]
                                   description=describe(status))
-        else:
-            total = f" of {self.episodes}" if self.episodes else ""
-            ends = len(status.ends)
-            for i in range(self._episodes, ends):
-                episode, outcome, duration_s = status.ends[i]
-                ok = sum(end[1] == "success" for end in status.ends[: i + 1])
-                printer.print(f"episode {episode}{total}: {outcome} after {duration_s:.1f} s ({ok} ok so far)",
-                              soft_wrap=True, highlight=False)
-            self._episodes = ends
+        elif status.agent.mode is not None and status.agent.mode != self._mode:
+            self._mode = status.agent.mode  # not a terminal: the status line when the mode changes
+            printer.print(f"status: {status_line(status.agent, status.link, status.link_up)}", soft_wrap=True,
+                          highlight=False)

@@ -13,6 +13,7 @@ from groundstation.cli import view as view_cli
 from groundstation.cli.common import UrlArg, err, one_line_errors
 from groundstation.cli.signals import stop_on_signals
 from groundstation.cli.validate import UsageError, check_presets, parse_speed
+from groundstation.run.alarm_limits import DEPTH_LIMIT_M, LINK_LOST_S
 from groundstation.safe_output import printable
 from groundstation.session.keys import KeyFileOption, resolve_key
 from groundstation.view.options import Viewer
@@ -31,7 +32,7 @@ def run_command(
     learner: Annotated[str | None, typer.Option(
         help="built-in virtual agent only: learner preset, paper (default), shared (paper plant), "
              "shared-z20-bins7-diff8-term100-vpen1 (hardware plant), ...; a wrong name lists them all")] = None,
-    viewer: view_cli.ViewerOption = None,
+    viewer: view_cli.RunViewerOption = None,
     rrd: Annotated[Path | None, typer.Option(help="also save the live Rerun stream to this .rrd file")] = None,
     web_port: view_cli.WebPortOption = 9090,
     grpc_port: view_cli.GrpcPortOption = 9876,
@@ -48,11 +49,24 @@ def run_command(
     split_minutes: Annotated[float, typer.Option(
         min=0, help="start a new file after this many minutes (0 = never)")] = 0.0,
     reconnect: Annotated[bool, typer.Option(help="reconnect after a link loss and backfill the gap")] = True,
+    dumps: Annotated[bool, typer.Option(
+        help="have the agent send its values and policy after every episode (recorded: the replay's heatmaps)")]
+        = True,
+    history_minutes: Annotated[float, typer.Option(
+        min=0, help="telemetry a tool attaching late (dive view) is given first, besides the episode table and the "
+                    "last dumps \\[min] (at most 2 MiB of it)")] = 2.0,
+    alarm_depth: Annotated[float, typer.Option(
+        min=0, help="alarm when the agent is deeper than this \\[m]")] = DEPTH_LIMIT_M,
+    alarm_link_lost: Annotated[float, typer.Option(
+        min=0, help="alarm when the agent has sent nothing, or the link has been lost, for this long \\[s]")]
+        = LINK_LOST_S,
     key_file: KeyFileOption = None,
 ) -> None:
     """Connect, set parameters, start learning and record everything to MCAP until N episodes or Ctrl-C."""
     from groundstation.cli.progress import RunDisplay
     from groundstation.recording.recorder import RecorderConfig
+    from groundstation.run.alarms import AlarmConfig
+    from groundstation.run.history import HistoryConfig
     from groundstation.run.job import RunConfig, load_params_file, run
     from groundstation.session.agent_session import SessionConfig
 
@@ -79,9 +93,11 @@ def run_command(
                                    grpc_port=grpc_port)
     config = RunConfig(url=url, episodes=episodes, params=values, recorder=recorder,
                        session=SessionConfig(reconnect=reconnect, key=resolve_key(key_file)),
-                       dumps_each_episode=view is not None)
+                       dumps_each_episode=dumps,
+                       history=HistoryConfig(window_s=history_minutes * 60.0),
+                       alarms=AlarmConfig(link_lost_s=alarm_link_lost, silent_s=alarm_link_lost, depth_m=alarm_depth))
     stop, signalled = threading.Event(), list[str]()
-    with stop_on_signals(stop, signalled), view_cli.closing_view(view), \
+    with stop_on_signals(stop, signalled), view_cli.closing_view(view, signalled), \
             RunDisplay(err, episodes, f"connecting to {url}", virtual=url.startswith("sim://")) as display:
         result = run(config, display.show, stop=stop, listeners=[view] if view is not None else [])
         for path in result.paths:  # before a served web viewer waits: the path is printed however the run ends

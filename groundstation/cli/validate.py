@@ -11,8 +11,9 @@ class UsageError(GroundStationError, ValueError):
     """A value the user gave that cannot work (the CLI exits 2, like a usage error)."""
 
 
-def check_port_free(port: int, option: str) -> None:
-    """Fail at once when another process listens on `port` (its viewer would show that process's data)."""
+def port_problem(port: int, option: str) -> str:
+    """Why `port` cannot be served on ("" when it can): another process listens there (its viewer would show that
+    process's data), or it needs privileges."""
     import socket  # here: `dive --help` does not need it
     with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
         try:
@@ -20,8 +21,24 @@ def check_port_free(port: int, option: str) -> None:
         except OSError as e:
             if e.errno in (errno.EADDRINUSE, errno.EACCES):
                 why = "is in use by another process" if e.errno == errno.EADDRINUSE else "needs privileges"
-                raise UsageError(f"port {port} {why}: choose another with {option}") from None
+                return f"port {port} {why}: choose another with {option}"
             raise
+    return ""
+
+
+def check_port_free(port: int, option: str) -> None:
+    """Fail at once when `port` cannot be served on."""
+    problem = port_problem(port, option)
+    if problem:
+        raise UsageError(problem)
+
+
+def free_port() -> int:
+    """A port nobody listens on now (the system's choice)."""
+    import socket
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
+        probe.bind(("0.0.0.0", 0))
+        return int(probe.getsockname()[1])
 
 
 def parse_speed(text: str) -> float | None:

@@ -13,12 +13,12 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from groundstation.cli.validate import UsageError, check_port_free, parse_speed
+from groundstation.cli.validate import UsageError, free_port, parse_speed, port_problem
 from groundstation.errors import GroundStationError
 from groundstation.safe_output import in_markup, one_line
 from groundstation.session.keys import KeyFileOption, resolve_key
 from groundstation.view.errors import ViewError
-from groundstation.view.options import GrpcPortOption, Viewer, ViewerOption, WebPortOption
+from groundstation.view.options import GrpcPortOption, RunViewerOption, Viewer, ViewerOption, WebPortOption
 
 if TYPE_CHECKING:  # Rerun, mcap and the replay code are imported by the commands that use them
     from rich.progress import Progress
@@ -26,7 +26,8 @@ if TYPE_CHECKING:  # Rerun, mcap and the replay code are imported by the command
     from groundstation.view import replay as rp
     from groundstation.view.rerun_sink import RerunView
 
-__all__ = ["GrpcPortOption", "ViewerOption", "WebPortOption", "closing_view", "open_live_view", "replay", "view"]
+__all__ = ["GrpcPortOption", "RunViewerOption", "ViewerOption", "WebPortOption", "closing_view", "open_live_view",
+           "replay", "view"]
 
 
 def _fail(message: str, code: int = 1) -> typer.Exit:
@@ -47,12 +48,27 @@ def _one_line_errors() -> Iterator[None]:
         raise typer.Exit(130) from None
 
 
-def check_viewer_ports(viewer: Viewer, web_port: int, grpc_port: int | None) -> None:
-    """A served web viewer needs both its ports free; else the address printed would show another process's data."""
-    if viewer == Viewer.WEB:
-        check_port_free(web_port, "--web-port")
-        if grpc_port is not None:
-            check_port_free(grpc_port, "--grpc-port")
+DEFAULT_PORTS = {"--web-port": 9090, "--grpc-port": 9876}
+
+
+def viewer_ports(viewer: Viewer, web_port: int, grpc_port: int) -> tuple[int, int]:
+    """The ports a served web viewer uses: both must be free, else the address printed would show another
+    process's data. A default port in use (a second viewer beside `dive run --viewer web`) moves to a free one; a
+    port given that is in use fails, every such port named in one line."""
+    if viewer != Viewer.WEB:
+        return web_port, grpc_port
+    chosen, problems = [], []
+    for option, port in (("--web-port", web_port), ("--grpc-port", grpc_port)):
+        problem = port_problem(port, option)
+        if problem and port == DEFAULT_PORTS[option]:
+            port = free_port()
+            typer.echo(f"the default {option} {DEFAULT_PORTS[option]} is in use: using {port}", err=True)
+        elif problem:
+            problems.append(problem)
+        chosen.append(port)
+    if problems:
+        raise UsageError("; ".join(problems))
+    return chosen[0], chosen[1]
 
 
 def default_viewer(viewer: Viewer | None, rrd: Path | None, headless_default: Viewer = Viewer.WEB) -> Viewer:
@@ -70,7 +86,7 @@ def open_live_view(viewer: Viewer | None, rrd: Path | None, web_port: int, name:
     chosen = default_viewer(viewer, rrd, headless_default)
     if chosen == Viewer.NONE and rrd is None:
         return None
-    check_viewer_ports(chosen, web_port, grpc_port)
+    web_port, grpc_port = viewer_ports(chosen, web_port, grpc_port)
     from groundstation.view.rerun_sink import ViewConfig, attach_view
 
     live = attach_view(ViewConfig(viewer=chosen, rrd=rrd, web_port=web_port, grpc_port=grpc_port), name=name)
@@ -80,13 +96,14 @@ def open_live_view(viewer: Viewer | None, rrd: Path | None, web_port: int, name:
 
 
 @contextmanager
-def closing_view(live: RerunView | None) -> Iterator[None]:
-    """Close the live view however the run ends; a served web viewer stays up until Ctrl-C first."""
+def closing_view(live: RerunView | None, signalled: list[str] | None = None) -> Iterator[None]:
+    """Close the live view however the run ends; a served web viewer stays up until Ctrl-C first, unless the run
+    was ended by a signal (`signalled`: SIGTERM from a service manager means stop now, with one signal)."""
     try:
         yield
     finally:
         if live is not None:
-            if live.address:
+            if live.address and not signalled:
                 wait_for_interrupt(f"the run is over; the web viewer stays at {live.address}")
             live.close()
 
@@ -160,8 +177,9 @@ def replay(
         if parts.missing:
             typer.echo(f"warning: part(s) {', '.join(map(str, parts.missing))} of {one_line(parts.name)} not given; "
                        "the timeline has a hole there", err=True)
-        config = ViewConfig(viewer=default_viewer(viewer, rrd), rrd=rrd, web_port=web_port, grpc_port=grpc_port)
-        check_viewer_ports(config.viewer, web_port, grpc_port)
+        chosen = default_viewer(viewer, rrd)
+        web_port, grpc_port = viewer_ports(chosen, web_port, grpc_port)
+        config = ViewConfig(viewer=chosen, rrd=rrd, web_port=web_port, grpc_port=grpc_port)
         statuses = [RecordingContents() for _ in parts.files]
         tally = rp.Tally()
         items = rp.select(rp.read_parts(parts, statuses), *bounds, tally)
@@ -227,8 +245,9 @@ def view(
         from groundstation.view.rerun_sink import RerunView, ViewConfig
 
         link = make_link(attach_url(url))
-        config = ViewConfig(viewer=default_viewer(viewer, None), rrd=rrd, web_port=web_port, grpc_port=grpc_port)
-        check_viewer_ports(config.viewer, web_port, grpc_port)
+        chosen = default_viewer(viewer, rrd)
+        web_port, grpc_port = viewer_ports(chosen, web_port, grpc_port)
+        config = ViewConfig(viewer=chosen, rrd=rrd, web_port=web_port, grpc_port=grpc_port)
         with RerunView.open(config, name=link.url) as live:
             if live.address:
                 typer.echo(f"Rerun web viewer: {live.address}")
@@ -237,6 +256,12 @@ def view(
             session_config = SessionConfig(key=resolve_key(key_file), backfill=not link.url.startswith("hub://"))
             with Session(link, session_config, listeners=[live]) as session:
                 hello = session.agent_hello
+                if link.url.startswith("hub://"):
+                    from protocol import messages as m
+
+                    # the run's episode table, last dumps and recent telemetry first (run/history.py): the
+                    # learning curve and the heatmaps are whole from the start
+                    session.command(m.LogRequest(first_sample=0, end_sample=0xFFFFFFFF))
                 typer.echo(f"watching {one_line(hello.name) if hello else 'the agent'} at {one_line(link.url)}")
                 wait_for_interrupt("watching")
                 stopped = True

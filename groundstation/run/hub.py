@@ -26,16 +26,17 @@ from collections import OrderedDict
 from dataclasses import dataclass, field
 
 from groundstation.errors import LinkError
+from groundstation.run.history import History
 from groundstation.run.marker import CONFIRMATION as MARKER_CONFIRMATION
 from groundstation.session.agent_session import Session
 from groundstation.session.events import LinkEvent, Received, Sent
-from protocol import FrameEncoder, FrameFlag, Message, StreamDecoder
+from protocol import AckResult, FrameEncoder, FrameFlag, Message, StreamDecoder
 from protocol import messages as m
 
 CLIENT_QUEUE_LIMIT = 4 * 1024 * 1024  # bytes queued for one client before it is dropped as too slow
 FORWARDED_MEMORY = 256  # forwarded commands remembered (for ACK mapping and client retries)
 _KEPT_FLAGS = int(FrameFlag.REPLAYED)
-_TAKE_OVER = (m.Surface, m.Stop, m.Hover, m.Pause)
+_TAKE_OVER_IDS = {kind.MSG_ID: kind.DEFINITION.name for kind in (m.Surface, m.Stop, m.Hover, m.Pause)}
 
 
 @dataclass(eq=False)
@@ -77,6 +78,7 @@ class Hub:
         # The last command a tool sent that takes the agent out of learning (CMD_SURFACE, STOP, HOVER, PAUSE), or
         # None after a tool's CMD_START: the run must not start learning again behind an operator's back.
         self.taken_over: str | None = None
+        self.history: History | None = None  # what a tool's LOG_REQUEST is answered from (set by the run)
 
     # ------------------------------------------------------------------ life cycle
     def start(self) -> Hub:
@@ -131,6 +133,7 @@ class Hub:
             if target is None:
                 return  # an answer to the run's own command
             client, client_seq = target
+            self._note_take_over(ack)
             mapped = m.Ack(cmd_msg_id=ack.cmd_msg_id, cmd_seq=client_seq, result=ack.result, reason=ack.reason)
             key = (id(client), ack.cmd_msg_id, client_seq)
             if key in self._by_client_seq:
@@ -138,6 +141,16 @@ class Hub:
             if client in self._clients:
                 client.outbuf += client.encoder.encode(mapped).wire
         self._wake()
+
+    def _note_take_over(self, ack: m.Ack) -> None:
+        """A tool's accepted CMD_SURFACE / STOP / HOVER / PAUSE takes the agent from the run; its CMD_START hands it
+        back. A refused one changes nothing (the agent goes on as it was)."""
+        if ack.result != AckResult.ACCEPTED:
+            return
+        if ack.cmd_msg_id in _TAKE_OVER_IDS:
+            self.taken_over = _TAKE_OVER_IDS[ack.cmd_msg_id]
+        elif ack.cmd_msg_id == m.StartLearning.MSG_ID:
+            self.taken_over = None
 
     # ------------------------------------------------------------------ the clients' side (the hub's thread)
     def _wake(self) -> None:
@@ -213,15 +226,23 @@ class Hub:
             if message.receive_us == 0 and message.transmit_us == 0:
                 self._send(message)
         elif isinstance(message, m.LogRequest):
-            pass  # the run backfills for every tool (replayed frames are fanned out); a tool's own request would
-            # replay the on-board log from before it attached, over the agent's one link
+            # The run backfills for every tool (replayed frames are fanned out); a tool's own request is answered
+            # from the run's history (run/history.py), never from the on-board log over the agent's one link.
+            self._replay_history(client, message, seq)
         elif message.DEFINITION.needs_ack:
             self._forward_command(client, message, seq)
-            if isinstance(message, _TAKE_OVER):
-                self.taken_over = message.DEFINITION.name
-            elif isinstance(message, m.StartLearning):
-                self.taken_over = None
         # HEARTBEAT, ACK and anything else from a tool: the run's own session speaks for the ground
+
+    def _replay_history(self, client: _Client, request: m.LogRequest, seq: int) -> None:
+        ack = m.Ack(cmd_msg_id=request.MSG_ID, cmd_seq=seq, result=int(AckResult.ACCEPTED), reason="")
+        history = self.history
+        frames = history.replay(request.first_sample, request.end_sample) if history is not None else []
+        with self._lock:
+            client.outbuf += client.encoder.encode(ack).wire
+            for msg_id, payload in frames:
+                client.outbuf += client.encoder.encode_payload(msg_id, payload, _KEPT_FLAGS).wire
+            if history is not None:
+                client.outbuf += client.encoder.encode(history.log_range(len(frames))).wire
 
     def _forward_command(self, client: _Client, message: Message, seq: int) -> None:
         key = (id(client), message.MSG_ID, seq)

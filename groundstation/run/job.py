@@ -15,10 +15,13 @@ from groundstation.errors import CommandError, GroundStationError, LinkError, Re
 from groundstation.links import make_link
 from groundstation.links.runs import RunInfo, announce, new_run, withdraw
 from groundstation.recording.recorder import Recorder, RecorderConfig
+from groundstation.run.alarms import AlarmConfig, Alarms
+from groundstation.run.history import History, HistoryConfig
 from groundstation.run.hub import Hub
 from groundstation.safe_output import one_line
 from groundstation.session.agent_session import Session, SessionConfig
 from groundstation.session.events import EventKind, LinkEvent, Received, Sent, SessionListener
+from groundstation.session.status_line import AgentStatus
 from protocol import EndReason, Mode
 from protocol import messages as m
 
@@ -42,7 +45,11 @@ class RunConfig:
     session: SessionConfig = field(default_factory=SessionConfig)
     backfill_wait_s: float = 10.0
     hub: bool = True  # serve the session to local tools (groundstation/run/hub.py)
-    dumps_each_episode: bool = False  # a viewer is attached: the agent sends VALUES and POLICY after every episode
+    # The agent sends VALUES and POLICY after every episode, with or without a viewer: every recording replays
+    # whole (the heatmaps fill from these) and a tool attaching late gets the last ones (run/history.py).
+    dumps_each_episode: bool = True
+    alarms: AlarmConfig = field(default_factory=AlarmConfig)
+    history: HistoryConfig = field(default_factory=HistoryConfig)  # what a tool attaching late is given first
 
 
 @dataclass
@@ -60,6 +67,12 @@ class RunStatus:
     messages: list[str] = field(default_factory=list)
     hub: str = ""  # hub://RUN once local tools can attach
     ends: list[tuple[int, str, float]] = field(default_factory=list)  # (episode, outcome, duration s) in order
+    agent: AgentStatus = field(default_factory=AgentStatus)  # what the status line shows of the agent
+
+    @property
+    def completed(self) -> int:
+        """Episodes that used the run's budget: an aborted one (a pause, a surface) does not, as on the agent."""
+        return self.successes + self.failures
 
 
 class _Progress:
@@ -72,6 +85,8 @@ class _Progress:
 
     def on_received(self, received: Received) -> None:
         msg = received.message
+        if not received.backfilled:
+            self.status.agent.update(msg)
         if isinstance(msg, m.Sample):
             self.status.samples += 1
         elif isinstance(msg, m.EpisodeEnd) and msg.episode not in self._episodes:
@@ -93,8 +108,8 @@ class _Progress:
             self.status.link = event.data.get("link", {})
         elif event.kind in (EventKind.LINK_LOST, EventKind.LINK_RESTORED, EventKind.RESYNCED, EventKind.ERROR):
             self.status.messages.append(f"{event.kind}: {event.detail}")
-        self.status.link_up = event.kind != EventKind.LINK_LOST if event.kind != EventKind.STATS else \
-            self.status.link_up
+        if event.kind in (EventKind.LINK_LOST, EventKind.LINK_RESTORED, EventKind.CONNECTED):
+            self.status.link_up = event.kind != EventKind.LINK_LOST
         self.changed.set()
 
 
@@ -118,8 +133,8 @@ class _AgentWatch:
         self.first_episode = 0
         self.left_idle = False
         self.restarts = 0
-        self.hub: Hub | None = None  # a tool's CMD_SURFACE / STOP / HOVER through it: no restart
-        self._told = False
+        self.hub: Hub | None = None  # a tool's CMD_SURFACE / STOP / HOVER / PAUSE through it: no restart
+        self._operator: str | None = None  # the take-over last said
 
     def start(self) -> None:
         beat = self._wait_unless_surfacing()
@@ -133,6 +148,7 @@ class _AgentWatch:
         self.session.command(m.StartLearning(max_episodes=self.episodes), timeout_s=self.START_WAIT_S)
 
     def finished(self) -> bool:
+        self.follow_operator()
         beat = self.session.last_heartbeat
         if beat is None:
             return False
@@ -144,11 +160,7 @@ class _AgentWatch:
         done = beat.episode - self.first_episode
         if self.episodes and done >= self.episodes:
             return True
-        if self.hub is not None and self.hub.taken_over is not None:
-            if not self._told:
-                self._told = True
-                self.status.messages.append(f"{self.hub.taken_over} came from another tool: not starting the agent "
-                                            "again; still recording (Ctrl-C to stop)")
+        if self._operator is not None:
             return False
         if self.restarts >= self.MAX_RESTARTS:
             self.status.messages.append(f"the agent surfaced {self.restarts} times; stopping")
@@ -166,6 +178,35 @@ class _AgentWatch:
             self.left_idle = True  # try again on the next look
             self.status.messages.append(f"restart refused: {e}")
         return False
+
+    def follow_operator(self) -> None:
+        """One line when an operator takes the agent from the run through the hub, and when they hand it back."""
+        now = self.hub.taken_over if self.hub is not None else None
+        if now == self._operator:
+            return
+        self._operator = now
+        if now is None:
+            self.left_idle = False  # a heartbeat from before the operator's CMD_START is not the end of it
+            line = "the operator handed the agent back (CMD_START): the run goes on with its episodes"
+        elif now == "CMD_PAUSE":
+            line = ("the operator paused learning (CMD_PAUSE from another tool): the agent holds its depth; "
+                    "dive resume continues")
+        else:
+            line = (f"the operator took over ({now} from another tool): the run will not start the agent again, "
+                    "still recording; hand it back with: dive start")
+        self.status.messages.append(line)
+
+    def stop_if_still_learning(self) -> None:
+        """The run's episodes are done but the agent learns on (an operator's CMD_START had no budget): surface it."""
+        beat = self.session.last_heartbeat
+        if beat is None or beat.mode not in (Mode.LEARNING, Mode.RECOVERING, Mode.PAUSED):
+            return
+        if self.hub is not None and self.hub.taken_over is not None:
+            return  # the operator's
+        try:
+            self.session.command(m.Stop())
+        except (CommandError, LinkError):
+            pass  # the agent's own budget or link loss surfaces it
 
     def _wait_unless_surfacing(self) -> m.Heartbeat | None:
         """The agent's latest heartbeat (waiting up to 2 s for one), once it is not surfacing any more."""
@@ -222,7 +263,8 @@ def run(config: RunConfig, on_progress: Callable[[RunStatus], None] | None = Non
     status = RunStatus()
     progress = _Progress(status)
     recorder = Recorder(config.recorder, session_info(link.url))
-    session = Session(link, config.session, [recorder, progress, *listeners])
+    history = History(config.history) if config.hub else None  # before the hub: nothing fanned out is missed
+    session = Session(link, config.session, [recorder, progress, *([history] if history else []), *listeners])
     interrupted = False
     missing = 0
     hub: Hub | None = None
@@ -232,10 +274,14 @@ def run(config: RunConfig, on_progress: Callable[[RunStatus], None] | None = Non
         session.connect()
         status.link_up = True
         if config.hub:
-            hub = Hub(session).start()
+            hub = Hub(session)
+            hub.history = history
+            hub.start()
             session.add_listener(hub)
             announced = _announce(new_run(os.getpid(), hub.address, link.url), recorder)
             status.hub = f"hub://{announced.run}"
+        alarms = Alarms(session, status.messages.append, config.alarms)
+        session.add_listener(alarms)
         if on_progress is not None:
             on_progress(status)  # connected: the display stops waiting for a (compiling) virtual agent
         values = dict(config.params)
@@ -251,9 +297,10 @@ def run(config: RunConfig, on_progress: Callable[[RunStatus], None] | None = Non
         watch.hub = hub
         watch.start()
         try:
-            while not stop.is_set() and not (config.episodes and status.episodes >= config.episodes):
+            while not stop.is_set() and not (config.episodes and status.completed >= config.episodes):
                 progress.changed.wait(0.2)
                 progress.changed.clear()
+                alarms.check()
                 if announced is not None and str(recorder.paths[-1] if recorder.paths else "") != \
                         announced.recording:
                     announced = _announce(announced, recorder)
@@ -268,6 +315,8 @@ def run(config: RunConfig, on_progress: Callable[[RunStatus], None] | None = Non
                 session.command(m.Stop())
             except (CommandError, LinkError):
                 pass  # the recording is what matters now; the agent surfaces on link loss anyway
+        elif config.episodes and status.completed >= config.episodes and session.failure is None:
+            watch.stop_if_still_learning()
         missing = session.request_backfill(config.backfill_wait_s, final=True)
         backfilled = True
     except GroundStationError:

@@ -105,4 +105,4 @@ def refusal(name: str, ack: m.Ack) -> CommandError | None:
     except ValueError:
         why = f"result {ack.result}"
     reason = f" ({ack.reason})" if ack.reason else ""
-    return CommandError(f"{name} refused by the agent: {why}{reason}")
+    return CommandError(f"{name} refused by the agent: {why}{reason}", ack.result)

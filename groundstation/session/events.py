@@ -20,6 +20,7 @@ class EventKind(StrEnum):
     ERROR = "error"  # anything else worth showing; the session keeps running
     MARKER = "marker"  # a user marker (dive mark, or a key in the live run)
     STATS = "stats"  # 1 Hz link statistics (data: LinkStats.snapshot(), clock model)
+    ALARM = "alarm"  # something the operator must see now (groundstation/run/alarms.py)
 
 
 class Received(NamedTuple):

@@ -10,6 +10,7 @@ from pathlib import Path
 from groundstation.errors import ParameterError
 from protocol import ParamType
 from protocol.messages import ParamValue
+from protocol.parameters import f32
 
 
 @dataclass(frozen=True, slots=True)
@@ -50,7 +51,8 @@ def parse_value(param: Parameter, text: str) -> float:
         value = float(lowered)
     except ValueError:
         raise ParameterError(f"{param.name}: {text!r} is not a number") from None
-    if not param.minimum <= value <= param.maximum:
+    stored = f32(value) if param.param_type == ParamType.F32 else value  # the agent checks the f32 it stores
+    if not param.minimum <= stored <= param.maximum:
         raise ParameterError(f"{param.name}: {text} is outside [{param.minimum:g}, {param.maximum:g}]")
     if param.param_type in _WHOLE and not value.is_integer():
         raise ParameterError(f"{param.name}: {text} is not a whole number ({param.param_type.name.lower()})")

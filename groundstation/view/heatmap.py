@@ -7,6 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from protocol import Action
 from protocol.parameters import param
 
 Colour = tuple[int, int, int]
@@ -16,6 +17,7 @@ POLICY_COLOURS: dict[int, tuple[Colour, str]] = {  # the POLICY dump's actions (
     1: ((40, 120, 220), "rise"),  # more volume
 }
 UNTRIED: tuple[Colour, str] = ((90, 90, 90), "untried")
+UNTRIED_ACTION = int(Action.NONE)  # a POLICY dump's action for a state the agent never left (SPEC.md section 10)
 _MAX_TICKS = 4  # labels per axis: more overlap in a panel a third of the screen wide
 _LEGEND_STEPS = 5  # colour swatches of the value legend, from the highest value down to the lowest
 SWATCH_RADIUS = 0.4  # a legend swatch's radius in cells
@@ -136,17 +138,35 @@ def _grid_cells(values: NDArray[np.generic], zdot_cells: int) -> NDArray[np.gene
     return values[: (len(values) - 1) // zdot_cells * zdot_cells]
 
 
-def value_range(values: NDArray[np.float32], zdot_cells: int) -> tuple[float, float]:
-    cells = _grid_cells(values, zdot_cells).astype(np.float64)
+def untried_cells(actions: NDArray[np.uint8]) -> NDArray[np.bool_]:
+    """The states a POLICY dump marks untried (the agent never left them): their value is the initial one."""
+    return np.asarray(actions) == UNTRIED_ACTION
+
+
+def _tried(values: NDArray[np.float32], zdot_cells: int, untried: NDArray[np.bool_] | None) -> NDArray[np.bool_]:
+    cells = len(_grid_cells(values, zdot_cells))
+    if untried is None or len(untried) != len(values):
+        return np.ones(cells, bool)
+    return ~untried[:cells]
+
+
+def value_range(values: NDArray[np.float32], zdot_cells: int,
+                untried: NDArray[np.bool_] | None = None) -> tuple[float, float]:
+    """The lowest and highest value of the tried cells (an untried cell's initial value would set the scale)."""
+    cells = _grid_cells(values, zdot_cells).astype(np.float64)[_tried(values, zdot_cells, untried)]
     return (float(np.min(cells)), float(np.max(cells))) if len(cells) else (0.0, 0.0)
 
 
-def value_image(values: NDArray[np.float32], zdot_cells: int) -> NDArray[np.uint8]:
-    """v(s) over the grid, coloured from its lowest (dark) to its highest value (yellow)."""
+def value_image(values: NDArray[np.float32], zdot_cells: int,
+                untried: NDArray[np.bool_] | None = None) -> NDArray[np.uint8]:
+    """v(s) over the grid, coloured from its lowest (dark) to its highest value (yellow); `untried` cells (from the
+    latest POLICY dump) in the policy's untried grey, not in the colour of the best value they start with."""
     cells = _grid_cells(values, zdot_cells).astype(np.float64)
-    low, high = value_range(values, zdot_cells)
+    low, high = value_range(values, zdot_cells, untried)
     unit = (cells - low) / (high - low) if high > low else np.zeros_like(cells)
-    return _colormap(unit.reshape(-1, zdot_cells))
+    image = _colormap(unit)
+    image[~_tried(values, zdot_cells, untried)] = UNTRIED[0]
+    return image.reshape(-1, zdot_cells, 3)
 
 
 def policy_image(actions: NDArray[np.uint8], zdot_cells: int) -> NDArray[np.uint8]:
@@ -219,7 +239,7 @@ def value_frame(grid: Grid, low: float, high: float) -> Frame:
     units = np.linspace(1.0, 0.0, _LEGEND_STEPS)
     swatches = [((int(c[0]), int(c[1]), int(c[2])), _number(low + (high - low) * unit))
                 for unit, c in zip(units, _colormap(units), strict=True)]
-    captions, dots = _legend(grid, "v(s)", swatches)
+    captions, dots = _legend(grid, "v(s)", [*swatches, UNTRIED])
     return Frame(lines, texts + captions, dots, bounds(grid))
 
 

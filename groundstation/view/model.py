@@ -18,6 +18,7 @@ from groundstation.view.heatmap import (
     dump_grid,
     policy_frame,
     policy_image,
+    untried_cells,
     value_frame,
     value_image,
     value_range,
@@ -55,6 +56,8 @@ ENTITIES: dict[str, tuple[Kind, str]] = {
     "actuator/actuator_cmd_deg": (Kind.SCALAR, "command [deg]"),
     "action/action": (Kind.POINT, "action (0 less volume, 1 more)"),
     "reward/reward": (Kind.SCALAR, "reward"),
+    "battery/battery_v": (Kind.SCALAR, "battery [V]"),
+    "mode/mode": (Kind.POINT, "mode: 0 idle, 1 learning, 2 recovering, 3 hover, 4 surfacing, 5 paused"),
     "learning_curve/duration_s": (Kind.POINT, "duration [s]"),
     "learning_curve/moving_average_s": (Kind.SCALAR, f"{MOVING_AVERAGE_EPISODES}-episode mean [s]"),
     "learning_curve/success_line_s": (Kind.SCALAR, f"{SUCCESS_TIME_S:.0f} s"),
@@ -109,7 +112,8 @@ class ViewModel:
     """
 
     # The messages feed() makes rows of or keeps state from; it ignores every other one.
-    SHOWN: tuple[type[Message], ...] = (m.Sample, m.EpisodeStart, m.EpisodeEnd, m.DumpChunk, m.Text, m.ParamValue)
+    SHOWN: tuple[type[Message], ...] = (m.Sample, m.EpisodeStart, m.EpisodeEnd, m.DumpChunk, m.Text, m.ParamValue,
+                                        m.Heartbeat)
 
     def __init__(self) -> None:
         self._batch: Batch = {}
@@ -123,6 +127,8 @@ class ViewModel:
         self._grid_cells: int | None = None  # known from the first dump
         self._durations: deque[float] = deque(maxlen=MOVING_AVERAGE_EPISODES)
         self._dumps = DumpAssembler()
+        self._values: NDArray[np.float32] | None = None  # the latest VALUES dump
+        self._untried: NDArray[np.bool_] | None = None  # the states the latest POLICY dump says were never left
         self._backfilled = 0
 
     def take(self) -> Batch:
@@ -156,6 +162,11 @@ class ViewModel:
             self._agent_time_s = message.t_us / 1e6
             level = _LEVELS.get(message.severity, "INFO")
             self._row("log/agent", (message.text, level), host_time_ns)
+        elif isinstance(message, m.Heartbeat):
+            if not replayed:  # the agent's state now, once a second: the battery and mode panels
+                self._agent_time_s = message.uptime_ms / 1e3
+                self._row("battery/battery_v", message.battery_mv / 1e3, host_time_ns)
+                self._row("mode/mode", float(message.mode), host_time_ns)
         elif isinstance(message, m.ParamValue):
             self._dumps.saw_parameter(message.name, message.value)  # the grid bounds a dump's size
             if message.name in self._grid_params and math.isfinite(message.value) and message.value > 0:
@@ -169,7 +180,8 @@ class ViewModel:
             self.link_stats(host_time_ns, data or {})
             return
         text = f"{kind}: {detail}" if detail else kind
-        self._row("log/events", (text, "WARN" if kind in ("link_lost", "error") else "INFO"), host_time_ns)
+        level = "ERROR" if kind == "alarm" else "WARN" if kind in ("link_lost", "error") else "INFO"
+        self._row("log/events", (text, level), host_time_ns)
 
     def link_stats(self, host_time_ns: int, stats: dict[str, Any]) -> None:
         """The ground station's link statistics: live STATS events and the /link topic carry
@@ -321,8 +333,8 @@ class ViewModel:
             if grid is None:
                 return
             self._grid_cells = len(values) - 1
-            self._row("value_function/image", value_image(values, self._zdot_cells), host_time_ns)
-            self._row("value_function/frame", value_frame(grid, *value_range(values, self._zdot_cells)), host_time_ns)
+            self._values = values
+            self._value_rows(grid, host_time_ns)
         elif dump.kind == DumpKind.POLICY:
             actions = np.frombuffer(dump.data, np.uint8)
             grid = self._grid(len(actions))
@@ -331,6 +343,17 @@ class ViewModel:
             self._grid_cells = len(actions) - 1
             self._row("policy/image", policy_image(actions, self._zdot_cells), host_time_ns)
             self._row("policy/frame", policy_frame(grid), host_time_ns)
+            # The agent sends VALUES then POLICY: the values drawn again with the cells this policy says are untried
+            self._untried = untried_cells(actions)
+            if self._values is not None and len(self._values) == len(actions):
+                self._value_rows(grid, host_time_ns)
+
+    def _value_rows(self, grid: Grid, host_time_ns: int) -> None:
+        values, untried = self._values, self._untried
+        assert values is not None
+        self._row("value_function/image", value_image(values, self._zdot_cells, untried), host_time_ns)
+        self._row("value_function/frame", value_frame(grid, *value_range(values, self._zdot_cells, untried)),
+                  host_time_ns)
 
     def _grid(self, states: int) -> Grid | None:
         """The grid a dump of `states` states covers; None when it holds not one row of cells."""

@@ -14,10 +14,16 @@ class Viewer(StrEnum):
     NONE = "none"  # no viewer (an .rrd file only, or nothing)
 
 
+_VIEWERS = "spawn: the native viewer; web: serve the web viewer on --web-port; none: no viewer. "
 ViewerOption = Annotated[
     Viewer | None,
-    typer.Option("--viewer", help="spawn: native viewer; web: serve the web viewer on --web-port; none. "
-                 "Default: spawn with a display, else web (none when only --rrd is given)."),
+    typer.Option("--viewer", help=_VIEWERS + "Default: spawn where there is a display, else web; none when --rrd "
+                 "is given."),
+]
+RunViewerOption = Annotated[  # `dive run`'s main job needs no viewer: headless, it records only
+    Viewer | None,
+    typer.Option("--viewer", help=_VIEWERS + "Default: spawn where there is a display, else none (--viewer web on "
+                 "a headless machine); none when --rrd is given."),
 ]
 WebPortOption = Annotated[int, typer.Option("--web-port", min=1, max=65535,
                                             help="Port of the web viewer (--viewer web).")]

@@ -90,6 +90,10 @@ def _heatmap_view(origin: str, name: str, layout: Layout) -> rrb.Spatial2DView:
                              visual_bounds=rrb.VisualBounds2D(x_range=(b.x_min, b.x_max), y_range=(b.y_min, b.y_max)))
 
 
+# A panel of one series says what it is in its title: no legend box over its data.
+_NO_LEGEND = rrb.PlotLegend(visible=False)
+
+
 def blueprint(layout: Layout | None = None) -> rrb.Blueprint:
     """The shipped layout: time series on the left; learning curve, heatmaps (the most room) and logs on the right."""
     layout = layout or Layout()
@@ -98,9 +102,14 @@ def blueprint(layout: Layout | None = None) -> rrb.Blueprint:
         rrb.TimeSeriesView(origin="velocity", name="Velocity [m/s] and bounds",
                            axis_y=rrb.ScalarAxis(range=layout.velocity_range_mps())),
         rrb.TimeSeriesView(origin="actuator", name="Actuator [deg]"),
-        rrb.TimeSeriesView(origin="action", name="Action"),
-        rrb.TimeSeriesView(origin="reward", name="Reward"),
+        rrb.TimeSeriesView(origin="action", name="Action (0 less volume, 1 more)", plot_legend=_NO_LEGEND),
+        rrb.TimeSeriesView(origin="reward", name="Reward", plot_legend=_NO_LEGEND),
         rrb.TimeSeriesView(origin="link", name="Link: loss, RTT [s], backfilled samples"),
+        rrb.Horizontal(
+            rrb.TimeSeriesView(origin="battery", name="Battery [V]", plot_legend=_NO_LEGEND),
+            rrb.TimeSeriesView(origin="mode", name="Mode (0 idle 1 learn 2 recover 3 hover 4 surface 5 pause)",
+                               plot_legend=_NO_LEGEND),
+        ),
     )
     right = rrb.Vertical(
         rrb.TimeSeriesView(origin="learning_curve", name="Learning curve: duration per episode [s]"),

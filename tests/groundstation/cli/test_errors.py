@@ -58,7 +58,8 @@ def test_params_list_get_set_and_commands(fake_agent: FakeAgent) -> None:
     runner = CliRunner()
     listing = runner.invoke(app, ["params", fake_agent.url])
     assert listing.exit_code == 0 and "target_depth_m" in listing.stdout
-    assert "z_tol_m = 0.2" in runner.invoke(app, ["params", fake_agent.url, "set", "z_tol_m", "0.2"]).stdout
+    changed = runner.invoke(app, ["params", fake_agent.url, "set", "z_tol_m", "0.2", "--reset-model"])
+    assert "z_tol_m = 0.2" in changed.stdout
     assert runner.invoke(app, ["surface", fake_agent.url]).exit_code == 0
     assert runner.invoke(app, ["hover", fake_agent.url, "0.5"]).exit_code == 0
     dumped = runner.invoke(app, ["dump", fake_agent.url, "--kind", "values"])

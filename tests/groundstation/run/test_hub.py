@@ -45,21 +45,22 @@ def test_tools_attach_to_the_running_session_without_taking_the_agents_link(tmp_
             assert marked.returncode == 0 and f"marked in run {run.pid}" in marked.stdout, marked.stderr
             got = dive(runtime, "params", "get", "z_tol_m")
             assert got.returncode == 0 and "z_tol_m = " in got.stdout, got.stderr
-            negative = dive(runtime, "params", "set", "term_reward", "-5")  # a negative value without `--`
-            assert negative.returncode == 0 and "term_reward = -5" in negative.stdout, negative.stderr
             surfaced = dive(runtime, "surface")
             assert surfaced.returncode == 0 and f"surfacing (hub://{run.pid})" in surfaced.stdout, surfaced.stderr
+            negative = dive(runtime, "params", "set", "term_reward", "-5", "--reset-model")  # no `--` needed
+            assert negative.returncode == 0 and "term_reward = -5" in negative.stdout, negative.stderr
             time.sleep(1.0)
             viewer.send_signal(signal.SIGINT)
             _, view_err = viewer.communicate(timeout=30)
             assert viewer.returncode == 130, view_err
         _, run_err = run.communicate()
         assert run.returncode == 130, run_err  # stopped by Ctrl-C: the one convention
-        assert "another tool: not starting the agent again" in run_err  # the operator's surface stands
+        assert "took over (CMD_SURFACE from another tool)" in run_err  # the operator's surface stands
     finally:
         agent.close()
     assert agent.connections == 1  # every tool went through the run's one link
-    assert agent.executed.count("CMD_SURFACE") == 1 and agent.executed.count("PARAM_SET") == 1
+    # PARAM_SET: the run's dump_each_episode (dumps after every episode by default) and the tool's term_reward
+    assert agent.executed.count("CMD_SURFACE") == 1 and agent.executed.count("PARAM_SET") == 2
     [recording] = sorted((tmp_path / "rec").glob("*.mcap"))
     contents = read_recording(recording, {"/marker", "/ground/CMD_SURFACE", "/ground/PARAM_SET"})
     topics = [m.topic for m in contents.messages]

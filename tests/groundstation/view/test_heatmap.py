@@ -119,15 +119,19 @@ def test_the_policy_legend_says_which_colour_is_which_action(recorded: tuple[Pat
 def test_the_value_legend_spans_the_dumped_values_with_the_image_colours(recorded: tuple[Path, Path]) -> None:
     live, _replay = recorded
     legend = latest(live, "/value_function/frame/legend")
-    values = [float(text) for text in legend["Points2D:labels"]]
-    grid_values = VALUES[:-1]  # the terminal state is not a cell
-    assert values[0] == pytest.approx(grid_values.max(), abs=1e-3)  # top swatch: the highest value
-    assert values[-1] == pytest.approx(grid_values.min(), abs=1e-3)
+    labels = legend["Points2D:labels"]
+    assert labels[-1] == "untried"  # the cells the policy says were never left (issue 27)
+    values = [float(text) for text in labels[:-1]]
+    tried = ACTIONS[:-1] != 255
+    grid_values = np.where(tried, VALUES[:-1], np.nan)  # the terminal state is not a cell; untried cells not scaled
+    assert values[0] == pytest.approx(np.nanmax(grid_values), abs=1e-3)  # top swatch: the highest tried value
+    assert values[-1] == pytest.approx(np.nanmin(grid_values), abs=1e-3)
     assert values == sorted(values, reverse=True)
     image = latest(live, "/value_function/image")
     colours = [_rgb(c) for c in legend["Points2D:colors"]]
-    assert _pixel(image, int(np.argmax(grid_values))) == colours[0]
-    assert _pixel(image, int(np.argmin(grid_values))) == colours[-1]
+    assert _pixel(image, int(np.nanargmax(grid_values))) == colours[0]
+    assert _pixel(image, int(np.nanargmin(grid_values))) == colours[-2]
+    assert _pixel(image, int(np.argmin(tried))) == colours[-1]  # an untried cell: the untried swatch's colour
     assert "v(s)" in latest(live, "/value_function/frame/texts")["Points2D:labels"]
 
 
@@ -152,3 +156,21 @@ def test_with_actuator_bins_each_block_of_rows_gets_its_depth_values(tmp_path: P
     assert "depth [m] in actuator bins 1-3, top down" in texts["Points2D:labels"]
     image = latest(tmp_path / "live.rrd", "/value_function/image")
     assert (image["Image:format"][0]["width"], image["Image:format"][0]["height"]) == (ZDOT_CELLS, 3 * Z_CELLS)
+
+
+def test_untried_cells_take_the_untried_colour_and_leave_the_scale() -> None:
+    """A state the agent never left keeps its initial value (0, above every learned one, as rewards are <= 0): it is
+    drawn in the policy's untried grey, and the colour scale is the tried cells' (issue 27 item 5)."""
+    import numpy as np
+
+    from groundstation.view.heatmap import UNTRIED, UNTRIED_ACTION, untried_cells, value_image, value_range
+
+    values = np.array([-3.0, -1.0, 0.0, 0.0, -9.0], np.float32)  # 2 x 2 cells and the terminal state
+    actions = np.array([0, 1, UNTRIED_ACTION, UNTRIED_ACTION, 0], np.uint8)
+    untried = untried_cells(actions)
+    assert value_range(values, 2, untried) == (-3.0, -1.0)
+    image = value_image(values, 2, untried)
+    assert image.shape == (2, 2, 3)
+    assert tuple(image[1, 0]) == UNTRIED[0] and tuple(image[1, 1]) == UNTRIED[0]
+    assert tuple(image[0, 1]) != UNTRIED[0] and tuple(image[0, 1]) != tuple(image[0, 0])  # best and worst differ
+    assert value_range(values, 2) == (-3.0, 0.0)  # without a policy: every cell counts, as before
