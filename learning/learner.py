@@ -10,12 +10,11 @@ from numpy.typing import NDArray
 from learning.acting import explore_probability, select_action_kernel, state_index_kernel
 from learning.config import LearnerConfig, ModelForm, kernel_spec, n_states
 from learning.errors import LearningError
-from learning.model import N_ACTIONS, allocate_model, dense_counts, export_model_kernel, record_transition
+from learning.model import N_ACTIONS, ModelArrays, dense_counts, export_model_kernel, record_transition
 from learning.planning import plan_kernel
 from learning.rng import new_stream
 from learning.shared import (
-    allocate_shared,
-    n_types,
+    allocate_arrays,
     plan_shared_kernel,
     record_shared,
     shared_dense_counts,
@@ -81,13 +80,7 @@ class LearnerArrays(NamedTuple):
     spec: KernelSpec
     policy: NDArray[np.int8]
     rng_state: NDArray[np.uint64]
-    succ_idx: NDArray[np.uint16]
-    succ_cnt: NDArray[np.uint16]
-    reward_sum: NDArray[np.float32]
-    codes: NDArray[np.uint8]
-    type_counts: NDArray[np.uint16]
-    totals: NDArray[np.uint16]
-    type_evictions: NDArray[np.uint16]
+    model: ModelArrays
 
 
 class Learner:
@@ -103,17 +96,8 @@ class Learner:
         """Forget everything: empty model, zero values, a random tie-broken policy, episode 0."""
         s = n_states(self._config)
         self._sparse = self._config.model_form == ModelForm.SPARSE
-        self._succ_idx, self._succ_cnt, self._reward_sum = allocate_model(
-            s, self._sparse, self._config.sparse_slots
-        )
         self._shared = self._config.shared_model
-        if self._shared and self._config.dirichlet_weight == 0:
-            # The local counts are not used: keep them empty (the shared model alone).
-            self._succ_idx, self._succ_cnt, self._reward_sum = allocate_model(0, True, 1)
-        c = self._config
-        self._codes, self._type_counts, self._totals, self._type_evictions = allocate_shared(
-            n_types(c.z_cells, c.zdot_cells, c.actuator_bins) if self._shared else 0, c.sparse_slots
-        )
+        self._model = allocate_arrays(self._spec)
         self.evictions = 0
         self._values = np.zeros(s)
         self._q = np.zeros((s, N_ACTIONS))
@@ -122,25 +106,18 @@ class Learner:
         self._p_explore = float(explore_probability(0, self._spec))
         # Compiled entries without per-call dispatch (see direct_entry): act and observe run every step.
         self._select = direct_entry(select_action_kernel, self._policy, 0, 0.0, self._spec, self._rng_state)
-        self._record = direct_entry(
-            record_transition, self._succ_idx, self._succ_cnt, self._reward_sum, 0, 0, 0.0, 0, self._sparse
-        )
-        self._record_shared = direct_entry(
-            record_shared, self._codes, self._type_counts, self._totals, self._type_evictions, 0, 0, 0,
-            self._spec,
-        )
+        m = self._model
+        self._record = direct_entry(record_transition, m.succ_idx, m.succ_cnt, m.reward_sum, 0, 0, 0.0, 0, self._sparse)
+        self._record_shared = direct_entry(record_shared, m, 0, 0, 0, self._spec)
         self.last_sweeps = self._plan()
 
     def _plan(self) -> int:
         if self._shared:
-            return int(plan_shared_kernel(
-                self._codes, self._type_counts, self._totals, self._succ_idx, self._succ_cnt, self._values,
-                self._q, self._policy, self._spec, self._rng_state,
-            ))
-        return int(plan_kernel(
-            self._succ_idx, self._succ_cnt, self._reward_sum, self._values, self._q, self._policy,
-            self._spec, self._rng_state,
-        ))
+            return int(plan_shared_kernel(self._model, self._values, self._q, self._policy, self._spec,
+                                          self._rng_state))
+        m = self._model
+        return int(plan_kernel(m.succ_idx, m.succ_cnt, m.reward_sum, self._values, self._q, self._policy,
+                               self._spec, self._rng_state))
 
     @property
     def config(self) -> LearnerConfig:
@@ -150,8 +127,7 @@ class Learner:
     def arrays(self) -> LearnerArrays:
         """The live arrays act() and observe() use (replaced by reset()); a loop that acts and observes with
         select_action_kernel, record_transition and record_shared on them adds its evictions to `evictions`."""
-        return LearnerArrays(self._spec, self._policy, self._rng_state, self._succ_idx, self._succ_cnt,
-                             self._reward_sum, self._codes, self._type_counts, self._totals, self._type_evictions)
+        return LearnerArrays(self._spec, self._policy, self._rng_state, self._model)
 
     @property
     def episode(self) -> int:
@@ -185,14 +161,12 @@ class Learner:
                 if next_state == self._values.shape[0] - 1:
                     raise LearningError("the shared model needs next_cell for a terminal successor")
                 next_cell = int(state_cell_code(next_state, self._spec))
-            self.evictions += bool(self._record_shared(
-                self._codes, self._type_counts, self._totals, self._type_evictions, state, action, next_cell,
-                self._spec,
-            ))
+            self.evictions += bool(self._record_shared(self._model, state, action, next_cell, self._spec))
             if self._config.dirichlet_weight == 0:
                 return
+        m = self._model
         self.evictions += bool(self._record(
-            self._succ_idx, self._succ_cnt, self._reward_sum, state, action, reward, next_state, self._sparse
+            m.succ_idx, m.succ_cnt, m.reward_sum, state, action, reward, next_state, self._sparse
         ))
 
     def end_episode(self) -> None:
@@ -215,8 +189,7 @@ class Learner:
         """Q[s, a] from the model as it is now and the current values (the shared model: computed, as its
         firmware does; the per-state learners: the last value iteration's, their Q table)."""
         if self._shared:
-            return shared_q_kernel(self._codes, self._type_counts, self._totals, self._succ_idx, self._succ_cnt,
-                                   self._values, self._spec)
+            return shared_q_kernel(self._model, self._values, self._spec)
         return self.q_values
 
     @property
@@ -229,12 +202,12 @@ class Learner:
         """Transition counts C[s, s', a] (uint16), exported from whichever form is stored (the shared
         model's: its histograms shifted to each state, see learning.shared.shared_dense_counts)."""
         if self._shared:
-            return shared_dense_counts(self._codes, self._type_counts, self._succ_idx, self._succ_cnt, self._spec)
-        return dense_counts(self._succ_idx, self._succ_cnt)
+            return shared_dense_counts(self._model, self._spec)
+        return dense_counts(self._model.succ_idx, self._model.succ_cnt)
 
     def export_model(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """P[s, s', a] and R[s, a] as dense float arrays (untried rows zero)."""
-        return export_model_kernel(self._succ_idx, self._succ_cnt, self._reward_sum)
+        return export_model_kernel(self._model.succ_idx, self._model.succ_cnt, self._model.reward_sum)
 
     @property
     def memory_bytes(self) -> int:

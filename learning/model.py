@@ -2,12 +2,28 @@
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
 N_ACTIONS = 2
 COUNT_MAX = 65535  # uint16 counts, as on the Teensy
+
+
+class ModelArrays(NamedTuple):
+    """A learner's whole model as its kernels take it, one argument (numba takes it as a named tuple): the
+    per-state counts of this module and the shared model's type histograms (learning/shared.py). A part the
+    learner does not use is empty (no states or no types)."""
+
+    succ_idx: NDArray[np.uint16]  # [S, 2, slots] successor of each slot (dense: slot k is successor k)
+    succ_cnt: NDArray[np.uint16]  # [S, 2, slots] count of each slot
+    reward_sum: NDArray[np.float32]  # [S, 2] rewards summed over the pair's transitions
+    codes: NDArray[np.uint8]  # [T, slots] offset code of each slot of a type
+    type_counts: NDArray[np.uint16]  # [T, slots] count of each slot of a type
+    totals: NDArray[np.uint16]  # [T] sum of a type's counts
+    type_evictions: NDArray[np.uint16]  # [T] slots a type evicted (saturating)
 
 
 @njit(cache=True, error_model="numpy")

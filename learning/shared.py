@@ -41,7 +41,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from learning.model import COUNT_MAX, N_ACTIONS
+from learning.model import COUNT_MAX, N_ACTIONS, ModelArrays, allocate_model
 from learning.planning import Rows, _action_value, plan_rows
 from learning.spec import KernelSpec
 
@@ -83,6 +83,19 @@ def allocate_shared(
     totals = np.zeros(n_type, dtype=np.uint16)
     evictions = np.zeros(n_type, dtype=np.uint16)
     return codes, counts, totals, evictions
+
+
+@njit(cache=True, error_model="numpy")
+def allocate_arrays(spec: KernelSpec) -> ModelArrays:
+    """A learner's empty model: the per-state counts unless the shared model learns alone (no Dirichlet blend),
+    the type histograms with the shared model; the part not used is empty."""
+    n_states = spec.z_cells * spec.zdot_cells * spec.actuator_bins + 1
+    shared = spec.shared_model
+    local = (not shared) or spec.dirichlet_weight > 0.0
+    succ_idx, succ_cnt, reward_sum = allocate_model(n_states if local else 0, spec.model_form == 1, spec.sparse_slots)
+    n_type = spec.zdot_cells * spec.actuator_bins * N_ACTIONS if shared else 0
+    codes, type_counts, totals, type_evictions = allocate_shared(n_type, spec.sparse_slots)
+    return ModelArrays(succ_idx, succ_cnt, reward_sum, codes, type_counts, totals, type_evictions)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -130,17 +143,9 @@ def type_of(state: int, action: int, spec: KernelSpec) -> int:
 
 
 @njit(cache=True, error_model="numpy")
-def record_shared(
-    codes: NDArray[np.uint8],
-    counts: NDArray[np.uint16],
-    totals: NDArray[np.uint16],
-    evictions: NDArray[np.uint16],
-    state: int,
-    action: int,
-    next_cell: int,
-    spec: KernelSpec,
-) -> bool:
+def record_shared(model: ModelArrays, state: int, action: int, next_cell: int, spec: KernelSpec) -> bool:
     """Count the offset from state's cell to next_cell in the type's histogram; True if a slot was evicted."""
+    codes, counts, totals, evictions = model.codes, model.type_counts, model.totals, model.type_evictions
     z3, v3 = 3 * spec.z_cells, 3 * spec.zdot_cells
     here = state_cell_code(state, spec)
     dv = next_cell % v3 - here % v3
@@ -219,16 +224,11 @@ def cell_reward(state: int, spec: KernelSpec) -> float:
 
 
 @njit(cache=True, error_model="numpy")
-def shared_dense_counts(
-    codes: NDArray[np.uint8],
-    counts: NDArray[np.uint16],
-    succ_idx: NDArray[np.uint16],
-    succ_cnt: NDArray[np.uint16],
-    spec: KernelSpec,
-) -> NDArray[np.uint16]:
+def shared_dense_counts(model: ModelArrays, spec: KernelSpec) -> NDArray[np.uint16]:
     """C[s, s', a] as the model holds it: each type's slots shifted to s (successors that leave the region
     on the terminal state), plus the local counts of the Dirichlet blend; saturating at COUNT_MAX. What
     an agent's COUNTS snapshot shows for a shared model (SPEC.md section 10; the firmware's learner_count)."""
+    codes, counts, succ_idx, succ_cnt = model.codes, model.type_counts, model.succ_idx, model.succ_cnt
     n_states = spec.z_cells * spec.zdot_cells * spec.actuator_bins + 1
     out = np.zeros((n_states, n_states, N_ACTIONS), dtype=np.uint32)
     local = succ_cnt.shape[0] == n_states
@@ -246,15 +246,10 @@ def shared_dense_counts(
 
 
 @njit(cache=True, error_model="numpy")
-def compile_shared_rows(
-    codes: NDArray[np.uint8],
-    counts: NDArray[np.uint16],
-    totals: NDArray[np.uint16],
-    succ_idx: NDArray[np.uint16],
-    succ_cnt: NDArray[np.uint16],
-    spec: KernelSpec,
-) -> Rows:
+def compile_shared_rows(model: ModelArrays, spec: KernelSpec) -> Rows:
     """Every (s, a) row of P (shifted type histogram, blended with local counts) and its mean reward."""
+    codes, counts, totals = model.codes, model.type_counts, model.totals
+    succ_idx, succ_cnt = model.succ_idx, model.succ_cnt
     n_states = spec.z_cells * spec.zdot_cells * spec.actuator_bins + 1
     blend = spec.dirichlet_weight > 0.0 and succ_cnt.shape[0] == n_states
     n_slots = counts.shape[1]
@@ -312,18 +307,10 @@ def compile_shared_rows(
 
 
 @njit(cache=True, error_model="numpy")
-def shared_q_kernel(
-    codes: NDArray[np.uint8],
-    counts: NDArray[np.uint16],
-    totals: NDArray[np.uint16],
-    succ_idx: NDArray[np.uint16],
-    succ_cnt: NDArray[np.uint16],
-    values: NDArray[np.float64],
-    spec: KernelSpec,
-) -> NDArray[np.float64]:
+def shared_q_kernel(model: ModelArrays, values: NDArray[np.float64], spec: KernelSpec) -> NDArray[np.float64]:
     """Q[s, a] from the live model and the current values (no planning): what a shared model's Q_VALUES
     snapshot shows, as the firmware computes it (it keeps no Q table)."""
-    rows = compile_shared_rows(codes, counts, totals, succ_idx, succ_cnt, spec)
+    rows = compile_shared_rows(model, spec)
     n_states = values.shape[0]
     q = np.zeros((n_states, N_ACTIONS))
     for s in range(n_states - 1):
@@ -334,11 +321,7 @@ def shared_q_kernel(
 
 @njit(cache=True, error_model="numpy")
 def plan_shared_kernel(
-    codes: NDArray[np.uint8],
-    counts: NDArray[np.uint16],
-    totals: NDArray[np.uint16],
-    succ_idx: NDArray[np.uint16],
-    succ_cnt: NDArray[np.uint16],
+    model: ModelArrays,
     values: NDArray[np.float64],
     q: NDArray[np.float64],
     policy: NDArray[np.int8],
@@ -346,5 +329,5 @@ def plan_shared_kernel(
     rng_state: NDArray[np.uint64],
 ) -> int:
     """Value iteration over the shared model (see plan_rows); returns sweeps."""
-    rows = compile_shared_rows(codes, counts, totals, succ_idx, succ_cnt, spec)
+    rows = compile_shared_rows(model, spec)
     return plan_rows(rows, values, q, policy, spec, rng_state)

@@ -24,7 +24,7 @@ _ACK_REQUESTED = int(FrameFlag.ACK_REQUESTED)  # a plain int: IntFlag arithmetic
 _new_encoded = tuple.__new__  # EncodedFrame(...) without the named tuple's Python-level __new__
 
 
-_COMPILED_MAX_PAYLOAD = 246  # protocol.fast_frames.COMPILED_MAX_PAYLOAD (a test checks they agree)
+COMPILED_MAX_PAYLOAD = 246  # protocol.fast_frames.COMPILED_MAX_PAYLOAD (a test checks they agree)
 
 
 class FrameEncoder:
@@ -57,7 +57,7 @@ class FrameEncoder:
             flags |= _ACK_REQUESTED
         payload = message.pack()
         compiled = self._compiled or self._compiled_writer()
-        if compiled is not None and self.signer is None and len(payload) <= _COMPILED_MAX_PAYLOAD:
+        if compiled is not None and self.signer is None and len(payload) <= COMPILED_MAX_PAYLOAD:
             # encode_payload's compiled path, inlined: a sender of SAMPLEs saves a call per frame.
             seq = self._seq
             self._seq = (seq + 1) & 0xFFFF
@@ -68,7 +68,7 @@ class FrameEncoder:
         """Frame an already packed payload (raises FrameError if it exceeds 247 bytes, 234 when signed)."""
         seq = self._seq
         compiled = self._compiled or self._compiled_writer()
-        if compiled is not None and self.signer is None and len(payload) <= _COMPILED_MAX_PAYLOAD:
+        if compiled is not None and self.signer is None and len(payload) <= COMPILED_MAX_PAYLOAD:
             self._seq = (seq + 1) & 0xFFFF
             return _new_encoded(EncodedFrame, (seq, compiled(payload, flags, seq, msg_id)))
         return _new_encoded(EncodedFrame, (seq, self.wire(self.next_inner(msg_id, payload, flags))))

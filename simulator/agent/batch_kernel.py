@@ -19,7 +19,7 @@ from numba import njit
 from numpy.typing import NDArray
 
 from learning.acting import reward_kernel, select_action_kernel, state_index_kernel
-from learning.model import record_transition
+from learning.model import ModelArrays, record_transition
 from learning.shared import raw_cell_kernel, record_shared
 from learning.spec import KernelSpec
 from protocol.enums import PROTOCOL_VERSION
@@ -196,9 +196,7 @@ def learning_steps(
     observer: NDArray[np.float64], sensor_rng: NDArray[np.uint64], use_observer: bool, spec: KernelSpec,
     socs: NDArray[np.float64], volts: NDArray[np.float64], ring_data: NDArray[np.uint8],
     ring_index: NDArray[np.int64], ring_counters: NDArray[np.int64], wire: NDArray[np.uint8],
-    lspec: KernelSpec, policy: NDArray[np.int8], learner_rng: NDArray[np.uint64], succ_idx: NDArray[np.uint16],
-    succ_cnt: NDArray[np.uint16], reward_sum: NDArray[np.float32], codes: NDArray[np.uint8],
-    type_counts: NDArray[np.uint16], totals: NDArray[np.uint16], type_evictions: NDArray[np.uint16],
+    lspec: KernelSpec, policy: NDArray[np.int8], learner_rng: NDArray[np.uint64], model: ModelArrays,
 ) -> None:
     """Steps of LEARNING (OnboardProgram._learning_step with Learner.observe and act) until the batch must return.
 
@@ -226,10 +224,10 @@ def learning_steps(
             floats[RETURN] += reward
             if shared:
                 cell = raw_cell_kernel(depth, velocity, target, fraction, lspec)
-                if record_shared(codes, type_counts, totals, type_evictions, prev_state, prev_action, cell, lspec):
+                if record_shared(model, prev_state, prev_action, cell, lspec):
                     ints[EVICTIONS] += 1
-            if local and record_transition(succ_idx, succ_cnt, reward_sum, prev_state, prev_action, reward, state,
-                                           sparse):
+            if local and record_transition(model.succ_idx, model.succ_cnt, model.reward_sum, prev_state, prev_action,
+                                           reward, state, sparse):
                 ints[EVICTIONS] += 1
             ints[OBSERVED] += 1
         ints[STEPS_RUN] += 1

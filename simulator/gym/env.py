@@ -44,8 +44,8 @@ from simulator.parameters import PlantParams, preset, with_overrides
 
 # What the real agent can measure or command, with margin: the sensor reads to ~2.9 m (MS5803-01BA),
 # velocities past 5 m/s and gear offsets past the 130 deg stroke cannot happen.
-_OBS_LOW = np.array([-1.0, -5.0, -130.0])
-_OBS_HIGH = np.array([12.0, 5.0, 130.0])
+OBS_LOW = np.array([-1.0, -5.0, -130.0])
+OBS_HIGH = np.array([12.0, 5.0, 130.0])
 _LEARNER_FIELDS = (
     "z_tol_m", "zdot_tol_mps", "z_cells", "zdot_cells", "actuator_bins", "terminal_reward",
     "depth_only_terminal",
@@ -79,7 +79,7 @@ class DivingAgentEnv(gymnasium.Env[NDArray[np.float64], np.int64]):
         self.render_mode = render_mode
         self._task = DivingEnv(plant, self.config)
         self._seeded = False
-        self.observation_space = spaces.Box(_OBS_LOW, _OBS_HIGH, dtype=np.float64)
+        self.observation_space = spaces.Box(OBS_LOW, OBS_HIGH, dtype=np.float64)
         self.action_space = spaces.Discrete(2)  # 0 decrease volume, 1 increase volume (paper's a1, a2)
         self._trace: list[tuple[float, float, float]] = []  # (time s, depth m, actuator offset deg)
 
@@ -125,7 +125,7 @@ class DivingAgentEnv(gymnasium.Env[NDArray[np.float64], np.int64]):
                              self.plant.action_window_deg)
 
     def _clip(self, obs: NDArray[np.float64]) -> NDArray[np.float64]:
-        return np.clip(obs, _OBS_LOW, _OBS_HIGH)
+        return np.clip(obs, OBS_LOW, OBS_HIGH)
 
 
 class DiscreteState(

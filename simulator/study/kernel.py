@@ -9,9 +9,9 @@ from numba import njit, prange
 from numpy.typing import NDArray
 
 from learning.acting import explore_probability, select_action_kernel
-from learning.model import N_ACTIONS, allocate_model, record_transition
+from learning.model import N_ACTIONS, record_transition
 from learning.planning import plan_kernel
-from learning.shared import allocate_shared, plan_shared_kernel, record_shared
+from learning.shared import allocate_arrays, plan_shared_kernel, record_shared
 from learning.spec import KernelSpec
 from simulator.plant.episode import (
     E_STEPS,
@@ -53,14 +53,12 @@ def run_trial(
     sparse = lspec.model_form == 1
     shared = lspec.shared_model
     local = (not shared) or lspec.dirichlet_weight > 0.0
-    succ_idx, succ_cnt, reward_sum = allocate_model(n_states if local else 0, sparse, lspec.sparse_slots)
-    n_type = lspec.zdot_cells * lspec.actuator_bins * N_ACTIONS if shared else 0
-    codes, type_counts, totals, type_evictions = allocate_shared(n_type, lspec.sparse_slots)
+    model = allocate_arrays(lspec)
+    succ_idx, succ_cnt, reward_sum = model.succ_idx, model.succ_cnt, model.reward_sum
     q = np.zeros((n_states, N_ACTIONS))
     values[:] = 0.0
     if shared:
-        plan_shared_kernel(codes, type_counts, totals, succ_idx, succ_cnt, values, q, policy, lspec,
-                           learner_stream)
+        plan_shared_kernel(model, values, q, policy, lspec, learner_stream)
     else:
         plan_kernel(succ_idx, succ_cnt, reward_sum, values, q, policy, lspec, learner_stream)
     env = new_env_state(spec)
@@ -74,7 +72,7 @@ def run_trial(
             )
             if shared:
                 cell = episode_cell_kernel(env, target_depth_m, spec, lspec)
-                if record_shared(codes, type_counts, totals, type_evictions, state, action, cell, lspec):
+                if record_shared(model, state, action, cell, lspec):
                     counters[C_EVICTIONS] += 1
             if local and record_transition(
                 succ_idx, succ_cnt, reward_sum, state, action, reward, next_state, sparse
@@ -85,8 +83,7 @@ def run_trial(
                 break
         durations_s[episode] = env[E_STEPS] * spec.control_period_s
         if shared:
-            sweeps = plan_shared_kernel(codes, type_counts, totals, succ_idx, succ_cnt, values, q, policy,
-                                        lspec, learner_stream)
+            sweeps = plan_shared_kernel(model, values, q, policy, lspec, learner_stream)
         else:
             sweeps = plan_kernel(succ_idx, succ_cnt, reward_sum, values, q, policy, lspec, learner_stream)
         counters[C_SWEEPS_TOTAL] += sweeps

@@ -209,5 +209,5 @@ def record_python(config: LearnerConfig, plant: str, episodes: int, seed: int) -
         rec.q.append(learner.q_values)
         rec.policy.append(learner.policy)
         rec.sweeps.append(learner.last_sweeps)
-        rec.rng_after.append(int(learner._rng_state[0]))
+        rec.rng_after.append(int(learner.arrays.rng_state[0]))
     return rec

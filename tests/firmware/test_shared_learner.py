@@ -117,7 +117,8 @@ def test_sizeof_of_the_c_state_is_shared_memory_bytes(tmp_path: Path, compiler: 
 
 def _check_model(lib: ctypes.CDLL, learner: Learner) -> None:
     """Every type's histogram (as a set of offset codes with counts), total and evictions are identical."""
-    codes, counts, totals, evictions = learner._codes, learner._type_counts, learner._totals, learner._type_evictions
+    model = learner.arrays.model
+    codes, counts, totals, evictions = model.codes, model.type_counts, model.totals, model.type_evictions
     code = ctypes.c_uint8()
     for t in range(codes.shape[0]):
         py = {int(codes[t, k]): int(counts[t, k]) for k in range(codes.shape[1]) if counts[t, k] > 0}

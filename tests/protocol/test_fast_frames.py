@@ -93,7 +93,7 @@ def test_a_compiled_frame_encoder_sends_the_bytes_of_the_stdlib_one(messages: li
 
 
 def test_the_encoder_sends_through_the_compiled_writer_only_what_it_can_take() -> None:
-    assert encoder._COMPILED_MAX_PAYLOAD == COMPILED_MAX_PAYLOAD
+    assert encoder.COMPILED_MAX_PAYLOAD == COMPILED_MAX_PAYLOAD
 
 
 def test_incompatible_flags_are_rejected_by_the_compiled_check() -> None:

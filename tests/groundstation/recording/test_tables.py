@@ -91,7 +91,7 @@ def test_observation_bounds_are_the_environments() -> None:
     import simulator.gym.env as gym_env
     from groundstation.recording import minari_export
 
-    assert tuple(gym_env._OBS_LOW) == minari_export.OBS_LOW and tuple(gym_env._OBS_HIGH) == minari_export.OBS_HIGH
+    assert tuple(gym_env.OBS_LOW) == minari_export.OBS_LOW and tuple(gym_env.OBS_HIGH) == minari_export.OBS_HIGH
 
 
 def _layout_references(layout: dict) -> set[tuple[str, str]]:
