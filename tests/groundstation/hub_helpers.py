@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -24,14 +25,22 @@ def dive(runtime: Path, *args: str, timeout: float = 30.0) -> subprocess.Complet
     return subprocess.run([*DIVE, *args], env=dive_env(runtime), capture_output=True, text=True, timeout=timeout)
 
 
+def one_line_failure(done: subprocess.CompletedProcess[str], text: str, code: int = 1) -> None:
+    """The command failed with `code` and said why in one line holding `text`, no traceback."""
+    assert done.returncode == code, (done.stdout, done.stderr)
+    lines = [line for line in done.stderr.splitlines() if line.strip()]
+    assert len(lines) == 1 and text in lines[0] and "Traceback" not in done.stderr, done.stderr
+
+
 @contextmanager
-def running(runtime: Path, url: str, out: Path) -> Iterator[subprocess.Popen[str]]:
-    """`dive run URL` until the block ends with a Ctrl-C (SIGINT)."""
+def running(runtime: Path, url: str, out: Path, *options: str,
+            start_timeout_s: float = 30.0) -> Iterator[subprocess.Popen[str]]:
+    """`dive run URL OPTIONS` until the block ends with a Ctrl-C (SIGINT); its hub announced before the block."""
     before = set((runtime / "runs").glob("*.json")) if (runtime / "runs").is_dir() else set()
-    proc = subprocess.Popen([*DIVE, "run", url, "--out", str(out)], env=dive_env(runtime), stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen([*DIVE, "run", url, "--out", str(out), *options], env=dive_env(runtime),
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
-        deadline = time.monotonic() + 30
+        deadline = time.monotonic() + start_timeout_s
         while time.monotonic() < deadline and proc.poll() is None:
             if set((runtime / "runs").glob("*.json")) - before:
                 break
@@ -46,3 +55,26 @@ def running(runtime: Path, url: str, out: Path) -> Iterator[subprocess.Popen[str
         except subprocess.TimeoutExpired:
             proc.kill()
             proc.wait()
+
+
+# The virtual agent the control tests drive: fast enough for episodes in seconds, slow enough to command.
+SIM = "sim://?speed=20&seed=4"
+
+
+def agent_mode(runtime: Path) -> str:
+    """The agent's mode as `dive status` reports it through the run's hub."""
+    done = dive(runtime, "status")
+    assert done.returncode == 0, done.stderr
+    found = re.search(r"^mode (\w+),", done.stdout, re.MULTILINE)
+    assert found is not None, done.stdout
+    return found.group(1)
+
+
+def until_mode(runtime: Path, wanted: set[str], timeout_s: float = 60.0) -> str:
+    """Polls `dive status` until the agent is in one of `wanted` (or the time is up): the mode it was last in."""
+    deadline = time.monotonic() + timeout_s
+    while True:
+        mode = agent_mode(runtime)
+        if mode in wanted or time.monotonic() > deadline:
+            return mode
+        time.sleep(0.5)

@@ -11,7 +11,7 @@ import pytest
 from groundstation.cli.validate import PLANT_PRESETS
 from groundstation.recording.recorder import Recorder, RecorderConfig
 from simulator.parameters import preset_names
-from tests.groundstation.recording.test_safety import hello, received, sample
+from tests.groundstation.recording_fixtures import hello, received, sample
 from tests.reliability.recordings import dive
 
 

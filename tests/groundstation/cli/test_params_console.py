@@ -11,8 +11,7 @@ import pytest
 
 from groundstation.mcap_io import read_recording
 from protocol.parameters import PARAM_COUNT
-from tests.groundstation.cli.test_control import SIM, _until_mode, running
-from tests.groundstation.run.test_hub import _one_line_failure, dive
+from tests.groundstation.hub_helpers import SIM, dive, one_line_failure, running, until_mode
 
 pytestmark = pytest.mark.slow
 
@@ -20,8 +19,8 @@ pytestmark = pytest.mark.slow
 def test_params_console_through_the_hub(tmp_path: Path) -> None:
     runtime = tmp_path / "runtime"
     saved = tmp_path / "agent.toml"
-    with running(runtime, SIM, tmp_path / "rec", "--success-time", "5") as run:
-        assert _until_mode(runtime, {"LEARNING"}) == "LEARNING"
+    with running(runtime, SIM, tmp_path / "rec", "--success-time", "5", start_timeout_s=120) as run:
+        assert until_mode(runtime, {"LEARNING"}) == "LEARNING"
         listing = dive(runtime, "params")
         assert listing.returncode == 0, listing.stderr
         lines = [line for line in listing.stdout.splitlines() if line.strip()]
@@ -41,7 +40,7 @@ def test_params_console_through_the_hub(tmp_path: Path) -> None:
         assert loaded.returncode == 0 and loaded.stdout.count("(unchanged, not sent)") == PARAM_COUNT, loaded.stderr
 
         # a real change while learning: refused before anything is sent, naming the parameter and the mode
-        _one_line_failure(dive(runtime, "params", "set", "gamma", "0.98"),
+        one_line_failure(dive(runtime, "params", "set", "gamma", "0.98"),
                           "not allowed while the agent is LEARNING: gamma; pause first (dive pause)")
         changed = saved.read_text().replace("gamma = 0.99", "gamma = 0.98").replace("z_tol_m = 0.1", "z_tol_m = 0.12")
         saved.write_text(changed)
@@ -49,11 +48,11 @@ def test_params_console_through_the_hub(tmp_path: Path) -> None:
         assert f"2 of {PARAM_COUNT} differ; loading it: changing z_tol_m, gamma restarts the learner and changes " \
                "the state grid" in diff.stdout, diff.stdout
         # confirmed, but the agent is learning: one line names both parameters, the mode and what to do
-        _one_line_failure(dive(runtime, "params", "load", str(saved), "--reset-model"),
+        one_line_failure(dive(runtime, "params", "load", str(saved), "--reset-model"),
                           "not allowed while the agent is LEARNING: z_tol_m, gamma; pause first (dive pause)")
         assert dive(runtime, "pause").returncode == 0
         # paused: allowed, but it restarts the learner, so not without --reset-model (not on a terminal)
-        _one_line_failure(dive(runtime, "params", "load", str(saved)),
+        one_line_failure(dive(runtime, "params", "load", str(saved)),
                           "changing z_tol_m, gamma restarts the learner and changes the state grid: it forgets "
                           "everything it learned: add --reset-model", code=2)
         done = dive(runtime, "params", "load", str(saved), "--reset-model")

@@ -16,13 +16,13 @@ from typer.testing import CliRunner
 from groundstation.cli.app import app
 from groundstation.cli.validate import free_port
 from groundstation.mcap_io import read_recording
-from tests.groundstation.run.test_hub import DIVE, _env
+from tests.groundstation.hub_helpers import DIVE, dive_env
 
 
 @pytest.mark.slow
 def test_a_run_without_a_viewer_records_values_and_policy_after_every_episode(tmp_path: Path) -> None:
     done = subprocess.run([*DIVE, "run", "sim://?speed=max&seed=3", "--episodes", "3", "--success-time", "5",
-                           "--out", str(tmp_path)], env=_env(tmp_path / "runtime"), capture_output=True, text=True,
+                           "--out", str(tmp_path)], env=dive_env(tmp_path / "runtime"), capture_output=True, text=True,
                           timeout=180)
     assert done.returncode == 0, done.stderr
     [recording] = sorted(tmp_path.glob("*.mcap"))
@@ -37,7 +37,7 @@ def test_one_sigterm_ends_a_run_serving_the_web_viewer(tmp_path: Path) -> None:
     runtime = tmp_path / "runtime"
     run = subprocess.Popen([*DIVE, "run", "sim://?speed=20&seed=3", "--success-time", "5", "--viewer", "web",
                             "--web-port", str(free_port()), "--grpc-port", str(free_port()), "--out", str(tmp_path)],
-                           env=_env(runtime), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                           env=dive_env(runtime), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         deadline = time.monotonic() + 120
         while time.monotonic() < deadline and run.poll() is None and not list(runtime.glob("runs/*.json")):

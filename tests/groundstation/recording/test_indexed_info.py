@@ -24,7 +24,7 @@ from groundstation.session.events import Received
 from protocol import Frame, FrameFlag, Message
 from protocol import messages as m
 from protocol.frame import build_inner
-from tests.groundstation.recording.test_safety import hello, make_recording, sample
+from tests.groundstation.recording_fixtures import hello, make_recording, sample
 from tests.groundstation.synthetic_agent import generate, play_session
 
 

@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 from mcap.reader import make_reader
 
-from tests.groundstation.run.test_hub import DIVE, _env, dive
+from tests.groundstation.hub_helpers import DIVE, dive, dive_env
 
 pytestmark = pytest.mark.slow
 
@@ -37,7 +37,7 @@ def test_alarms_are_printed_recorded_and_status_shows_the_block(tmp_path: Path) 
         # max_dive_s 20: 18 s of agent time after it leaves the surface; a depth limit the target passes
         run = subprocess.Popen([*DIVE, "run", url, "--out", str(tmp_path / "rec"), "--success-time", "5",
                                 "--param", "low_batt_v=4.15", "--param", "max_dive_s=20", "--alarm-depth", "0.3",
-                                "--alarm-link-lost", "1"], env=_env(runtime), stdout=subprocess.PIPE,
+                                "--alarm-link-lost", "1"], env=dive_env(runtime), stdout=subprocess.PIPE,
                                stderr=subprocess.PIPE, text=True)
         deadline = time.monotonic() + 60
         while time.monotonic() < deadline and not list(runtime.glob("runs/*.json")):
@@ -75,7 +75,7 @@ def test_on_a_terminal_the_status_line_stays_live_under_the_episode_lines(tmp_pa
     import pty
 
     primary, secondary = pty.openpty()
-    env = {**_env(tmp_path / "runtime"), "TERM": "xterm-256color"}
+    env = {**dive_env(tmp_path / "runtime"), "TERM": "xterm-256color"}
     run = subprocess.Popen([*DIVE, "run", "sim://?speed=20&seed=2", "--episodes", "2", "--success-time", "5",
                             "--out", str(tmp_path / "rec")], env=env, stdin=secondary, stdout=secondary,
                            stderr=secondary)

@@ -18,8 +18,7 @@ from groundstation.session.agent_session import Session, SessionConfig
 from groundstation.session.events import LinkEvent, Received, Sent
 from protocol import DumpKind
 from protocol import messages as m
-from tests.groundstation.cli.test_control import SIM, running
-from tests.groundstation.run.test_hub import DIVE, _env
+from tests.groundstation.hub_helpers import DIVE, SIM, dive_env, running
 
 pytestmark = pytest.mark.slow
 
@@ -49,7 +48,8 @@ def test_a_late_tool_gets_the_episode_table_the_last_dumps_and_bounded_telemetry
     runtime = tmp_path / "runtime"
     monkeypatch.setenv("DIVE_RUNTIME_DIR", str(runtime))
     # 6 s of telemetry at most: at 20x real time, 120 s of agent time
-    with running(runtime, SIM, tmp_path / "rec", "--success-time", "5", "--history-minutes", "0.1"):
+    with running(runtime, SIM, tmp_path / "rec", "--success-time", "5", "--history-minutes", "0.1",
+                 start_timeout_s=120):
         deadline = time.monotonic() + 90
         while time.monotonic() < deadline:  # until the agent has done 4 episodes
             with Session(make_link(attach_url(None)), SessionConfig(reconnect=False, backfill=False)) as probe:
@@ -68,7 +68,7 @@ def test_a_late_tool_gets_the_episode_table_the_last_dumps_and_bounded_telemetry
                 time.sleep(0.05)  # the LOG_RANGE ends the replay
             dumps = {kind: tool.dumps.newest_since(kind, 0.0) for kind in (DumpKind.VALUES, DumpKind.POLICY)}
         viewer = subprocess.Popen([*DIVE, "view", "--viewer", "none", "--rrd", str(tmp_path / "live.rrd")],
-                                  env=_env(runtime), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                                  env=dive_env(runtime), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         guard = threading.Timer(90.0, viewer.kill)  # a viewer that never says it watches fails, not hangs
         guard.start()
         assert viewer.stdout is not None

@@ -17,13 +17,7 @@ import pytest
 from groundstation.mcap_io import read_recording
 from groundstation.recording.info import summarize
 from tests.groundstation.fake_agent import FakeAgent
-from tests.groundstation.hub_helpers import DIVE, dive, dive_env, running
-
-
-def _one_line_failure(done: subprocess.CompletedProcess[str], text: str, code: int = 1) -> None:
-    assert done.returncode == code, (done.stdout, done.stderr)
-    lines = [line for line in done.stderr.splitlines() if line.strip()]
-    assert len(lines) == 1 and text in lines[0] and "Traceback" not in done.stderr, done.stderr
+from tests.groundstation.hub_helpers import DIVE, dive, dive_env, one_line_failure, running
 
 
 @pytest.mark.slow
@@ -74,8 +68,8 @@ def test_tools_attach_to_the_running_session_without_taking_the_agents_link(tmp_
 def test_without_a_run_emergency_commands_fail_in_one_line_and_start_nothing(tmp_path: Path) -> None:
     runtime = tmp_path / "runtime"
     for command in (["surface"], ["hover", "0.5"], ["status"], ["dump"], ["params"]):
-        _one_line_failure(dive(runtime, *command), "no `dive run` is running on this machine")
-    _one_line_failure(dive(runtime, "mark", "lost?"), "no `dive run` is running on this machine")
+        one_line_failure(dive(runtime, *command), "no `dive run` is running on this machine")
+    one_line_failure(dive(runtime, "mark", "lost?"), "no `dive run` is running on this machine")
 
 
 @pytest.mark.slow
@@ -85,11 +79,11 @@ def test_mark_reaches_only_the_run_it_names(tmp_path: Path) -> None:
     try:
         with running(runtime, agents[0].url, tmp_path / "a") as first, \
                 running(runtime, agents[1].url, tmp_path / "b"):
-            _one_line_failure(dive(runtime, "mark", "which?"), "2 dive runs are running")
-            _one_line_failure(dive(runtime, "surface"), "2 dive runs are running")
+            one_line_failure(dive(runtime, "mark", "which?"), "2 dive runs are running")
+            one_line_failure(dive(runtime, "surface"), "2 dive runs are running")
             named = dive(runtime, "mark", "--run", str(first.pid), "only in a")
             assert named.returncode == 0 and f"marked in run {first.pid}" in named.stdout, named.stderr
-            _one_line_failure(dive(runtime, "mark", "--run", "999999999", "nowhere"), "no dive run '999999999'")
+            one_line_failure(dive(runtime, "mark", "--run", "999999999", "nowhere"), "no dive run '999999999'")
     finally:
         for agent in agents:
             agent.close()
@@ -109,4 +103,4 @@ def test_negative_values_reach_the_check_not_the_option_parser(tmp_path: Path, c
         done = dive(tmp_path, *(part.format(url=agent.url) for part in command))
     finally:
         agent.close()
-    _one_line_failure(done, why)
+    one_line_failure(done, why)
