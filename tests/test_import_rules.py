@@ -167,3 +167,21 @@ def test_nothing_imports_groundstation() -> None:
     for package in ("protocol", "learning", "simulator"):
         for path in _modules(package):
             assert "groundstation" not in _imports(path), f"{path.relative_to(ROOT)} imports groundstation"
+
+
+def test_tests_import_no_test_module_and_no_private_name() -> None:
+    """What tests share lives in helper modules with public names (tests/groundstation/hub_helpers.py, ...): a test
+    module is never imported by another, and no test imports a private name (a leading underscore) of any module."""
+    found = []
+    for path in _modules("tests"):
+        tree = ast.parse(path.read_text(), filename=str(path))
+        for node in ast.walk(tree):
+            if not isinstance(node, ast.ImportFrom) or node.level != 0 or not node.module:
+                continue
+            where = f"{path.relative_to(ROOT)}:{node.lineno}"
+            if node.module.split(".")[-1].startswith("test_"):
+                found.append(f"{where} imports the test module {node.module}")
+            private = [a.name for a in node.names if a.name.startswith("_") and not a.name.startswith("__")]
+            if private:
+                found.append(f"{where} imports {private} from {node.module}")
+    assert not found, "\n".join(found)

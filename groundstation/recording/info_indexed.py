@@ -176,7 +176,7 @@ def summarize_indexed(file: IndexedFile, progress: Callable[[int], None] | None 
         _count_messages(chunk, file, totals)
         controls = sorted((int(offset), cid, int(log_time)) for cid in control_ids if cid in chunk.index
                           for log_time, offset in chunk.index[cid])
-        samples = _samples(chunk, sample_id, raw_id, totals) if sample_id in chunk.index else None
+        samples = chunk_samples(chunk, sample_id, raw_id, totals) if sample_id in chunk.index else None
         _walk(chunk, file, state, controls, control_ids, samples)
         done += chunk.compressed_size
         if progress is not None:
@@ -206,7 +206,7 @@ def _gather(buf: NDArray[np.uint8], at: NDArray[np.int64], dtype: str) -> NDArra
 _Samples = tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int64], NDArray[np.bool_]]
 
 
-def _samples(chunk: IndexedChunk, sample_id: int | None, raw_id: int, totals: IndexedTotals) -> _Samples:
+def chunk_samples(chunk: IndexedChunk, sample_id: int | None, raw_id: int, totals: IndexedTotals) -> _Samples:
     """The chunk's SAMPLEs as (offset, sample index, t_us, backfilled), in file order; malformed ones counted."""
     rows = chunk.index[sample_id]  # type: ignore[index]
     offsets = rows[:, 1].astype(np.int64)

@@ -109,7 +109,7 @@ def export_minari(recording: Recording, dataset_id: str, root: Path | None) -> M
     if get_dataset_path(dataset_id).exists():
         raise RecordingError(f"a Minari dataset {dataset_id} already exists under "
                              f"{get_dataset_path().resolve()}; choose another --out or remove it")
-    buffers, left_out = _episode_buffers(recording, EpisodeBuffer)
+    buffers, left_out = episode_buffers(recording, EpisodeBuffer)
     if not buffers:
         raise RecordingError("the recording holds no complete learning episode to export")
     env_spec = gymnasium.envs.registration.EnvSpec(
@@ -165,7 +165,7 @@ def _env_kwargs(recording: Recording) -> dict[str, Any]:
     return kwargs
 
 
-def _episode_buffers(recording: Recording, buffer_type: type) -> tuple[list[Any], int]:
+def episode_buffers(recording: Recording, buffer_type: type) -> tuple[list[Any], int]:
     samples = recording.samples()
     learning = samples[samples["mode"] == int(Mode.LEARNING)] if len(samples) else samples
     step_deg = action_step_deg(recording)

@@ -18,7 +18,7 @@ from groundstation.mcap_io import McapFileWriter
 from groundstation.mcap_io.indexed import IndexedChunk, open_indexed
 from groundstation.recording import summaries
 from groundstation.recording.info import summarize, summarize_stream
-from groundstation.recording.info_indexed import IndexedTotals, _samples
+from groundstation.recording.info_indexed import IndexedTotals, chunk_samples
 from groundstation.recording.recorder import Recorder, RecorderConfig
 from groundstation.session.events import Received
 from protocol import Frame, FrameFlag, Message
@@ -179,5 +179,5 @@ def test_a_hostile_message_length_in_a_chunk_is_a_malformed_message() -> None:
     record = struct.pack("<BQHIQQ", 0x05, 2**63 + 5, 1, 0, 5, 5) + b"{}"
     chunk = IndexedChunk(record, {1: np.array([[5, 0]], dtype=np.uint64)}, len(record))
     totals = IndexedTotals()
-    offsets, *_ = _samples(chunk, 1, 2, totals)
+    offsets, *_ = chunk_samples(chunk, 1, 2, totals)
     assert len(offsets) == 0 and totals.malformed == 1

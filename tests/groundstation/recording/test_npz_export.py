@@ -11,7 +11,7 @@ import pytest
 from typer.testing import CliRunner
 
 from groundstation.cli.app import app
-from groundstation.recording.minari_export import _episode_buffers
+from groundstation.recording.minari_export import episode_buffers
 from groundstation.recording.recorder import Recorder, RecorderConfig
 from groundstation.recording.tables import open_recording
 from tests.groundstation.synthetic_agent import generate, play_session
@@ -46,7 +46,7 @@ def test_observations_are_the_minari_ones(recording: Path, tmp_path: Path) -> No
     target = tmp_path / "t.npz"
     assert CliRunner().invoke(app, ["log", "export", str(recording), "--format", "npz", "--out",
                                     str(target)]).exit_code == 0
-    buffers, _ = _episode_buffers(open_recording(recording), lambda **kw: kw)
+    buffers, _ = episode_buffers(open_recording(recording), lambda **kw: kw)
     with np.load(target) as data:
         assert data["observation"].shape[1] == data["next_observation"].shape[1] == 3
         episodes: dict[int, Any] = {}
