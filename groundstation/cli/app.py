@@ -70,6 +70,12 @@ def study(ctx: typer.Context) -> None:
     raise typer.Exit(run_simulator_command(["study", *ctx.args]))
 
 
+@app.command(context_settings=_FORWARD, add_help_option=False)
+def fit(ctx: typer.Context) -> None:
+    """Fit the simulator's plant to recordings: a plant file for --params (`dive fit --help` for options)."""
+    raise typer.Exit(run_simulator_command(["fit", *ctx.args]))
+
+
 app.command(name="view")(view_cli.view)
 app.command(name="replay")(view_cli.replay)
 app.command(name="record")(record_cli.record)

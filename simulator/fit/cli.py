@@ -1,0 +1,114 @@
+"""The `fit` command: read recordings, fit the plant with a progress bar, write the plant file, say what it found."""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+from rich.console import Console
+from rich.progress import Progress, SpinnerColumn, TaskID, TextColumn, TimeElapsedColumn
+
+from simulator.errors import ParamsError, SimulatorError, say_error
+from simulator.fit.estimate import FitResult, fit_recordings
+from simulator.fit.output import plant_toml, report_lines, result_json, write_text
+from simulator.parameters import PlantParams, preset, read_param_table, with_overrides
+
+EXIT_FAILED = 1
+EXIT_BAD_ARGUMENT = 2
+SHOW_PROGRESS_AFTER_S = 1.0
+
+
+class _LazyProgress:
+    """A progress display that appears only once the fit has run for a second (a short fit prints nothing)."""
+
+    def __init__(self, console: Console) -> None:
+        self._console = console
+        self._started = time.perf_counter()
+        self._progress: Progress | None = None
+        self._task: TaskID | None = None
+
+    def __call__(self, evaluations: int, rms_m: float) -> None:
+        if self._progress is None:
+            if time.perf_counter() - self._started < SHOW_PROGRESS_AFTER_S:
+                return
+            self._progress = Progress(SpinnerColumn(), TextColumn("[bold]fit[/] {task.description}"),
+                                      TimeElapsedColumn(), console=self._console, transient=True)
+            self._progress.start()
+            self._task = self._progress.add_task("")
+        assert self._task is not None
+        self._progress.update(self._task, description=f"{evaluations} runs of the plant, depth RMS "
+                                                      f"{1000 * rms_m:.3f} mm")
+
+    def stop(self) -> None:
+        if self._progress is not None:
+            self._progress.stop()
+
+
+def _base(preset_name: str, params_file: Path | None) -> tuple[PlantParams, str, dict[str, Any]]:
+    base = preset(preset_name)
+    if params_file is None:
+        return base, f"preset {preset_name}", {}
+    fields = read_param_table(params_file)
+    return with_overrides(base, fields), f"preset {preset_name} with {params_file}", fields
+
+
+def _plot(result: FitResult, path: Path) -> None:
+    from simulator.fit.plot import plot_fit  # matplotlib loads only when a plot is asked for
+
+    plot_fit(result, path)
+
+
+def fit(
+    recordings: Annotated[list[Path], typer.Argument(help="MCAP recordings (or folders of them) of one agent.")],
+    out: Annotated[Path | None, typer.Option(help="Write the plant file here (default: print it).")] = None,
+    preset_name: Annotated[str, typer.Option("--preset", help="The figures not fitted (mass, stroke, ...).")] = (
+        "hardware"),
+    params_file: Annotated[Path | None, typer.Option(
+        "--params", help="TOML/JSON figures known for this agent (its mass, ...): fixed in the fit.")] = None,
+    window: Annotated[float, typer.Option(help="Longest stretch simulated from one start state, s.")] = 10.0,
+    plot: Annotated[Path | None, typer.Option(help="PNG of measured against predicted depth.")] = None,
+    as_json: Annotated[bool, typer.Option("--json", help="Print the estimates as JSON on stdout.")] = False,
+) -> None:
+    """Fit the plant's figures to recorded depth under the recorded commands; writes a file every --params takes."""
+    err = Console(stderr=True, width=None if sys.stderr.isatty() else 200)
+    try:
+        if not window > 0:
+            raise ParamsError(f"--window must be positive (got {window})")
+        base, base_label, base_fields = _base(preset_name, params_file)
+    except SimulatorError as e:
+        say_error(str(e))
+        raise typer.Exit(EXIT_BAD_ARGUMENT) from None
+    progress = _LazyProgress(err)
+    try:
+        result = fit_recordings(recordings, base, window, progress)
+    except ParamsError as e:
+        say_error(str(e))
+        raise typer.Exit(EXIT_BAD_ARGUMENT) from None
+    except SimulatorError as e:
+        say_error(str(e))
+        raise typer.Exit(EXIT_FAILED) from None
+    finally:
+        progress.stop()
+    text = plant_toml(result, base_label, base_fields)
+    for target, write in ((out, lambda path: write_text(path, text)), (plot, lambda path: _plot(result, path))):
+        if target is None:
+            continue
+        try:
+            write(target)
+        except (OSError, ValueError) as e:
+            say_error(f"cannot write {target}: {getattr(e, 'strerror', None) or e}")
+            raise typer.Exit(EXIT_FAILED) from None
+    for note in result.notes:
+        err.print(f"note: {note}", markup=False, highlight=False)
+    for line in report_lines(result):
+        err.print(line, markup=False, highlight=False)
+    if as_json:
+        print(json.dumps(result_json(result), indent=2))
+    elif out is None:
+        print(text, end="")
+    else:
+        err.print(f"plant written to {out}", markup=False, highlight=False)
