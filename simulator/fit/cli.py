@@ -8,18 +8,20 @@ import time
 from pathlib import Path
 from typing import Annotated, Any
 
+import numpy as np
 import typer
 from rich.console import Console
 from rich.progress import Progress, SpinnerColumn, TaskID, TextColumn, TimeElapsedColumn
 
 from simulator.errors import ParamsError, SimulatorError, say_error
-from simulator.fit.estimate import FitResult, fit_recordings
+from simulator.fit.estimate import FitResult, fit_recordings, predict_recordings
 from simulator.fit.output import plant_toml, report_lines, result_json, write_text
-from simulator.parameters import PlantParams, preset, read_param_table, with_overrides
+from simulator.parameters import PlantParams, load_params, preset, read_param_table, with_overrides
 
 EXIT_FAILED = 1
 EXIT_BAD_ARGUMENT = 2
 SHOW_PROGRESS_AFTER_S = 1.0
+CHECK_WINDOW_S = 30.0  # open-loop prediction from each window's start, as the hidden-truth test judges it
 
 
 class _LazyProgress:
@@ -56,6 +58,32 @@ def _base(preset_name: str, params_file: Path | None) -> tuple[PlantParams, str,
     return with_overrides(base, fields), f"preset {preset_name} with {params_file}", fields
 
 
+def _check(recordings: list[Path], base: PlantParams, plant_file: Path, as_json: bool, err: Console) -> None:
+    """`fit --check PLANT`: the plant run open loop under the recorded commands, its residual against the noise."""
+    try:
+        plant = load_params(plant_file, base)
+    except SimulatorError as e:
+        say_error(str(e))
+        raise typer.Exit(EXIT_BAD_ARGUMENT) from None
+    try:
+        windows, rms = predict_recordings(recordings, plant, CHECK_WINDOW_S)
+    except SimulatorError as e:
+        say_error(str(e))
+        raise typer.Exit(EXIT_FAILED) from None
+    lengths = windows.ends - windows.starts
+    overall = float(np.sqrt(np.sum(rms**2 * lengths) / np.sum(lengths)))
+    noise_m = plant.pressure_noise_pa / (plant.water_density_kgpm3 * plant.gravity_mps2)
+    report = {"plant": str(plant_file), "residual_rms_m": overall, "worst_window_rms_m": float(rms.max()),
+              "noise_rms_m": noise_m, "windows": windows.count, "window_s": CHECK_WINDOW_S,
+              "seconds": windows.seconds}
+    if as_json:
+        print(json.dumps(report))
+        return
+    err.print(f"residual against {plant_file}: {1000 * overall:.3f} mm RMS over {windows.count} windows of up to "
+              f"{CHECK_WINDOW_S:g} s (worst {1000 * float(rms.max()):.3f} mm; the plant's noise "
+              f"{1000 * noise_m:.3f} mm)", markup=False, highlight=False)
+
+
 def _plot(result: FitResult, path: Path) -> None:
     from simulator.fit.plot import plot_fit  # matplotlib loads only when a plot is asked for
 
@@ -72,6 +100,9 @@ def fit(
     window: Annotated[float, typer.Option(help="Longest stretch simulated from one start state, s.")] = 10.0,
     plot: Annotated[Path | None, typer.Option(help="PNG of measured against predicted depth.")] = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print the estimates as JSON on stdout.")] = False,
+    check: Annotated[Path | None, typer.Option(
+        help="Fit nothing: how far the recordings are from this plant file (its residual over 30 s windows).")]
+    = None,
 ) -> None:
     """Fit the plant's figures to recorded depth under the recorded commands; writes a file every --params takes."""
     err = Console(stderr=True, width=None if sys.stderr.isatty() else 200)
@@ -82,6 +113,9 @@ def fit(
     except SimulatorError as e:
         say_error(str(e))
         raise typer.Exit(EXIT_BAD_ARGUMENT) from None
+    if check is not None:
+        _check(recordings, base, check, as_json, err)
+        return
     progress = _LazyProgress(err)
     try:
         result = fit_recordings(recordings, base, window, progress)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
+import tomllib
 from pathlib import Path
 
 import pytest
@@ -25,7 +26,8 @@ def _dive(*args: str, cwd: Path) -> subprocess.CompletedProcess[str]:
 
 
 def test_the_manoeuvre_is_recorded_and_fitted(tmp_path: Path) -> None:
-    done = _dive("fit", "--excite", SIM, "--depths", "0.3,0.6,0.4", "--hold", "25", "--json", cwd=tmp_path)
+    done = _dive("fit", "--excite", SIM, "--depths", "0.3,0.6,0.4", "--hold", "25", "--json", "--out", "plant.toml",
+                 cwd=tmp_path)
     assert done.returncode == 0, done.stderr
     recordings = sorted((tmp_path / "recordings").glob("*.mcap"))
     assert len(recordings) == 1
@@ -40,6 +42,22 @@ def test_the_manoeuvre_is_recorded_and_fitted(tmp_path: Path) -> None:
     added_mass = fitted["estimates"]["added_mass_kg"]
     assert added_mass["identified"] and abs(added_mass["value"] - 0.10) <= 2 * added_mass["half_width_95"]
     assert fitted["estimates"]["neutral_angle_deg"]["identified"]
+    # dive log info shows how far the recording is from a fitted plant: here, its own, so about the noise.
+    info = _dive("log", "info", str(recordings[0]), "--plant", "plant.toml", "--json", cwd=tmp_path)
+    assert info.returncode == 0, info.stderr
+    residual = json.loads(info.stdout)["plant_residual"]
+    assert residual["windows"] >= 3 and residual["residual_rms_m"] <= 1.5 * residual["noise_rms_m"]
+    # A changed robot (here: 3 deg of neutral angle, as a leak would shift it) shows as a growing residual.
+    figures = tomllib.loads((tmp_path / "plant.toml").read_text())["plant"]
+    figures["trim_error_fraction"] += 3.0 / 3414.7  # d(neutral angle)/d(trim) = alpha_max m / (rho dV) deg
+    changed = tmp_path / "changed.toml"
+    changed.write_text("[plant]\n" + "".join(f"{name} = {value!r}\n" for name, value in figures.items()))
+    far = _dive("log", "info", str(recordings[0]), "--plant", str(changed), cwd=tmp_path)
+    assert far.returncode == 0, far.stderr
+    line = next(x for x in far.stdout.splitlines() if x.startswith("fit residual against"))
+    assert float(line.split("; ")[1].split("x the plant")[0]) > 5.0, line
+    missing = _dive("log", "info", str(recordings[0]), "--plant", "absent.toml", cwd=tmp_path)
+    assert missing.returncode == 1 and "no such plant file" in missing.stderr
 
 
 def test_a_depth_beyond_the_limit_is_refused_before_connecting(tmp_path: Path) -> None:
