@@ -39,8 +39,13 @@ class ExciteConfig:
 
     @property
     def max_dive_s(self) -> float:
-        """The whole manoeuvre's agent time with a minute to spare: the agent's own dive limit."""
-        return len(self.depths_m) * self.hold_s + 60.0
+        """The agent's own dive limit: the manoeuvre's agent time thrice, and a minute.
+
+        A hold ends when the ground station has seen hold_s of agent time, but an agent faster than real time
+        (a simulator at --speed max) runs ahead by what the link buffers, tens of seconds on a busy machine:
+        each hold is then that much longer in agent time.
+        """
+        return 3.0 * len(self.depths_m) * self.hold_s + 60.0
 
 
 def check(config: ExciteConfig) -> None:
