@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import struct
 from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
@@ -12,6 +13,7 @@ from mcap.exceptions import McapError
 from mcap.records import Channel, Message
 from mcap.stream_reader import StreamReader
 from numpy.typing import NDArray
+from zstandard import ZstdError  # the mcap library's decompressor: a damaged chunk raises it
 
 from simulator.errors import SimulatorError
 
@@ -124,7 +126,7 @@ def _read_file(path: Path, boot: int, rows: dict[tuple[int, int], tuple[float, .
                 rows[(run, int(body["sample"]))] = tuple(float(v) for v in values)  # type: ignore[arg-type]
     except OSError as e:
         raise FitError(f"cannot read {path}: {e.strerror or e}") from e
-    except (McapError, ValueError, EOFError, KeyError, IndexError) as e:
+    except (McapError, ValueError, EOFError, KeyError, IndexError, struct.error, ZstdError) as e:
         # A cut-short recording (a crash) or a damaged chunk: what came before it is still good data.
         notes.append(f"{path}: read up to damage ({type(e).__name__}: {e}); the samples before it are used")
     if malformed:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
 from pathlib import Path
@@ -10,7 +11,7 @@ import numpy as np
 from mcap.writer import Writer
 
 from protocol import Mode
-from simulator.fit.estimate import fit_samples
+from simulator.fit.estimate import fit_recordings, fit_samples
 from simulator.fit.model import simulate
 from simulator.fit.reader import Samples
 from simulator.fit.windows import Windows
@@ -80,3 +81,30 @@ def test_slow_hovering_cannot_identify_drag_and_says_what_would() -> None:
     # The actuator never falls behind a 0.3 deg step: its rate cannot be measured either.
     assert not result.estimate("alpha_rate_dps").identified
     assert result.estimate("pressure_noise_pa").identified
+
+
+def _write_samples(path: Path, samples: Samples) -> None:
+    """The samples as a recorder writes them: JSON SAMPLE messages on /agent/SAMPLE, in zstd chunks."""
+    with open(path, "wb") as stream:
+        writer = Writer(stream, chunk_size=16 * 1024)
+        writer.start()
+        channel = writer.register_channel("/agent/SAMPLE", "json", 0)
+        for i in range(len(samples.t_s)):
+            body = {"t_us": int(round(samples.t_s[i] * 1e6)), "sample": int(samples.index[i]),
+                    "depth_m": float(samples.depth_m[i]), "actuator_deg": float(samples.alpha_deg[i]),
+                    "actuator_cmd_deg": float(samples.cmd_deg[i]), "mode": int(samples.mode[i])}
+            time_ns = int(round(samples.t_s[i] * 1e9))
+            writer.add_message(channel, time_ns, json.dumps(body).encode(), time_ns)
+        writer.finish()
+
+
+def test_a_recording_cut_short_is_fitted_up_to_the_cut(tmp_path: Path) -> None:
+    whole, cut = tmp_path / "whole.mcap", tmp_path / "cut.mcap"
+    _write_samples(whole, _hover_samples(4.0))
+    cut.write_bytes(whole.read_bytes()[: int(whole.stat().st_size * 0.7)])
+    result = fit_recordings([cut], preset("hardware"))
+    assert any("read up to damage" in note for note in result.notes)
+    assert 0.5 * 60.0 < result.windows.seconds < 0.8 * 60.0  # the part before the cut, nothing after
+    assert result.estimate("added_mass_kg").identified
+    done = _fit_cli(str(cut))
+    assert done.returncode == 0 and "note:" in done.stderr and "Traceback" not in done.stderr
