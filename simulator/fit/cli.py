@@ -34,6 +34,12 @@ class _LazyProgress:
         self._task: TaskID | None = None
 
     def __call__(self, evaluations: int, rms_m: float) -> None:
+        self._show(f"{evaluations} runs of the plant, depth RMS {1000 * rms_m:.3f} mm")
+
+    def reading(self, samples: int) -> None:
+        self._show(f"reading: {samples} samples")
+
+    def _show(self, description: str) -> None:
         if self._progress is None:
             if time.perf_counter() - self._started < SHOW_PROGRESS_AFTER_S:
                 return
@@ -42,8 +48,7 @@ class _LazyProgress:
             self._progress.start()
             self._task = self._progress.add_task("")
         assert self._task is not None
-        self._progress.update(self._task, description=f"{evaluations} runs of the plant, depth RMS "
-                                                      f"{1000 * rms_m:.3f} mm")
+        self._progress.update(self._task, description=description)
 
     def stop(self) -> None:
         if self._progress is not None:
@@ -118,7 +123,7 @@ def fit(
         return
     progress = _LazyProgress(err)
     try:
-        result = fit_recordings(recordings, base, window, progress)
+        result = fit_recordings(recordings, base, window, progress, progress.reading)
     except ParamsError as e:
         say_error(str(e))
         raise typer.Exit(EXIT_BAD_ARGUMENT) from None

@@ -12,7 +12,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from simulator.fit.model import HULL_FIELDS, Z95, EvalHook, HullFit, fit_hull
-from simulator.fit.reader import FitError, Samples, read_samples
+from simulator.fit.reader import FitError, ReadHook, Samples, read_samples
 from simulator.fit.windows import Windows, cut_windows
 from simulator.parameters import PlantParams, neutral_alpha_deg
 
@@ -112,12 +112,12 @@ def _trim_guess(params: PlantParams, windows: Windows) -> float:
 
 
 def fit_recordings(paths: Iterable[str | Path], base: PlantParams, window_s: float = 10.0,
-                   on_eval: EvalHook | None = None) -> FitResult:
+                   on_eval: EvalHook | None = None, on_read: ReadHook | None = None) -> FitResult:
     """Fit base's plant to the recordings: the figures they identify replaced, the rest kept."""
     started = time.perf_counter()
     if not window_s > 0:
         raise FitError(f"--window must be positive (got {window_s})")
-    result = fit_samples(read_samples(paths), base, window_s, on_eval)
+    result = fit_samples(read_samples(paths, on_read), base, window_s, on_eval)
     result.wall_s = time.perf_counter() - started
     return result
 

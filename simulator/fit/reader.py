@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import json
 import struct
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -63,7 +63,11 @@ def recording_paths(paths: Iterable[str | Path]) -> list[Path]:
     return files
 
 
-def read_samples(paths: Iterable[str | Path]) -> Samples:
+ReadHook = Callable[[int], None]  # samples read so far
+_REPORT_EVERY = 2000  # samples between calls of a ReadHook
+
+
+def read_samples(paths: Iterable[str | Path], on_read: ReadHook | None = None) -> Samples:
     """Every SAMPLE of the recordings; a damaged or cut-short file gives what was read before the damage."""
     files = recording_paths(paths)
     rows: dict[tuple[int, int], tuple[float, ...]] = {}
@@ -72,7 +76,7 @@ def read_samples(paths: Iterable[str | Path]) -> Samples:
     runs: dict[int, int] = {}
     boot = 0  # a split part carries no HELLO of its own: it continues the boot of the part before it
     for path in files:
-        boot = _read_file(path, boot, rows, starts, runs, notes)
+        boot = _read_file(path, boot, rows, starts, runs, notes, on_read)
     if not rows:
         raise FitError(f"{', '.join(str(f) for f in files)}: no SAMPLE messages to fit")
     keys = sorted(rows, key=lambda k: (k[0], rows[k][1]))
@@ -86,7 +90,8 @@ def read_samples(paths: Iterable[str | Path]) -> Samples:
 
 
 def _read_file(path: Path, boot: int, rows: dict[tuple[int, int], tuple[float, ...]],
-               starts: set[tuple[int, int]], runs: dict[int, int], notes: list[str]) -> int:
+               starts: set[tuple[int, int]], runs: dict[int, int], notes: list[str],
+               on_read: ReadHook | None) -> int:
     """Adds the file's samples to rows (keyed by run and sample index, so a backfilled sample counts once);
     returns the boot id the file ends in."""
     channels: dict[int, Channel] = {}
@@ -124,6 +129,8 @@ def _read_file(path: Path, boot: int, rows: dict[tuple[int, int], tuple[float, .
                     malformed += 1
                     continue
                 rows[(run, int(body["sample"]))] = tuple(float(v) for v in values)  # type: ignore[arg-type]
+                if on_read is not None and len(rows) % _REPORT_EVERY == 0:
+                    on_read(len(rows))
     except OSError as e:
         raise FitError(f"cannot read {path}: {e.strerror or e}") from e
     except (McapError, ValueError, EOFError, KeyError, IndexError, struct.error, ZstdError) as e:
