@@ -69,7 +69,9 @@ def test_a_depth_beyond_the_limit_is_refused_before_connecting(tmp_path: Path) -
 
 
 def test_a_lost_link_stops_the_manoeuvre_and_keeps_the_recording(tmp_path: Path) -> None:
-    config = ExciteConfig(url=f"{SIM}&disconnect_every=20", depths_m=(0.3, 0.6), hold_s=60.0,
+    # Speed 20, not max: the virtual agent never drops a connection younger than a second of wall time.
+    config = ExciteConfig(url="sim://?speed=20&seed=4&preset=hardware&disconnect_every=40", depths_m=(0.3, 0.6),
+                          hold_s=60.0,
                           recorder=RecorderConfig(directory=tmp_path))
     with pytest.raises(GroundStationError, match="link lost") as raised:
         excite(config)
