@@ -111,9 +111,9 @@ def fit(
 ) -> None:
     """Fit the plant's figures to recorded depth under the recorded commands; writes a file every --params takes.
 
-    `dive fit --excite URL [--depths 0.3,0.6,0.4,0.8,0.3] [--hold 30] [--max-depth 1.0]` first flies an
-    identification manoeuvre on the agent at URL (hover at each depth for --hold s of agent time), records it
-    into recordings/ and fits that. docs/fitting.md walks through an example.
+    `dive fit --excite URL [--depths 0.3,0.6,0.4,0.8,0.3] [--hold 30] [--max-depth 1.0]` first flies a manoeuvre:
+
+    hover at each depth for --hold s of agent time, recorded into recordings/, then fitted (docs/fitting.md).
     """
     err = Console(stderr=True, width=None if sys.stderr.isatty() else 200)
     try:
