@@ -6,6 +6,7 @@ import os
 
 import typer
 
+from simulator.fit.cli import fit
 from simulator.serve.cli import serve
 from simulator.study.cli import study
 
@@ -29,6 +30,7 @@ def _root() -> None:
 
 
 app.command(name="study")(study)
+app.command(name="fit")(fit)
 
 
 def main() -> None:

@@ -126,6 +126,9 @@ def read_param_table(path: Path, key: str = "field") -> dict[str, Any]:
         raise ParamsError(f"cannot read parameter file {path}: {e}") from e
     if not isinstance(data, dict):
         raise ParamsError(f"parameter file {path} must hold a table of {key} = value")
+    plant = data.get("plant")
+    if isinstance(plant, dict):  # a fitted plant (`dive fit`) keeps its figures in [plant]: `dive run` skips tables
+        data = {**{k: v for k, v in data.items() if k != "plant"}, **plant}
     return data
 
 

@@ -86,6 +86,7 @@ ROOMS: dict[str, dict[str, set[str]]] = {
     "simulator": {
         "serve": {"agent", "plant"},
         "study": {"plant"},
+        "fit": {"plant"},
         "gym": {"plant"},
         "agent": {"plant"},
         "plant": set(),
@@ -94,7 +95,7 @@ ROOMS: dict[str, dict[str, set[str]]] = {
 # Top-level modules that are entry points into the folders, with the folders each reaches.
 ENTRY_POINTS: dict[str, set[str]] = {
     "groundstation/__init__.py": {"recording"},  # `from groundstation import open_recording`, loaded lazily
-    "simulator/cli.py": {"serve", "study"},  # `python -m simulator serve | study`
+    "simulator/cli.py": {"serve", "study", "fit"},  # `python -m simulator serve | study | fit`
     "simulator/gym_env.py": {"gym"},  # the old path of simulator.gym.env, kept for one release
 }
 TOP_LEVEL_BASE_LIMIT = 4  # modules beside __init__, __main__ and errors

@@ -11,6 +11,7 @@ import typer
 from groundstation.cli import agent as cli_agent
 from groundstation.cli import check as cli_check
 from groundstation.cli import control as cli_control
+from groundstation.cli import fit as cli_fit
 from groundstation.cli import log as cli_log
 from groundstation.cli import record as record_cli
 from groundstation.cli import run as cli_run
@@ -77,6 +78,7 @@ def study(ctx: typer.Context) -> None:
     raise typer.Exit(run_simulator_command(["study", *ctx.args]))
 
 
+app.command(context_settings=_FORWARD, add_help_option=False)(cli_fit.fit)
 app.command(name="view")(view_cli.view)
 app.command(name="replay")(view_cli.replay)
 app.command(name="record")(record_cli.record)

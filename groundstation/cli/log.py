@@ -4,9 +4,10 @@ from __future__ import annotations
 
 import json
 import os
+import subprocess
 from enum import StrEnum
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated
+from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 
@@ -25,29 +26,58 @@ log_app = typer.Typer(help="Inspect, export and repair recordings.", no_args_is_
 @log_app.command("info")
 @one_line_errors
 def log_info(files: Annotated[list[Path], typer.Argument(help="recordings, or folders of them")],
-             as_json: Annotated[bool, typer.Option("--json", help="machine-readable")] = False) -> None:
+             as_json: Annotated[bool, typer.Option("--json", help="machine-readable")] = False,
+             plant: Annotated[Path | None, typer.Option(
+                 help="a fitted plant file (dive fit): how far each recording is from it (residual RMS)")] = None,
+             ) -> None:
     """Sessions, duration, episodes with outcome and length, samples, loss, backfill and missing samples."""
     from groundstation.cli.bar import SlowBar
     from groundstation.recording.files import being_recorded, expand, group_recordings, json_summary
     from groundstation.recording.info import format_summary
     from groundstation.recording.summaries import combine, format_combined, summarize_files
 
+    if plant is not None and not plant.is_file():
+        raise GroundStationError(f"no such plant file: {plant}")
     paths = expand(files)
     with SlowBar(f"summarising {len(paths)} file(s)") as bar:
         done = summarize_files(paths, bar.update)
     summaries = [(s, None if s.complete else being_recorded(Path(s.path))) for s in done]
+    residuals = [plant_residual(path, plant) for path in paths] if plant is not None else []
     if as_json:
         rows = [{**json_summary(s.as_dict()), "being_recorded_by": w} for s, w in summaries]
+        for row, residual in zip(rows, residuals, strict=False):
+            row["plant_residual"] = residual
         out.print_json(json.dumps(rows[0] if len(rows) == 1 else rows))
         return
-    for summary, writer in summaries:
+    for i, (summary, writer) in enumerate(summaries):
         text = format_summary(summary)
         if writer is not None:  # no footer yet because it is still being written, not because it was cut short
             text = text.replace("  (truncated: run `dive log recover`)", f"  (being recorded by {writer})", 1)
         out.print(text)
+        if residuals:
+            r = residuals[i]
+            out.print(f"fit residual against {r['plant']}: {1000 * r['residual_rms_m']:.3f} mm RMS over "
+                      f"{r['windows']} windows of up to {r['window_s']:g} s (worst {1000 * r['worst_window_rms_m']:.3f}"
+                      f" mm; {r['residual_rms_m'] / r['noise_rms_m']:.1f}x the plant's sensor noise)", soft_wrap=True)
     if len(paths) > 1:
         for line in combine(done, [[str(f) for f in r.files] for r in group_recordings(paths)]):
             out.print(format_combined(line))
+
+
+def plant_residual(path: Path, plant: Path) -> dict[str, Any]:
+    """How far a recording is from a fitted plant: the simulator's `fit --check` (a process: dive never imports it)."""
+    from groundstation.simulator_process import simulator_command
+
+    done = subprocess.run(simulator_command(["fit", str(path), "--check", str(plant), "--json"]),
+                          capture_output=True, text=True, check=False)
+    if done.returncode != 0:
+        lines = done.stderr.strip().splitlines()
+        raise GroundStationError(f"{path}: no fit residual: {lines[-1] if lines else 'the simulator failed'}")
+    try:
+        result: dict[str, Any] = json.loads(done.stdout)
+    except ValueError:
+        raise GroundStationError(f"{path}: no fit residual: the simulator's answer is not JSON") from None
+    return result
 
 
 class ExportFormat(StrEnum):

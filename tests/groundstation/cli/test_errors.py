@@ -84,8 +84,8 @@ def test_speed_with_a_real_agent_url_is_refused() -> None:
     assert result.exit_code == 2 and "sim://" in result.output and "Traceback" not in result.output
 
 
-@pytest.mark.parametrize("args", [["sim", "--tcp", "127.0.0.1:99999"], ["study", "--trials", "0"]],
-                         ids=["sim", "study"])
+@pytest.mark.parametrize("args", [["sim", "--tcp", "127.0.0.1:99999"], ["study", "--trials", "0"],
+                                  ["fit", "--window", "0", "any.mcap"]], ids=["sim", "study", "fit"])
 def test_sim_and_study_say_a_bad_argument_as_every_dive_command_does(args: list[str]) -> None:
     """`dive sim` and `dive study` run the simulator's own command line in a child process: its one line is named
     after `dive` too, not after the child."""

@@ -71,7 +71,7 @@ def test_version_short_help_and_units_in_help() -> None:
     assert "--install-completion" in CliRunner().invoke(app, ["-h"]).stdout
 
 
-@pytest.mark.parametrize("command", ["sim", "study"])
+@pytest.mark.parametrize("command", ["sim", "study", "fit"])
 def test_the_forwarded_simulator_commands_take_dash_h_too(command: str) -> None:
     done = subprocess.run([sys.executable, "-c", "import sys; sys.argv[0] = 'dive'; "
                            "from groundstation.cli import app as cli; cli.main()", command, "-h"],

@@ -14,7 +14,7 @@ from tests.simulator.agent_client import AgentClient
 
 
 def test_the_help_names_the_command_the_user_typed() -> None:
-    for command in ("sim", "study"):
+    for command in ("sim", "study", "fit"):
         done = dive(command, "--help")
         assert done.returncode == 0, done.stderr
         assert f"Usage: dive {command} [OPTIONS]" in done.stdout
