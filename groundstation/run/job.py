@@ -259,11 +259,15 @@ def run(config: RunConfig, on_progress: Callable[[RunStatus], None] | None = Non
                     announced = _announce(announced, recorder)
                 if on_progress is not None:
                     on_progress(status)
-                if watch.finished() or recorder.failure is not None or session.failure is not None:
+                if watch.finished() or recorder.failure is not None or session.failure is not None or \
+                        session.listeners.failure is not None:
                     break
         except KeyboardInterrupt:
             interrupted = True
-        if (interrupted or stop.is_set()) and session.failure is None:
+        # Stopped by the user, or by a recording that cannot go on (disk full, a listener that raised): the agent
+        # stops too, as on Ctrl-C, rather than learn on with nobody recording (issue 25 M3).
+        broken = recorder.failure is not None or session.listeners.failure is not None
+        if (interrupted or stop.is_set() or broken) and session.failure is None:
             try:
                 session.command(m.Stop())
             except (CommandError, LinkError):
@@ -287,6 +291,8 @@ def run(config: RunConfig, on_progress: Callable[[RunStatus], None] | None = Non
         raise recorder.failure  # after the link was closed cleanly; what was written stays readable
     if session.failure is not None:
         raise session.failure  # another agent answered: nothing of it was recorded
+    if session.listeners.failure is not None:
+        raise session.listeners.failure  # the recorder (or the live view) raised: one line naming it
     if on_progress is not None:
         on_progress(status)
     return RunResult(list(recorder.paths), status, interrupted, missing, session.backfill_status()[0])

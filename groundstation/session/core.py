@@ -9,6 +9,7 @@ from __future__ import annotations
 import os
 import threading
 import time
+from collections import deque
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 
@@ -88,6 +89,7 @@ class SessionCore:
         self._hello_problem: str | None = None
         self._hello_resend_s: float | None = None  # while our HELLO is unanswered: when to send it again
         self._recent = RecentFrames()
+        self._timesync_origins: deque[int] = deque(maxlen=8)  # our last TIMESYNC requests: only their answers count
         self.sample_check = SampleIndexCheck()
         self.failure: LinkError | None = None  # why the session stopped by itself (another agent answered)
         self._expected_params = 0

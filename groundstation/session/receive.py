@@ -6,6 +6,7 @@ import time
 
 from groundstation.errors import AgentChangedError, LinkError
 from groundstation.safe_output import one_line
+from groundstation.session.clock import timesync_problem
 from groundstation.session.core import SessionCore
 from groundstation.session.events import EventKind, LinkEvent, Received
 from groundstation.session.hello import incompatibility
@@ -83,7 +84,9 @@ class ReceiveLoop(SessionCore):
             self.send(m.Heartbeat(uptime_ms=uptime_ms, mode=0, battery_mv=0, rx_frames=rx.frames & 0xFFFFFFFF,
                                   rx_rejects=rx.rejects & 0xFFFFFFFF, rx_lost=rx.lost & 0xFFFFFFFF,
                                   log_first_sample=0, log_next_sample=0, episode=0, signing_rejects=0))
-            self.send(m.Timesync(origin_us=time.time_ns() // 1000, receive_us=0, transmit_us=0))
+            origin_us = time.time_ns() // 1000
+            self._timesync_origins.append(origin_us)
+            self.send(m.Timesync(origin_us=origin_us, receive_us=0, transmit_us=0))
             self._emit_stats()
         self._retransmit(now_s)
         if self._finish_requested and self._finished_at is None:
@@ -263,5 +266,16 @@ class ReceiveLoop(SessionCore):
             now_us = time.time_ns() // 1000
             self.send(m.Timesync(origin_us=msg.origin_us, receive_us=host_ns // 1000, transmit_us=now_us))
             return
-        sample = self.clock.add(msg.origin_us, msg.receive_us, msg.transmit_us, host_ns // 1000)
+        host_us = host_ns // 1000
+        problem = "not an answer to a request of this session" if msg.origin_us not in self._timesync_origins \
+            else timesync_problem(msg.origin_us, msg.receive_us, msg.transmit_us, host_us)
+        if problem is not None:  # ignored and counted: one such frame must not move every recorded time
+            self.stats.timesyncs_ignored += 1
+            if self.stats.timesyncs_ignored == 1 or self.stats.timesyncs_ignored % 1000 == 0:
+                self._emit(LinkEvent(EventKind.ERROR, time.time_ns(),
+                                     f"TIMESYNC ignored: {problem} ({self.stats.timesyncs_ignored} so far)",
+                                     {"ignored": self.stats.timesyncs_ignored}))
+            return
+        self._timesync_origins.remove(msg.origin_us)  # each request is answered once
+        sample = self.clock.add(msg.origin_us, msg.receive_us, msg.transmit_us, host_us)
         self.stats.round_trip(max(0.0, sample.round_trip_us) / 1e6)

@@ -1,0 +1,74 @@
+"""A hostile (or broken) agent: no single frame it sends ends a recording or hangs a run (issue 25 C2, C3).
+
+A fake agent over real TCP, the real main job, the recording read back with the mcap library.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+from groundstation.errors import ListenerError
+from groundstation.session.events import LinkEvent, Received, Sent
+from protocol import messages as m
+from tests.groundstation.fake_agent import FakeAgent
+from tests.security.attack import RunInThread, recorded, sample_indices, wait_for
+
+U64_MAX = 2**64 - 1
+
+
+def test_a_timesync_of_2_64_is_ignored_counted_and_the_recording_goes_on(tmp_path: Path) -> None:
+    agent = FakeAgent()
+    try:
+        job = RunInThread(agent.url, tmp_path)
+        assert wait_for(lambda: agent.learning and agent.sample > 100)
+        time.sleep(1.1)  # a true TIMESYNC first: the clock model is synced when the lies come
+        agent.lying_timesyncs = 2  # its answers to the ground's requests: receive = transmit = 2^64-1
+        agent.send(m.Timesync(origin_us=U64_MAX, receive_us=1, transmit_us=2))  # an answer to nothing sent
+        assert wait_for(lambda: agent.lying_timesyncs == 0, 5.0)
+        lied_at = agent.sample
+        assert wait_for(lambda: agent.sample > lied_at + 150)
+        job.stop()
+    finally:
+        agent.close()
+    assert job.error is None, job.error
+    assert sample_indices(tmp_path) == list(range(agent.sample))  # every sample, before and after the lies
+    topics = recorded(tmp_path)
+    assert topics["/link"][-1][2]["link"]["timesyncs_ignored"] == 3
+    now_ns = time.time_ns()
+    # every frame's agent time stays a time near now (an hour either side), none moved by centuries
+    for _, publish_ns, _ in topics["/agent/SAMPLE"]:
+        assert abs(publish_ns - now_ns) < 3600e9
+    errors = [body["detail"] for _, _, body in topics.get("/event", []) if body["kind"] == "error"]
+    assert any("TIMESYNC ignored" in e for e in errors)
+
+
+class _Raises:
+    """A listener that fails on the 200th frame, as a recorder bug would."""
+
+    def __init__(self) -> None:
+        self.frames = 0
+
+    def on_received(self, received: Received) -> None:
+        self.frames += 1
+        if self.frames >= 200:
+            raise OverflowError("argument out of range")
+
+    def on_sent(self, sent: Sent) -> None:
+        pass
+
+    def on_event(self, event: LinkEvent) -> None:
+        pass
+
+
+def test_a_listener_that_raises_stops_the_run_and_the_agent_with_its_reason(tmp_path: Path) -> None:
+    agent = FakeAgent()
+    try:
+        job = RunInThread(agent.url, tmp_path, listeners=[_Raises()])
+        job.join(20)  # by itself: nobody stops it
+    finally:
+        agent.close()
+    assert isinstance(job.error, ListenerError), job.error
+    assert "_Raises failed: OverflowError: argument out of range; stopping the run" in str(job.error)
+    assert "CMD_STOP" in agent.executed and not agent.learning  # the agent does not learn on unrecorded
+    assert sample_indices(tmp_path) == list(range(agent.sample))  # what the agent made is recorded
