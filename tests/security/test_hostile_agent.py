@@ -72,3 +72,36 @@ def test_a_listener_that_raises_stops_the_run_and_the_agent_with_its_reason(tmp_
     assert "_Raises failed: OverflowError: argument out of range; stopping the run" in str(job.error)
     assert "CMD_STOP" in agent.executed and not agent.learning  # the agent does not learn on unrecorded
     assert sample_indices(tmp_path) == list(range(agent.sample))  # what the agent made is recorded
+
+
+def test_a_heartbeat_claiming_a_next_sample_near_2_32_neither_hangs_nor_floods(tmp_path: Path) -> None:
+    agent = FakeAgent()
+    try:
+        job = RunInThread(agent.url, tmp_path)
+        assert wait_for(lambda: agent.learning and agent.sample > 100)
+        before = agent.log_requests
+        agent.send(m.Heartbeat(uptime_ms=agent.now_us() // 1000, mode=1, battery_mv=4000, rx_frames=0, rx_rejects=0,
+                               rx_lost=0, log_first_sample=0, log_next_sample=2**32 - 2, episode=agent.episode,
+                               signing_rejects=0))
+        lied_at = agent.sample
+        assert wait_for(lambda: agent.sample > lied_at + 300)
+        asked = agent.log_requests - before
+        job.stop(20)  # ends within the final backfill's bounded wait, not after 8.4 M ranges a tick
+    finally:
+        agent.close()
+    assert isinstance(job.error, type(None)), job.error
+    # at most MAX_LOG_SAMPLES / 512 = 128 requests for the whole claimed window, 16 a round, 2 rounds a second
+    assert asked <= 64, asked
+    assert sample_indices(tmp_path) == list(range(agent.sample))  # every sample the agent made is recorded
+
+
+def test_a_planner_told_of_2_32_samples_plans_a_bounded_backfill() -> None:
+    from groundstation.session.gaps import MAX_LOG_SAMPLES, REQUEST_SAMPLES, BackfillPlanner
+
+    planner = BackfillPlanner()
+    for index in range(100):
+        planner.held.add(index)
+    planner.saw_log_window(0, 2**32 - 2)
+    rounds = [planner.due(float(t)) for t in range(20)]  # unbounded, each round cut 8.4 M ranges (7.5 s)
+    assert sum(b - a for a, b in planner.fetchable()) <= MAX_LOG_SAMPLES
+    assert all(len(r) <= 16 for r in rounds) and sum(map(len, rounds)) <= 3 * MAX_LOG_SAMPLES // REQUEST_SAMPLES
