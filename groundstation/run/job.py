@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import threading
 import time
@@ -13,6 +14,7 @@ from urllib.parse import parse_qsl, urlsplit
 
 from groundstation.errors import CommandError, GroundStationError, LinkError, RecordingExistsError
 from groundstation.links import make_link
+from groundstation.links.hub_auth import new_token
 from groundstation.links.runs import RunInfo, announce, new_run, withdraw
 from groundstation.recording.recorder import Recorder, RecorderConfig
 from groundstation.run.hub import Hub
@@ -198,8 +200,7 @@ def session_info(url: str) -> dict[str, str]:
 
 def _announce(info: RunInfo, recorder: Recorder) -> RunInfo:
     """Tell the machine's other dive commands where this run's hub is and which file it records (best effort)."""
-    current = RunInfo(info.run, info.pid, info.hub, info.url, str(recorder.paths[-1]) if recorder.paths else "",
-                      info.started)
+    current = dataclasses.replace(info, recording=str(recorder.paths[-1]) if recorder.paths else "")
     try:
         announce(current)
     except OSError:
@@ -232,9 +233,10 @@ def run(config: RunConfig, on_progress: Callable[[RunStatus], None] | None = Non
         session.connect()
         status.link_up = True
         if config.hub:
-            hub = Hub(session).start()
+            token = new_token()
+            hub = Hub(session, token).start()
             session.add_listener(hub)
-            announced = _announce(new_run(os.getpid(), hub.address, link.url), recorder)
+            announced = _announce(new_run(os.getpid(), hub.address, link.url, token), recorder)
             status.hub = f"hub://{announced.run}"
         if on_progress is not None:
             on_progress(status)  # connected: the display stops waiting for a (compiling) virtual agent
