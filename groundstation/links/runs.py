@@ -157,16 +157,45 @@ def hub_address(url: str) -> tuple[RunInfo, str]:
     return info, info.hub
 
 
+def _agent_key(url: str) -> tuple[str, str] | None:
+    """What names one agent in a URL (scheme, host:port or device), None for a URL that starts its own (sim://)."""
+    parts = urlsplit(url)
+    if parts.scheme in ("tcp", "socket", "rfc2217"):
+        host = (parts.hostname or "").lower()
+        host = "127.0.0.1" if host in ("localhost", "::1") else host
+        return parts.scheme, f"{host}:{parts.port}"
+    if parts.scheme == "serial" or url.startswith("/dev/"):
+        return "serial", os.path.realpath(parts.path or url)
+    return None
+
+
+def holder(url: str) -> RunInfo | None:
+    """The running `dive run` that holds the agent at `url` (the agent has one link: one agent, one owner)."""
+    key = _agent_key(url)
+    if key is None:
+        return None
+    return next((info for info in running() if _agent_key(info.url) == key), None)
+
+
+def refuse_if_held(url: str) -> None:
+    """`dive run URL` while another run holds that agent: one line, before a link is opened (issue 25 H4)."""
+    info = holder(url)
+    if info is not None:
+        raise LinkError(f"{url} is held by dive run {info.run} (hub://{info.run}): one agent, one owner; attach to "
+                        f"it (dive view hub://{info.run}) or stop that run first")
+
+
 def attach_url(url: str | None) -> str:
     """The URL a command that acts on *the* agent uses: the one given, else $DIVE_URL, else the running run's hub.
 
-    Never the built-in virtual agent: surfacing a fresh simulator and saying "surfacing" would be a lie.
+    An agent URL that a local run holds becomes that run's hub: a second link would take the agent's one link
+    from the run (both then fight over it, issue 25 H4). Never the built-in virtual agent: surfacing a fresh
+    simulator and saying "surfacing" would be a lie.
     """
+    url = url or os.environ.get("DIVE_URL")
     if url:
-        return url
-    env = os.environ.get("DIVE_URL")
-    if env:
-        return env
+        held = holder(url)
+        return f"{HUB_SCHEME}://{held.run}" if held is not None else url
     info = find_run(None, hint=": give the agent's URL (or set DIVE_URL)")
     return f"{HUB_SCHEME}://{info.run}"
 

@@ -15,7 +15,7 @@ from urllib.parse import parse_qsl, urlsplit
 from groundstation.errors import CommandError, GroundStationError, LinkError, RecordingExistsError
 from groundstation.links import make_link
 from groundstation.links.hub_auth import new_token
-from groundstation.links.runs import RunInfo, announce, new_run, withdraw
+from groundstation.links.runs import RunInfo, announce, new_run, refuse_if_held, withdraw
 from groundstation.recording.recorder import Recorder, RecorderConfig
 from groundstation.run.hub import Hub
 from groundstation.safe_output import one_line
@@ -219,6 +219,8 @@ def run(config: RunConfig, on_progress: Callable[[RunStatus], None] | None = Non
     if target is not None and target.exists():  # before connecting: the agent is not started for nothing
         raise RecordingExistsError(f"{one_line(target)} exists; a recording is never overwritten: give another name "
                                    "or a directory")
+    if config.url is not None:
+        refuse_if_held(config.url)  # another run holds this agent: one line, not two runs fighting over its link
     link = make_link(config.url)
     status = RunStatus()
     progress = _Progress(status)
