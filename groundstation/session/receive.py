@@ -7,7 +7,7 @@ import time
 from groundstation.errors import AgentChangedError, LinkError
 from groundstation.safe_output import one_line
 from groundstation.session.clock import timesync_problem
-from groundstation.session.core import SessionCore
+from groundstation.session.core import HELLO_TRIES, SessionCore
 from groundstation.session.events import EventKind, LinkEvent, Received
 from groundstation.session.hello import incompatibility
 from groundstation.session.params import Parameter
@@ -70,12 +70,15 @@ class ReceiveLoop(SessionCore):
         self._restoring = True
         self._recent.clear()
         self.stats.reconnects += 1
+        self._hello_tries = 0
         self._send_hello()
 
     def _tick(self, now_s: float) -> None:
         if self.agent_hello is not None and now_s - self._last_rx_s > self.config.link_timeout_s:
             raise LinkError(f"no frame from the agent for {self.config.link_timeout_s:g} s")
         if self._hello_resend_s is not None and now_s >= self._hello_resend_s:
+            if self._restoring and self._hello_tries >= HELLO_TRIES:  # frames come, answers never: a new connection
+                raise LinkError(f"no answer to {self._hello_tries} HELLOs on this connection; reconnecting")
             self._send_hello()  # ours or its answer was lost: without it the session stays half up
         if now_s >= self._next_tick_s and self.link_up:
             self._next_tick_s = now_s + self.config.period_s
@@ -211,6 +214,7 @@ class ReceiveLoop(SessionCore):
 
     def _on_hello(self, hello: m.Hello) -> None:
         self._hello_resend_s = None
+        self._hello_tries = 0
         problem = incompatibility(hello)
         previous = self.agent_hello
         if problem is None and previous is not None and previous.node_id != hello.node_id:

@@ -105,3 +105,24 @@ def test_a_planner_told_of_2_32_samples_plans_a_bounded_backfill() -> None:
     rounds = [planner.due(float(t)) for t in range(20)]  # unbounded, each round cut 8.4 M ranges (7.5 s)
     assert sum(b - a for a, b in planner.fetchable()) <= MAX_LOG_SAMPLES
     assert all(len(r) <= 16 for r in rounds) and sum(map(len, rounds)) <= 3 * MAX_LOG_SAMPLES // REQUEST_SAMPLES
+
+
+def test_a_connection_whose_hellos_are_never_answered_is_given_up_for_a_new_one() -> None:
+    """L3: after a reconnect every HELLO answer was lost while other frames came: the session stayed half up (no
+    heartbeat, TIMESYNC, backfill) for as long as that lasted. After 5 tries it now takes a new connection."""
+    from groundstation.links import make_link
+    from groundstation.session.agent_session import Session
+    from groundstation.session.core import HELLO_TRIES
+    from tests.security.attack import QUICK
+
+    agent = FakeAgent()
+    try:
+        with Session(make_link(agent.url), QUICK) as session:
+            agent.hello_on_accept = False
+            agent.unanswered_hellos = HELLO_TRIES  # every HELLO of the next connection (the agent keeps sending)
+            agent.disconnect()
+            assert wait_for(lambda: not session.link_up, 5)
+            assert wait_for(lambda: session.link_up, 15), "the session came back up"
+    finally:
+        agent.close()
+    assert agent.connections == 3  # the first, the reconnect whose HELLOs went unanswered, and a new one
