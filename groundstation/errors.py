@@ -53,3 +53,7 @@ class AgentChangedError(LinkError):
 
 class ListenerError(GroundStationError):
     """A listener of the session (the recorder, the live view) raised: the run stops rather than go on without it."""
+
+
+class LinkTakenError(LinkError):
+    """The agent told this ground that another ground's connection replaced it (SPEC.md s. 3)."""

@@ -278,11 +278,13 @@ def run(config: RunConfig, on_progress: Callable[[RunStatus], None] | None = Non
                 pass  # the recording is what matters now; the agent surfaces on link loss anyway
         missing = session.request_backfill(config.backfill_wait_s, final=True)
         backfilled = True
-    except GroundStationError:
+    except GroundStationError as e:
         # A run that ends on an error (CMD_START refused or unanswered, a parameter refused) still fetches what
         # the agent holds of what was lost before it closes: the recording is what matters.
         if session.agent_hello is not None and session.failure is None and not backfilled:
             missing = session.request_backfill(config.backfill_wait_s, final=True)
+        if session.failure is not None and e is not session.failure:
+            raise session.failure from e  # why the session stopped (the link taken), not the command it cut short
         raise
     finally:
         if announced is not None:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import time
 
-from groundstation.errors import AgentChangedError, LinkError
+from groundstation.errors import AgentChangedError, LinkError, LinkTakenError
 from groundstation.safe_output import one_line
 from groundstation.session.clock import timesync_problem
 from groundstation.session.core import HELLO_TRIES, SessionCore
@@ -13,6 +13,7 @@ from groundstation.session.hello import incompatibility
 from groundstation.session.params import Parameter
 from protocol import Frame, FrameFlag, Mode, StreamDecoder
 from protocol import messages as m
+from protocol.enums import LINK_TAKEN_TEXT
 
 _SEQUENCED = (m.EpisodeStart, m.EpisodeEnd)
 _WAITED_FOR = (m.Sample, m.LogRange, m.EpisodeStart, m.EpisodeEnd)  # what request_backfill's waiter looks at
@@ -170,6 +171,8 @@ class ReceiveLoop(SessionCore):
             self.sample_check.heartbeat(min(msg.log_next_sample, self.backfill.known_end), msg.uptime_ms)
         elif isinstance(msg, m.Timesync):
             self._on_timesync(msg, host_ns)
+        elif isinstance(msg, m.Text) and msg.text == LINK_TAKEN_TEXT and not backfilled:
+            self._link_taken()
         elif isinstance(msg, m.ParamValue):
             with self._cond:
                 self._expected_params = msg.count
@@ -252,6 +255,24 @@ class ReceiveLoop(SessionCore):
             why = (f"SAMPLE index {msg.sample} cannot be true (the agent's log ends at "
                    f"{beat.log_next_sample if beat else '?'}); ignored ({count} so far)")
             self._emit(LinkEvent(EventKind.ERROR, time.time_ns(), why, {"sample": msg.sample, "ignored": count}))
+
+    def _link_taken(self) -> None:
+        """Another ground's connection replaced ours (the agent has one link): stop rather than take it back, which
+        would only have the two fight over it (issue 25 H4); say so in one line."""
+        why = (f"{self.link.url}: the agent's link was taken by another ground (another dive run or tool, here or on "
+               "another machine); stopping rather than take it back")
+        self._give_up(LinkTakenError(why))
+
+    def _give_up(self, failure: LinkError) -> None:
+        """Stop the session by itself: nothing more is sent or recorded; `failure` says why."""
+        self.failure = failure
+        self._emit(LinkEvent(EventKind.ERROR, time.time_ns(), str(failure)))
+        self._stop.set()
+        self.link_up = False
+        self._pending.release_all()
+        self.link.drop()
+        with self._cond:
+            self._cond.notify_all()
 
     def _another_agent(self, previous: m.Hello, hello: m.Hello) -> None:
         """Another node id answered after a reconnect (every ESP8266 access point is 192.168.4.1): not a reboot

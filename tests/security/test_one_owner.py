@@ -33,3 +33,25 @@ def test_a_second_run_on_a_held_agent_is_refused_in_one_line_and_tools_go_throug
     assert done.returncode == 1 and len(lines) == 1 and f"held by dive run {info.run}" in lines[0], done.stderr
     assert agent.connections == 1  # neither the second run nor the tool took the run's link
     assert not list(tmp_path.glob("*.mcap"))
+
+
+def test_a_run_whose_link_another_ground_takes_stops_in_one_line_instead_of_fighting(tmp_path: Path) -> None:
+    """The agent (the real virtual one) tells the old connection it was replaced (SPEC.md s. 3); the run stops."""
+    from groundstation.errors import LinkTakenError
+    from groundstation.recording.info import summarize
+    from tests.security.attack import RunInThread, wait_for
+    from tests.simulator.agent_client import AgentClient, running
+
+    with running("--tcp", "127.0.0.1:0", "--speed", "5", "--seed", "4") as server:
+        job = RunInThread(server.address, tmp_path)
+        assert wait_for(lambda: any(tmp_path.glob("*.mcap")), 120)
+        other = AgentClient.tcp(server.address)  # another ground (another machine, say) connects to the agent
+        try:
+            other.hello()
+            job.join(30)  # by itself
+        finally:
+            other.close()
+    assert isinstance(job.error, LinkTakenError), job.error
+    assert "taken by another ground" in str(job.error)
+    [recording] = tmp_path.glob("*.mcap")
+    assert summarize(recording).complete
