@@ -43,7 +43,8 @@ def test_a_run_whose_link_another_ground_takes_stops_in_one_line_instead_of_figh
     from tests.simulator.agent_client import AgentClient, running
 
     with running("--tcp", "127.0.0.1:0", "--speed", "5", "--seed", "4") as server:
-        job = RunInThread(server.address, tmp_path)
+        # a link timeout longer than a loaded machine's stalls: a reconnect of ours would take the link back first
+        job = RunInThread(server.address, tmp_path, SessionConfig(backoff_s=(0.05, 0.2), link_timeout_s=6.0))
         assert wait_for(lambda: any(tmp_path.glob("*.mcap")), 120)
         other = AgentClient.tcp(server.address)  # another ground (another machine, say) connects to the agent
         try:
