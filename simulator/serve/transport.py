@@ -68,6 +68,9 @@ class Transport(ABC):
         """Close the client and the port."""
 
 
+REPLACED_NOTICE_WAIT_S = 1.0
+
+
 class TcpTransport(Transport):
     """Listens on HOST:PORT; a new connection replaces the current one (a dead or forgotten client)."""
 
@@ -116,8 +119,12 @@ class TcpTransport(Transport):
 
         drain()
         with contextlib.suppress(OSError):
-            old.send(b"\x00" + self.on_replaced())  # 0x00 first: ends a partial frame sent before it
+            # Waiting up to a second for room: a full send buffer (a slow reader) would otherwise swallow the notice,
+            # and the old ground, seeing only the close, would reconnect and take the link back.
+            old.settimeout(REPLACED_NOTICE_WAIT_S)
+            old.sendall(b"\x00" + self.on_replaced())  # 0x00 first: ends a partial frame sent before it
             old.shutdown(socket.SHUT_WR)
+        old.setblocking(False)
         drain()
 
     def _ready(self, mask: int) -> None:
@@ -205,8 +212,12 @@ class PtyTransport(Transport):
 
         drain()
         with contextlib.suppress(OSError):
-            old.send(b"\x00" + self.on_replaced())  # 0x00 first: ends a partial frame sent before it
+            # Waiting up to a second for room: a full send buffer (a slow reader) would otherwise swallow the notice,
+            # and the old ground, seeing only the close, would reconnect and take the link back.
+            old.settimeout(REPLACED_NOTICE_WAIT_S)
+            old.sendall(b"\x00" + self.on_replaced())  # 0x00 first: ends a partial frame sent before it
             old.shutdown(socket.SHUT_WR)
+        old.setblocking(False)
         drain()
 
     def _ready(self, mask: int) -> None:
