@@ -53,3 +53,11 @@ class RecordingTooLargeError(RecordingError):
 
 class AgentChangedError(LinkError):
     """After a reconnect another agent (another node id) answered at the same address."""
+
+
+class ListenerError(GroundStationError):
+    """A listener of the session (the recorder, the live view) raised: the run stops rather than go on without it."""
+
+
+class LinkTakenError(LinkError):
+    """The agent told this ground that another ground's connection replaced it (SPEC.md s. 3)."""

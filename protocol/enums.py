@@ -63,6 +63,11 @@ class AckResult(IntEnum):
     FAILED = 7  # accepted but could not be carried out
 
 
+# The TEXT (severity WARNING) an agent sends its current connection when a new one replaces it (SPEC.md s. 3): the
+# old ground then knows it lost the link to another ground, and stops instead of taking it back.
+LINK_TAKEN_TEXT = "link taken by another ground"
+
+
 class Severity(IntEnum):
     DEBUG = 0
     INFO = 1

@@ -139,7 +139,7 @@ class SignatureVerifier:
     An agent runs authenticate() and admit() apart, its ACK memory between them; check() runs both.
     """
 
-    key: bytes
+    key: bytes = field(repr=False)  # never in a repr (a log line, a traceback's locals)
     stats: VerifierStats = field(default_factory=VerifierStats)
     floor: int = -1
     persist: Callable[[int], None] | None = None

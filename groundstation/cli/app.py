@@ -7,6 +7,7 @@ import sys
 from typing import Annotated
 
 import typer
+from rich.text import Text
 
 from groundstation.cli import agent as cli_agent
 from groundstation.cli import check as cli_check
@@ -16,8 +17,9 @@ from groundstation.cli import log as cli_log
 from groundstation.cli import record as record_cli
 from groundstation.cli import run as cli_run
 from groundstation.cli import view as view_cli
-from groundstation.cli.common import TAKES_NEGATIVE, err
+from groundstation.cli.common import TAKES_NEGATIVE, err, hostile_data_reason
 from groundstation.cli.typer_help import load_typer_help
+from groundstation.safe_output import one_line
 from groundstation.session.keys import keygen
 from groundstation.simulator_process import run_simulator_command
 
@@ -93,11 +95,17 @@ def main() -> None:
         app()
     except KeyboardInterrupt:
         sys.exit(130)
+    except (RecursionError, OverflowError) as e:
+        if os.environ.get("DIVE_DEBUG"):
+            raise
+        err.print(Text.assemble(("dive:", "bold red"), " ", hostile_data_reason(e)), soft_wrap=True)
+        sys.exit(1)
     except Exception as e:  # noqa: BLE001 the last line of defence: a traceback reaching a user is a bug
         if os.environ.get("DIVE_DEBUG"):
             raise
-        err.print(f"[bold red]dive: internal error:[/] {type(e).__name__}: {e} (DIVE_DEBUG=1 shows where)",
-                  markup=True, soft_wrap=True, highlight=False)
+        # A SafeConsole prints markup as text (issue 25 L2): the style goes in a Text, the error's words as data.
+        err.print(Text.assemble(("dive: internal error:", "bold red"), f" {type(e).__name__}: {one_line(str(e))} "
+                                "(DIVE_DEBUG=1 shows where)"), soft_wrap=True)
         sys.exit(1)
 
 

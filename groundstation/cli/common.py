@@ -38,10 +38,20 @@ def one_line_errors(func: F) -> F:
             message = str(e).replace("\n", " ") or type(e).__name__
             err.print(Text.assemble(("dive:", "bold red"), " ", one_line(message)), soft_wrap=True)
             raise typer.Exit(1) from None
+        except (RecursionError, OverflowError) as e:  # what hostile data raises deep in a parser: say so
+            err.print(Text.assemble(("dive:", "bold red"), " ", hostile_data_reason(e)), soft_wrap=True)
+            raise typer.Exit(1) from None
         except KeyboardInterrupt:
             raise typer.Exit(130) from None
 
     return wrapper  # type: ignore[return-value]
+
+
+def hostile_data_reason(error: RecursionError | OverflowError) -> str:
+    """The one line for what a damaged or hostile input raises where no check caught it first."""
+    if isinstance(error, RecursionError):
+        return "the data is nested too deeply to read (a damaged or hostile record?)"
+    return f"a number in the data is out of range ({one_line(str(error))}; a damaged or hostile record?)"
 
 
 @contextmanager

@@ -6,7 +6,8 @@ the run's announcement file (groundstation/links/runs.py), looked up again on ev
 
 from __future__ import annotations
 
-from groundstation.links.runs import hub_address
+from groundstation.links.hub_auth import HubAuthError, tool_side
+from groundstation.links.runs import hub_address, withdraw
 from groundstation.links.tcp import TcpLink, parse_host_port
 
 # Not the agent link's 2 KiB: the hub does not wait for a slow reader (it queues for it, then drops it), so a small
@@ -25,6 +26,15 @@ class HubLink(TcpLink):
         self.run = info
 
     def _connect(self) -> None:
-        _, address = hub_address(self.url)
+        info, address = hub_address(self.url)
         self.host, self.port = parse_host_port(address)
         super()._connect()
+        sock = self._socket()
+        try:
+            sock.setblocking(True)
+            tool_side(sock, info.token, f"hub://{info.run} ({address})")
+            sock.setblocking(False)
+        except HubAuthError:
+            self._disconnect()
+            withdraw(info)  # whatever answers there, it is not that run: its announcement is stale
+            raise

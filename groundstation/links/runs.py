@@ -3,14 +3,20 @@
 `dive view`, `status`, `mark`, `surface`, ... find a run here and attach to its hub (groundstation/run/hub.py)
 instead of opening a second link to the agent, which has one TCP slot. A file whose process is gone is
 stale: it is ignored and removed.
+
+The folder is the user's own (0700) and each file is 0600: it holds the run's hub token (links/hub_auth.py), which
+only the run's owner may read. A file whose PID now belongs to another user's process is stale too (that process
+is not our run); one whose PID a process of ours took is found out by the hub handshake, which it cannot answer.
 """
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
+import stat
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from urllib.parse import urlsplit
 
@@ -23,6 +29,10 @@ RUNTIME_DIR_VARIABLE = "DIVE_RUNTIME_DIR"
 
 class NoRunError(LinkError):
     """No running `dive run` (or not the one named) to attach to."""
+
+
+class RuntimeFolderError(LinkError):
+    """The runs folder is not the user's own: announcing or trusting a run there would let others in."""
 
 
 def runs_dir() -> Path:
@@ -46,6 +56,7 @@ class RunInfo:
     url: str  # the agent's link
     recording: str  # the current recording file ("" before the first)
     started: float  # time.time()
+    token: str = field(default="", repr=False)  # the hub's secret (hex): never printed, never sent (hub_auth.py)
 
     @property
     def path(self) -> Path:
@@ -58,16 +69,35 @@ def _alive(pid: int) -> bool:
     except ProcessLookupError:
         return False
     except PermissionError:
-        return True  # another user's process: alive
-    return True
+        return False  # another user's process has the PID now: our run (the file is ours) is gone (issue 25 H2)
+    try:  # root may signal anyone: ask Linux whose process it is (macOS has no /proc: the hub handshake decides)
+        return os.stat(f"/proc/{pid}").st_uid == os.geteuid()
+    except OSError:
+        return True
+
+
+def private_runs_dir() -> Path:
+    """The runs folder, made (0700) or checked: ours, and nobody else may read or write it; else RuntimeFolderError."""
+    folder = runs_dir()
+    folder.mkdir(mode=0o700, parents=True, exist_ok=True)
+    info = folder.lstat()
+    if not stat.S_ISDIR(info.st_mode) or info.st_uid != os.geteuid():
+        raise RuntimeFolderError(f"{folder} is not a folder of this user's: no run is announced or trusted there")
+    if info.st_mode & 0o077:
+        os.chmod(folder, 0o700)  # ours, but made open by hand or an old version: close it
+    return folder
 
 
 def announce(info: RunInfo) -> Path:
-    """Write (or rewrite, when the recording changes) the run's file atomically."""
+    """Write (or rewrite, when the recording changes) the run's file atomically, readable by its owner only."""
+    private_runs_dir()
     path = info.path
-    path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_suffix(".tmp")
-    tmp.write_text(json.dumps(asdict(info)))
+    with contextlib.suppress(FileNotFoundError):
+        tmp.unlink()
+    fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
+    with os.fdopen(fd, "w", encoding="utf-8") as f:
+        f.write(json.dumps(asdict(info)))
     tmp.replace(path)
     return path
 
@@ -81,14 +111,16 @@ def withdraw(info: RunInfo) -> None:
 
 def running() -> list[RunInfo]:
     """The runs alive on this machine, oldest first; stale files are removed."""
-    folder = runs_dir()
     try:
+        folder = private_runs_dir()
         files = sorted(folder.glob("*.json"))
     except OSError:
-        return []
+        return []  # RuntimeFolderError too: nothing in a folder others can write is believed
     runs = []
     for path in files:
         try:
+            if path.lstat().st_uid != os.geteuid():
+                continue
             info = RunInfo(**json.loads(path.read_text()))
         except (OSError, ValueError, TypeError):
             continue
@@ -125,16 +157,45 @@ def hub_address(url: str) -> tuple[RunInfo, str]:
     return info, info.hub
 
 
+def _agent_key(url: str) -> tuple[str, str] | None:
+    """What names one agent in a URL (scheme, host:port or device), None for a URL that starts its own (sim://)."""
+    parts = urlsplit(url)
+    if parts.scheme in ("tcp", "socket", "rfc2217"):
+        host = (parts.hostname or "").lower()
+        host = "127.0.0.1" if host in ("localhost", "::1") else host
+        return parts.scheme, f"{host}:{parts.port}"
+    if parts.scheme == "serial" or url.startswith("/dev/"):
+        return "serial", os.path.realpath(parts.path or url)
+    return None
+
+
+def holder(url: str) -> RunInfo | None:
+    """The running `dive run` that holds the agent at `url` (the agent has one link: one agent, one owner)."""
+    key = _agent_key(url)
+    if key is None:
+        return None
+    return next((info for info in running() if _agent_key(info.url) == key), None)
+
+
+def refuse_if_held(url: str) -> None:
+    """`dive run URL` while another run holds that agent: one line, before a link is opened (issue 25 H4)."""
+    info = holder(url)
+    if info is not None:
+        raise LinkError(f"{url} is held by dive run {info.run} (hub://{info.run}): one agent, one owner; attach to "
+                        f"it (dive view hub://{info.run}) or stop that run first")
+
+
 def attach_url(url: str | None) -> str:
     """The URL a command that acts on *the* agent uses: the one given, else $DIVE_URL, else the running run's hub.
 
-    Never the built-in virtual agent: surfacing a fresh simulator and saying "surfacing" would be a lie.
+    An agent URL that a local run holds becomes that run's hub: a second link would take the agent's one link
+    from the run (both then fight over it, issue 25 H4). Never the built-in virtual agent: surfacing a fresh
+    simulator and saying "surfacing" would be a lie.
     """
+    url = url or os.environ.get("DIVE_URL")
     if url:
-        return url
-    env = os.environ.get("DIVE_URL")
-    if env:
-        return env
+        held = holder(url)
+        return f"{HUB_SCHEME}://{held.run}" if held is not None else url
     info = find_run(None, hint=": give the agent's URL (or set DIVE_URL)")
     return f"{HUB_SCHEME}://{info.run}"
 
@@ -144,5 +205,5 @@ def run_url_default(url: str | None) -> str:
     return url or os.environ.get("DIVE_URL") or DEFAULT_URL
 
 
-def new_run(pid: int, hub: str, url: str) -> RunInfo:
-    return RunInfo(run=str(pid), pid=pid, hub=hub, url=url, recording="", started=time.time())
+def new_run(pid: int, hub: str, url: str, token: str) -> RunInfo:
+    return RunInfo(run=str(pid), pid=pid, hub=hub, url=url, recording="", started=time.time(), token=token)

@@ -42,9 +42,12 @@ class SimLink(Link):
     def _start_child(self) -> str:
         stderr = tempfile.TemporaryFile()
         try:
+            # Its own session: a Ctrl-C in the terminal or a SIGTERM to dive's process group (timeout, systemd) reaches
+            # dive alone, which stops the run as asked and then the child; a child killed first had the run reconnect
+            # to a fresh agent and end "another agent answered" (issue 25 L1). PDEATHSIG still ends it with dive.
             child = subprocess.Popen(
                 simulator_command(self.arguments), stdout=subprocess.PIPE, stderr=stderr, stdin=subprocess.DEVNULL,
-                **child_options(),
+                start_new_session=True, **child_options(),
             )
         except OSError as e:
             raise LinkError(f"{self.url}: cannot start the virtual agent ({e})") from e

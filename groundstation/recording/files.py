@@ -14,12 +14,22 @@ from groundstation.recording.environments import tidy_value
 _HEX_IDS = ("node_id", "boot_id")  # shown in hex everywhere else (dive status, file names)
 
 
+def _empty(path: Path) -> bool:
+    try:
+        return path.stat().st_size == 0
+    except OSError:
+        return False  # read (and reported) as it is
+
+
 def expand(paths: list[Path]) -> list[Path]:
-    """Each file as given, each folder as its .mcap files in name order (split parts sort: part002 < part010)."""
+    """Each file as given, each folder as its .mcap files in name order (split parts sort: part002 < part010).
+
+    An empty file in a folder is passed over: it holds nothing, and kill -9 as a split part was created leaves one
+    (issue 25 M2); refusing the folder for it would refuse every part that holds the recording."""
     found: list[Path] = []
     for path in paths:
         if path.is_dir():
-            inside = sorted(path.glob("*.mcap"))
+            inside = [f for f in sorted(path.glob("*.mcap")) if not _empty(f)]
             if not inside:
                 raise GroundStationError(f"no .mcap recordings in {path}")
             found.extend(inside)

@@ -4,12 +4,14 @@ The agent has one TCP slot (so does the ESP8266 bridge); a second tool connectin
 from the run. Instead the run's session re-serves the agent's frames on a loopback TCP port, in the agent's
 own protocol, so `dive view`, `status`, `mark`, `surface`, ... attach with the same link code as to an agent:
 
+- a connection first proves it holds the run's token (links/hub_auth.py); anything else is closed unanswered;
 - every frame the session delivers is fanned out to every client, re-framed with the client's own seq
-  (the REPLAYED flag kept), so a client's loss count is its own link's;
+  (the REPLAYED flag kept), so a client's loss count is its own link's; TIMESYNC answers (the run's) are not;
 - a client's HELLO is answered with the agent's HELLO, its HEARTBEATs are dropped (the run sends its own);
-- a client's command is sent to the agent by the session, with the session's seq and signature, once (a
-  client's retry of the same seq is not sent again); the agent's ACK goes back to that client with the
-  client's seq; TIMESYNC requests are forwarded as they are (every tool here shares the host clock);
+- a client's command is checked (run/hub_clients.py: a command, signed when the run is, within its limits), then sent
+  to the agent by the session, with the session's seq and signature, once (a client's retry of the same seq is not
+  sent again); the agent's ACK goes back to that client with the client's seq;
+- a client's TIMESYNC request is answered by the hub from the run's clock model: no tool's TIMESYNC reaches the agent;
 - a client's TEXT is a marker for the run's recording (`dive mark`), confirmed by a TEXT back.
 
 A client that does not keep up is dropped (its queue is bounded): a slow viewer never slows the run.
@@ -23,37 +25,31 @@ import socket
 import threading
 import time
 from collections import OrderedDict
-from dataclasses import dataclass, field
 
 from groundstation.errors import LinkError
+from groundstation.links.hub_auth import HubAuthError, HubSide
 from groundstation.run.history import History
+from groundstation.run.hub_clients import EMERGENCY, FORWARDED, HANDSHAKE_S, MAX_CLIENTS, MAX_REJECTS, HubClient
 from groundstation.run.marker import CONFIRMATION as MARKER_CONFIRMATION
 from groundstation.session.agent_session import Session
 from groundstation.session.events import LinkEvent, Received, Sent
-from protocol import AckResult, FrameEncoder, FrameFlag, Message, StreamDecoder
+from protocol import AckResult, FrameFlag, Message
 from protocol import messages as m
 
 CLIENT_QUEUE_LIMIT = 4 * 1024 * 1024  # bytes queued for one client before it is dropped as too slow
 FORWARDED_MEMORY = 256  # forwarded commands remembered (for ACK mapping and client retries)
 _KEPT_FLAGS = int(FrameFlag.REPLAYED)
 _TAKE_OVER_IDS = {kind.MSG_ID: kind.DEFINITION.name for kind in (m.Surface, m.Stop, m.Hover, m.Pause)}
-
-
-@dataclass(eq=False)
-class _Client:
-    sock: socket.socket
-    name: str
-    encoder: FrameEncoder = field(default_factory=FrameEncoder)
-    decoder: StreamDecoder = field(default_factory=StreamDecoder)
-    outbuf: bytearray = field(default_factory=bytearray)
-    hello_seen: bool = False
+_U64_MAX = 2**64 - 1
+_Client = HubClient
 
 
 class Hub:
     """A session listener and a loopback TCP server; start() after the session is connected."""
 
-    def __init__(self, session: Session, host: str = "127.0.0.1", port: int = 0) -> None:
+    def __init__(self, session: Session, token: str, host: str = "127.0.0.1", port: int = 0) -> None:
         self.session = session
+        self._token = token
         self._listener = socket.create_server((host, port))
         self._listener.setblocking(False)
         bound_host, bound_port = self._listener.getsockname()[:2]
@@ -112,11 +108,13 @@ class Hub:
         if isinstance(message, m.Ack):
             self._answer_forwarded(message)
             return
+        if isinstance(message, m.Timesync):
+            return  # the run's own clock exchange; a tool's TIMESYNC is answered by the hub (_answer_timesync)
         payload = frame.payload
         flags = frame.flags & _KEPT_FLAGS
         with self._lock:
             for client in self._clients:
-                if client.hello_seen:
+                if client.hello_seen and client.attached:
                     client.outbuf += client.encoder.encode_payload(frame.msg_id, payload, flags).wire
         self._wake()
 
@@ -133,6 +131,7 @@ class Hub:
             if target is None:
                 return  # an answer to the run's own command
             client, client_seq = target
+            client.in_flight.pop((ack.cmd_msg_id, client_seq), None)
             self._note_take_over(ack)
             mapped = m.Ack(cmd_msg_id=ack.cmd_msg_id, cmd_seq=client_seq, result=ack.result, reason=ack.reason)
             key = (id(client), ack.cmd_msg_id, client_seq)
@@ -159,6 +158,11 @@ class Hub:
 
     def _serve(self) -> None:
         while not self._stop.is_set():
+            now_s = time.monotonic()
+            with self._lock:
+                slow = [c for c in self._clients if not c.attached and now_s - c.accepted_s > HANDSHAKE_S]
+            for late in slow:
+                self._drop(late)
             for key, mask in self._selector.select(0.2):
                 if key.fileobj is self._listener:
                     self._accept()
@@ -176,9 +180,15 @@ class Hub:
             sock, peer = self._listener.accept()
         except OSError:
             return
+        with self._lock:
+            full = len(self._clients) >= MAX_CLIENTS
+        if full:  # bounded: a flood of connections costs the run nothing but this
+            with contextlib.suppress(OSError):
+                sock.close()
+            return
         sock.setblocking(False)
         sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-        client = _Client(sock, f"{peer[0]}:{peer[1]}")
+        client = _Client(sock, f"{peer[0]}:{peer[1]}", HubSide(self._token), key=self.session.config.key)
         with self._lock:
             self._clients.append(client)
         self.clients_served += 1
@@ -206,10 +216,24 @@ class Hub:
         if not data:
             self._drop(client)
             return
+        if not client.attached:
+            try:
+                reply, data = client.handshake.feed(data)
+            except HubAuthError:
+                self._drop(client)  # no token: not one byte reaches the decoder, let alone the agent
+                return
+            with self._lock:
+                client.outbuf += reply
+            if not data:
+                return
+        rejects = client.decoder.stats.rejects
         for frame in client.decoder.feed(data):
-            self._from_client(client, frame.message, frame.seq)
+            self._from_client(client, frame.message, frame.seq, frame.inner)
+        client.rejects += client.decoder.stats.rejects - rejects
+        if client.rejects > MAX_REJECTS:
+            self._drop(client)
 
-    def _from_client(self, client: _Client, message: Message, seq: int) -> None:
+    def _from_client(self, client: _Client, message: Message, seq: int, inner: bytes) -> None:
         if isinstance(message, m.Hello):
             hello = self.session.agent_hello
             with self._lock:
@@ -224,14 +248,40 @@ class Hub:
                 client.outbuf += client.encoder.encode(reply).wire
         elif isinstance(message, m.Timesync):
             if message.receive_us == 0 and message.transmit_us == 0:
-                self._send(message)
+                self._answer_timesync(client, message)
         elif isinstance(message, m.LogRequest):
             # The run backfills for every tool (replayed frames are fanned out); a tool's own request is answered
             # from the run's history (run/history.py), never from the on-board log over the agent's one link.
             self._replay_history(client, message, seq)
-        elif message.DEFINITION.needs_ack:
-            self._forward_command(client, message, seq)
-        # HEARTBEAT, ACK and anything else from a tool: the run's own session speaks for the ground
+        elif type(message) in FORWARDED:
+            self._check_command(client, message, seq, inner)
+        elif not isinstance(message, m.Heartbeat | m.Ack):
+            client.rejects += 1  # an agent's message from a tool: not for the agent
+        # HEARTBEAT and ACK from a tool: the run's own session speaks for the ground
+
+    def _check_command(self, client: _Client, message: Message, seq: int, inner: bytes) -> None:
+        problem = client.signature_problem(inner)
+        if problem is not None:
+            with self._lock:
+                client.refuse(message, seq, AckResult.UNAUTHORIZED, problem)
+            return
+        with self._lock:
+            retry = (id(client), message.MSG_ID, seq) in self._by_client_seq  # answered or in flight: no new one
+            if not isinstance(message, EMERGENCY) and not retry and client.busy(time.monotonic()):
+                client.refuse(message, seq, AckResult.BUSY, "too many commands in flight from this tool")
+                return
+        self._forward_command(client, message, seq)
+
+    def _answer_timesync(self, client: _Client, request: m.Timesync) -> None:
+        """The agent's time now, from the run's clock model: the tool's answer without a frame to the agent."""
+        host_us = time.time_ns() // 1000
+        offset = self.session.clock.offset_at(host_us)
+        if offset is None:
+            return  # not synced yet: the tool asks again in a second
+        agent_us = int(host_us + offset)
+        if 0 < agent_us < _U64_MAX:
+            with self._lock:
+                client.queue(m.Timesync(origin_us=request.origin_us, receive_us=agent_us, transmit_us=agent_us))
 
     def _replay_history(self, client: _Client, request: m.LogRequest, seq: int) -> None:
         ack = m.Ack(cmd_msg_id=request.MSG_ID, cmd_seq=seq, result=int(AckResult.ACCEPTED), reason="")
@@ -258,6 +308,7 @@ class Hub:
             session_seq = self._send(message)
             if session_seq is None:
                 return  # the link is down; the client's retry will try again
+            client.in_flight[(message.MSG_ID, seq)] = time.monotonic()
             self._by_session_seq[(message.MSG_ID, session_seq)] = (client, seq)
             self._by_client_seq[key] = (session_seq, None)
             for table in (self._by_session_seq, self._by_client_seq):

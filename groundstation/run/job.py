@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import threading
 import time
@@ -13,7 +14,8 @@ from urllib.parse import parse_qsl, urlsplit
 
 from groundstation.errors import CommandError, GroundStationError, LinkError, RecordingExistsError
 from groundstation.links import make_link
-from groundstation.links.runs import RunInfo, announce, new_run, withdraw
+from groundstation.links.hub_auth import new_token
+from groundstation.links.runs import RunInfo, announce, new_run, refuse_if_held, withdraw
 from groundstation.recording.recorder import Recorder, RecorderConfig
 from groundstation.run.alarms import AlarmConfig, Alarms
 from groundstation.run.history import History, HistoryConfig
@@ -239,8 +241,7 @@ def session_info(url: str) -> dict[str, str]:
 
 def _announce(info: RunInfo, recorder: Recorder) -> RunInfo:
     """Tell the machine's other dive commands where this run's hub is and which file it records (best effort)."""
-    current = RunInfo(info.run, info.pid, info.hub, info.url, str(recorder.paths[-1]) if recorder.paths else "",
-                      info.started)
+    current = dataclasses.replace(info, recording=str(recorder.paths[-1]) if recorder.paths else "")
     try:
         announce(current)
     except OSError:
@@ -259,6 +260,8 @@ def run(config: RunConfig, on_progress: Callable[[RunStatus], None] | None = Non
     if target is not None and target.exists():  # before connecting: the agent is not started for nothing
         raise RecordingExistsError(f"{one_line(target)} exists; a recording is never overwritten: give another name "
                                    "or a directory")
+    if config.url is not None:
+        refuse_if_held(config.url)  # another run holds this agent: one line, not two runs fighting over its link
     link = make_link(config.url)
     status = RunStatus()
     progress = _Progress(status)
@@ -274,11 +277,12 @@ def run(config: RunConfig, on_progress: Callable[[RunStatus], None] | None = Non
         session.connect()
         status.link_up = True
         if config.hub:
-            hub = Hub(session)
+            token = new_token()
+            hub = Hub(session, token)
             hub.history = history
             hub.start()
             session.add_listener(hub)
-            announced = _announce(new_run(os.getpid(), hub.address, link.url), recorder)
+            announced = _announce(new_run(os.getpid(), hub.address, link.url, token), recorder)
             status.hub = f"hub://{announced.run}"
         alarms = Alarms(session, status.messages.append, config.alarms)
         session.add_listener(alarms)
@@ -306,11 +310,15 @@ def run(config: RunConfig, on_progress: Callable[[RunStatus], None] | None = Non
                     announced = _announce(announced, recorder)
                 if on_progress is not None:
                     on_progress(status)
-                if watch.finished() or recorder.failure is not None or session.failure is not None:
+                if watch.finished() or recorder.failure is not None or session.failure is not None or \
+                        session.listeners.failure is not None:
                     break
         except KeyboardInterrupt:
             interrupted = True
-        if (interrupted or stop.is_set()) and session.failure is None:
+        # Stopped by the user, or by a recording that cannot go on (disk full, a listener that raised): the agent
+        # stops too, as on Ctrl-C, rather than learn on with nobody recording (issue 25 M3).
+        broken = recorder.failure is not None or session.listeners.failure is not None
+        if (interrupted or stop.is_set() or broken) and session.failure is None:
             try:
                 session.command(m.Stop())
             except (CommandError, LinkError):
@@ -319,11 +327,13 @@ def run(config: RunConfig, on_progress: Callable[[RunStatus], None] | None = Non
             watch.stop_if_still_learning()
         missing = session.request_backfill(config.backfill_wait_s, final=True)
         backfilled = True
-    except GroundStationError:
+    except GroundStationError as e:
         # A run that ends on an error (CMD_START refused or unanswered, a parameter refused) still fetches what
         # the agent holds of what was lost before it closes: the recording is what matters.
         if session.agent_hello is not None and session.failure is None and not backfilled:
             missing = session.request_backfill(config.backfill_wait_s, final=True)
+        if session.failure is not None and e is not session.failure:
+            raise session.failure from e  # why the session stopped (the link taken), not the command it cut short
         raise
     finally:
         if announced is not None:
@@ -336,6 +346,8 @@ def run(config: RunConfig, on_progress: Callable[[RunStatus], None] | None = Non
         raise recorder.failure  # after the link was closed cleanly; what was written stays readable
     if session.failure is not None:
         raise session.failure  # another agent answered: nothing of it was recorded
+    if session.listeners.failure is not None:
+        raise session.listeners.failure  # the recorder (or the live view) raised: one line naming it
     if on_progress is not None:
         on_progress(status)
     return RunResult(list(recorder.paths), status, interrupted, missing, session.backfill_status()[0])

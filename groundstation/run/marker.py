@@ -7,6 +7,7 @@ import socket
 import time
 
 from groundstation.errors import LinkError, LinkTimeout
+from groundstation.links.hub_auth import tool_side
 from groundstation.links.runs import RunInfo
 from groundstation.links.tcp import parse_host_port
 from groundstation.session.hello import ground_hello
@@ -25,6 +26,7 @@ def send_marker(run: RunInfo, text: str, timeout_s: float = 3.0) -> None:
     except OSError as e:
         raise LinkError(f"cannot reach dive run {run.run} at {run.hub} ({e.strerror or e})") from e
     with contextlib.closing(sock):
+        tool_side(sock, run.token, f"dive run {run.run} ({run.hub})", timeout_s)
         sock.sendall(encoder.encode(ground_hello(0, 0)).wire
                      + encoder.encode(m.Text(t_us=time.time_ns() // 1000, severity=1, text=text)).wire)
         deadline = time.monotonic() + timeout_s

@@ -9,6 +9,7 @@ from __future__ import annotations
 import os
 import threading
 import time
+from collections import deque
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 
@@ -45,6 +46,7 @@ class SessionConfig:
 
 
 HELLO_RESEND_S = 1.0  # an unanswered HELLO is sent again after this long (the agent answers every HELLO)
+HELLO_TRIES = 5  # HELLOs unanswered on one connection after a reconnect: that connection is dropped for a new one
 
 
 class SessionCore:
@@ -87,7 +89,9 @@ class SessionCore:
         self._restoring = False
         self._hello_problem: str | None = None
         self._hello_resend_s: float | None = None  # while our HELLO is unanswered: when to send it again
+        self._hello_tries = 0  # HELLOs sent on this connection since the last answer
         self._recent = RecentFrames()
+        self._timesync_origins: deque[int] = deque(maxlen=8)  # our last TIMESYNC requests: only their answers count
         self.sample_check = SampleIndexCheck()
         self.failure: LinkError | None = None  # why the session stopped by itself (another agent answered)
         self._expected_params = 0
@@ -139,6 +143,7 @@ class SessionCore:
 
     def _send_hello(self) -> None:
         self._hello_resend_s = time.monotonic() + HELLO_RESEND_S
+        self._hello_tries += 1
         self.send(ground_hello(self.config.node_id, self._boot_id))
 
     def _write(self, message: Message, seq: int, wire: bytes, retry: bool = False) -> None:

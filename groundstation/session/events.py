@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import contextlib
 import time
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from enum import StrEnum
 from typing import Any, NamedTuple, Protocol
 
+from groundstation.errors import ListenerError
 from protocol import Frame, Message
 
 
@@ -62,8 +64,8 @@ class LinkEvent:
 class SessionListener(Protocol):
     """Anything that wants the session's traffic: the recorder, the live view, the progress display.
 
-    Called from the session's reader thread; a listener must not block for long and must not raise
-    (the session catches and reports what it raises, and keeps going).
+    Called from the session's reader thread; a listener must not block for long and must not raise (what it
+    raises is caught: the listener is called no more, and `Listeners.failure` says why, for the run to stop on).
     """
 
     def on_received(self, received: Received) -> None: ...
@@ -78,6 +80,9 @@ class Listeners:
 
     def __init__(self, listeners: Iterable[SessionListener] = ()) -> None:
         self._listeners = list(listeners)
+        # The first listener that raised, and why: a recorder that fails on every frame from then on must stop the
+        # run with that reason, never leave it going on with a recording that silently stopped (issue 25 C2).
+        self.failure: ListenerError | None = None
 
     def add(self, listener: SessionListener) -> None:
         self._listeners.append(listener)
@@ -104,9 +109,13 @@ class Listeners:
                 if event.kind != EventKind.ERROR:  # reporting the failure of a report would loop
                     self._failed(listener, e)
 
-    def _failed(self, listener: object, error: Exception) -> None:
-        self.event(LinkEvent(EventKind.ERROR, time.time_ns(),
-                             f"listener {type(listener).__name__} raised {type(error).__name__}: {error}"))
+    def _failed(self, listener: SessionListener, error: Exception) -> None:
+        why = f"{type(listener).__name__} failed: {type(error).__name__}: {error}"
+        with contextlib.suppress(ValueError):
+            self._listeners.remove(listener)  # said once, never for each of the frames that follow
+        if self.failure is None:
+            self.failure = ListenerError(f"{why}; stopping the run")
+        self.event(LinkEvent(EventKind.ERROR, time.time_ns(), why))
 
 
 class ReceivedCallback:

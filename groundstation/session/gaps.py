@@ -88,8 +88,10 @@ class EpisodeFrames:
     def saw_sample(self, sample: int, episode: int, learning: bool) -> None:
         self._latest_sample = max(self._latest_sample, sample)
         if learning:
-            first, last = self._learning.get(episode, (sample, sample))
-            self._learning[episode] = (min(first, sample), max(last, sample))
+            first, last = self._learning.pop(episode, (sample, sample))
+            self._learning[episode] = (min(first, sample), max(last, sample))  # the newest last in the dict's order
+            if len(self._learning) > EPISODES_TRACKED:  # an agent naming a new episode in every SAMPLE: bounded
+                del self._learning[next(iter(self._learning))]
 
     def missing(self) -> list[tuple[int, int]]:
         """[start, end) sample ranges whose replay brings back the lost episode frames."""
@@ -103,6 +105,11 @@ class EpisodeFrames:
 
 
 REQUEST_SAMPLES = 512  # the agent replays at most 512 samples per LOG_REQUEST (SPEC.md 1.1): ask in pieces
+# The most SAMPLEs an on-board log can hold: 512 KiB (SPEC.md s. 7) of records of 56 bytes or more is ~9 400; this
+# bound leaves 7x room. The log window an agent claims is believed only this far past the samples seen, so one
+# HEARTBEAT claiming a next index near 2^32 plans at most MAX_LOG_SAMPLES / REQUEST_SAMPLES requests (issue 25 C3).
+MAX_LOG_SAMPLES = 65536
+EPISODES_TRACKED = 64  # episodes whose START / END frames are still looked for (the log holds far fewer)
 
 
 class BackfillPlanner:
@@ -133,7 +140,11 @@ class BackfillPlanner:
         self.__init__(self._retry_after_s, self._max_wait_s, self._merge_below, self._per_round)  # type: ignore[misc]
 
     def saw_log_window(self, first_sample: int, next_sample: int) -> None:
-        self.log_first = first_sample
+        """The agent's claim (HEARTBEAT, LOG_RANGE), believed only as far as the samples seen make possible: its log
+        ends at most MAX_LOG_SAMPLES past the highest sample received, and begins at or below its end."""
+        if self.held.end is not None:
+            next_sample = min(next_sample, self.held.end + MAX_LOG_SAMPLES)
+        self.log_first = min(first_sample, next_sample)
         self.known_end = max(self.known_end, next_sample)
         if self.end_limit is not None:
             self.known_end = min(self.known_end, self.end_limit)
@@ -154,10 +165,12 @@ class BackfillPlanner:
         return sum(min(b, self.log_first) - a for a, b in self.missing() if a < self.log_first)
 
     def fetchable(self) -> list[tuple[int, int]]:
-        """Missing ranges (samples and episode frames) the agent's log still holds."""
+        """Missing ranges (samples and episode frames) the agent's log still holds: none below its first sample, nor
+        more than MAX_LOG_SAMPLES below its end (no log holds more, whatever an agent says)."""
         ranges = []
+        floor = max(self.log_first, self.known_end - MAX_LOG_SAMPLES)
         for start, end in sorted(self.missing() + self.episodes.missing()):
-            start = max(start, self.log_first)
+            start = max(start, floor)
             if end > start:
                 ranges.append((start, end))
         return ranges

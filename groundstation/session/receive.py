@@ -4,14 +4,16 @@ from __future__ import annotations
 
 import time
 
-from groundstation.errors import AgentChangedError, LinkError
+from groundstation.errors import AgentChangedError, LinkError, LinkTakenError
 from groundstation.safe_output import one_line
-from groundstation.session.core import SessionCore
+from groundstation.session.clock import timesync_problem
+from groundstation.session.core import HELLO_TRIES, SessionCore
 from groundstation.session.events import EventKind, LinkEvent, Received
 from groundstation.session.hello import incompatibility
 from groundstation.session.params import Parameter
 from protocol import Frame, FrameFlag, Mode, StreamDecoder
 from protocol import messages as m
+from protocol.enums import LINK_TAKEN_TEXT
 
 _SEQUENCED = (m.EpisodeStart, m.EpisodeEnd)
 _WAITED_FOR = (m.Sample, m.LogRange, m.EpisodeStart, m.EpisodeEnd)  # what request_backfill's waiter looks at
@@ -69,12 +71,15 @@ class ReceiveLoop(SessionCore):
         self._restoring = True
         self._recent.clear()
         self.stats.reconnects += 1
+        self._hello_tries = 0
         self._send_hello()
 
     def _tick(self, now_s: float) -> None:
         if self.agent_hello is not None and now_s - self._last_rx_s > self.config.link_timeout_s:
             raise LinkError(f"no frame from the agent for {self.config.link_timeout_s:g} s")
         if self._hello_resend_s is not None and now_s >= self._hello_resend_s:
+            if self._restoring and self._hello_tries >= HELLO_TRIES:  # frames come, answers never: a new connection
+                raise LinkError(f"no answer to {self._hello_tries} HELLOs on this connection; reconnecting")
             self._send_hello()  # ours or its answer was lost: without it the session stays half up
         if now_s >= self._next_tick_s and self.link_up:
             self._next_tick_s = now_s + self.config.period_s
@@ -83,7 +88,9 @@ class ReceiveLoop(SessionCore):
             self.send(m.Heartbeat(uptime_ms=uptime_ms, mode=0, battery_mv=0, rx_frames=rx.frames & 0xFFFFFFFF,
                                   rx_rejects=rx.rejects & 0xFFFFFFFF, rx_lost=rx.lost & 0xFFFFFFFF,
                                   log_first_sample=0, log_next_sample=0, episode=0, signing_rejects=0))
-            self.send(m.Timesync(origin_us=time.time_ns() // 1000, receive_us=0, transmit_us=0))
+            origin_us = time.time_ns() // 1000
+            self._timesync_origins.append(origin_us)
+            self.send(m.Timesync(origin_us=origin_us, receive_us=0, transmit_us=0))
             self._emit_stats()
         self._retransmit(now_s)
         if self._finish_requested and self._finished_at is None:
@@ -159,9 +166,13 @@ class ReceiveLoop(SessionCore):
         elif isinstance(msg, m.Heartbeat):
             self.last_heartbeat = msg
             self.backfill.saw_log_window(msg.log_first_sample, msg.log_next_sample)
-            self.sample_check.heartbeat(msg.log_next_sample, msg.uptime_ms)
+            # what the planner believed of the claim, not the claim: a next index near 2^32 must not make every
+            # index below it possible
+            self.sample_check.heartbeat(min(msg.log_next_sample, self.backfill.known_end), msg.uptime_ms)
         elif isinstance(msg, m.Timesync):
             self._on_timesync(msg, host_ns)
+        elif isinstance(msg, m.Text) and msg.text == LINK_TAKEN_TEXT and not backfilled:
+            self._link_taken()
         elif isinstance(msg, m.ParamValue):
             with self._cond:
                 self._expected_params = msg.count
@@ -206,6 +217,7 @@ class ReceiveLoop(SessionCore):
 
     def _on_hello(self, hello: m.Hello) -> None:
         self._hello_resend_s = None
+        self._hello_tries = 0
         problem = incompatibility(hello)
         previous = self.agent_hello
         if problem is None and previous is not None and previous.node_id != hello.node_id:
@@ -244,6 +256,24 @@ class ReceiveLoop(SessionCore):
                    f"{beat.log_next_sample if beat else '?'}); ignored ({count} so far)")
             self._emit(LinkEvent(EventKind.ERROR, time.time_ns(), why, {"sample": msg.sample, "ignored": count}))
 
+    def _link_taken(self) -> None:
+        """Another ground's connection replaced ours (the agent has one link): stop rather than take it back, which
+        would only have the two fight over it (issue 25 H4); say so in one line."""
+        why = (f"{self.link.url}: the agent's link was taken by another ground (another dive run or tool, here or on "
+               "another machine); stopping rather than take it back")
+        self._give_up(LinkTakenError(why))
+
+    def _give_up(self, failure: LinkError) -> None:
+        """Stop the session by itself: nothing more is sent or recorded; `failure` says why."""
+        self.failure = failure
+        self._emit(LinkEvent(EventKind.ERROR, time.time_ns(), str(failure)))
+        self._stop.set()
+        self.link_up = False
+        self._pending.release_all()
+        self.link.drop()
+        with self._cond:
+            self._cond.notify_all()
+
     def _another_agent(self, previous: m.Hello, hello: m.Hello) -> None:
         """Another node id answered after a reconnect (every ESP8266 access point is 192.168.4.1): not a reboot
         of our agent. Nothing from it is recorded or commanded; the session stops and says why."""
@@ -263,5 +293,16 @@ class ReceiveLoop(SessionCore):
             now_us = time.time_ns() // 1000
             self.send(m.Timesync(origin_us=msg.origin_us, receive_us=host_ns // 1000, transmit_us=now_us))
             return
-        sample = self.clock.add(msg.origin_us, msg.receive_us, msg.transmit_us, host_ns // 1000)
+        host_us = host_ns // 1000
+        problem = "not an answer to a request of this session" if msg.origin_us not in self._timesync_origins \
+            else timesync_problem(msg.origin_us, msg.receive_us, msg.transmit_us, host_us)
+        if problem is not None:  # ignored and counted: one such frame must not move every recorded time
+            self.stats.timesyncs_ignored += 1
+            if self.stats.timesyncs_ignored == 1 or self.stats.timesyncs_ignored % 1000 == 0:
+                self._emit(LinkEvent(EventKind.ERROR, time.time_ns(),
+                                     f"TIMESYNC ignored: {problem} ({self.stats.timesyncs_ignored} so far)",
+                                     {"ignored": self.stats.timesyncs_ignored}))
+            return
+        self._timesync_origins.remove(msg.origin_us)  # each request is answered once
+        sample = self.clock.add(msg.origin_us, msg.receive_us, msg.transmit_us, host_us)
         self.stats.round_trip(max(0.0, sample.round_trip_us) / 1e6)

@@ -29,6 +29,7 @@ class LinkStats:
         self.command_timeouts = 0
         self.backfilled = 0
         self.reconnects = 0
+        self.timesyncs_ignored = 0  # TIMESYNC answers that were no measurement (SessionCore: range-checked)
         self._rtts_s: deque[float] = deque(maxlen=rtt_window)
         # The same window kept sorted: every command's ACK timeout needs the median, and sorting 200 values
         # on the send path cost more than the rest of sending a command.
@@ -79,6 +80,7 @@ class LinkStats:
                 "command_timeouts": self.command_timeouts,
                 "backfilled": self.backfilled,
                 "reconnects": self.reconnects,
+                "timesyncs_ignored": self.timesyncs_ignored,
                 "rtt_median_ms": statistics.median(rtts) * 1e3 if rtts else None,
                 "rtt_p95_ms": percentile(rtts, 0.95) * 1e3 if rtts else None,
             }

@@ -69,8 +69,12 @@ def parse_firmware(text: str) -> str:
 
 
 def read_key_file(path: Path) -> bytes:
-    """The signing key in a key file (64 hex digits, as `dive keygen` writes)."""
+    """The signing key in a key file (64 hex digits, as `dive keygen` writes); refused if others may read it (then
+    it is no secret: the ground refuses such a file too, groundstation/session/keys.py)."""
     try:
+        mode = path.stat().st_mode
+        if mode & 0o077:
+            raise ParamsError(f"key file {path} is readable by others (mode {mode & 0o777:03o}); run: chmod 600 {path}")
         return parse_key(path.read_text(encoding="ascii"))
     except (OSError, UnicodeDecodeError, SigningError) as e:
         raise ParamsError(f"cannot read key file {path}: {e}") from e

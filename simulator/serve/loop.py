@@ -12,6 +12,9 @@ from pathlib import Path
 import numpy as np
 
 from learning import LearnerConfig
+from protocol import FrameEncoder, Severity
+from protocol import messages as m
+from protocol.enums import LINK_TAKEN_TEXT
 from simulator.agent.batch_kernel import SAMPLE_WIRE
 from simulator.agent.mission import MissionConfig
 from simulator.agent.onboard import OnboardAgent, PythonAgent
@@ -85,6 +88,7 @@ class AgentServer:
         self.transport.on_connect = self._connected
         self.transport.on_data = self._received
         self.transport.on_disconnect = self._disconnected
+        self.transport.on_replaced = self._replaced_notice
         # True until stop(): a SIGTERM that comes before serve_forever() (the parent killed just as the agent
         # printed its address) must still stop it, so serve_forever() does not set it again.
         self._running = True
@@ -145,6 +149,11 @@ class AgentServer:
     def _disconnected(self) -> None:
         self.connection_end_seqs.append(self.agent.next_seq)
         self.agent.link_down()
+
+    def _replaced_notice(self) -> bytes:
+        """The TEXT for a connection a new one replaces (SPEC.md s. 3), with a seq of its own: the old link ends."""
+        return FrameEncoder().encode(m.Text(t_us=self.agent.t_us, severity=int(Severity.WARNING),
+                                            text=LINK_TAKEN_TEXT)).wire
 
     def _connected(self) -> None:
         self._connected_wall_s = time.monotonic()

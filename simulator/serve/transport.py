@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import os
 import select
@@ -40,6 +41,7 @@ class Transport(ABC):
         self.on_connect: Callable[[], None] = lambda: None
         self.on_data: Callable[[bytes], None] = lambda data: None
         self.on_disconnect: Callable[[], None] = lambda: None
+        self.on_replaced: Callable[[], bytes] = lambda: b""  # what to tell a client a new connection replaces
 
     @property
     @abstractmethod
@@ -66,6 +68,9 @@ class Transport(ABC):
         """Close the client and the port."""
 
 
+REPLACED_NOTICE_WAIT_S = 1.0
+
+
 class TcpTransport(Transport):
     """Listens on HOST:PORT; a new connection replaces the current one (a dead or forgotten client)."""
 
@@ -90,6 +95,8 @@ class TcpTransport(Transport):
             sock, _ = self.listener.accept()
         except OSError:
             return
+        if self.client is not None:  # say why before closing: the old ground then stops instead of fighting back
+            self._tell_replaced(self.client)
         self.drop_client()
         sock.setblocking(False)
         sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
@@ -101,6 +108,24 @@ class TcpTransport(Transport):
         self.client = sock
         self.selector.register(sock, selectors.EVENT_READ, self._ready)
         self.on_connect()
+
+    def _tell_replaced(self, old: socket.socket) -> None:
+        """Send the old client the replaced notice, then end our side with a FIN, not a reset: a socket closed with
+        unread bytes in it resets the connection, and a reset makes Linux drop what the peer has not read yet."""
+        def drain() -> None:
+            with contextlib.suppress(OSError):
+                while old.recv(READ_BYTES):
+                    pass
+
+        drain()
+        with contextlib.suppress(OSError):
+            # Waiting up to a second for room: a full send buffer (a slow reader) would otherwise swallow the notice,
+            # and the old ground, seeing only the close, would reconnect and take the link back.
+            old.settimeout(REPLACED_NOTICE_WAIT_S)
+            old.sendall(b"\x00" + self.on_replaced())  # 0x00 first: ends a partial frame sent before it
+            old.shutdown(socket.SHUT_WR)
+        old.setblocking(False)
+        drain()
 
     def _ready(self, mask: int) -> None:
         if mask & selectors.EVENT_READ:
@@ -176,6 +201,24 @@ class PtyTransport(Transport):
             self._open = True
             self.selector.register(self.master, selectors.EVENT_READ, self._ready)
             self.on_connect()
+
+    def _tell_replaced(self, old: socket.socket) -> None:
+        """Send the old client the replaced notice, then end our side with a FIN, not a reset: a socket closed with
+        unread bytes in it resets the connection, and a reset makes Linux drop what the peer has not read yet."""
+        def drain() -> None:
+            with contextlib.suppress(OSError):
+                while old.recv(READ_BYTES):
+                    pass
+
+        drain()
+        with contextlib.suppress(OSError):
+            # Waiting up to a second for room: a full send buffer (a slow reader) would otherwise swallow the notice,
+            # and the old ground, seeing only the close, would reconnect and take the link back.
+            old.settimeout(REPLACED_NOTICE_WAIT_S)
+            old.sendall(b"\x00" + self.on_replaced())  # 0x00 first: ends a partial frame sent before it
+            old.shutdown(socket.SHUT_WR)
+        old.setblocking(False)
+        drain()
 
     def _ready(self, mask: int) -> None:
         if mask & selectors.EVENT_READ:

@@ -55,6 +55,8 @@ class FakeAgent:
         self.replay_limit = 512  # samples replayed per LOG_REQUEST at most (SPEC.md 1.1)
         self.ignored_log_requests = 0  # ACK this many LOG_REQUESTs without replaying (a replay lost each time)
         self.log_requests = 0
+        self.timesync_origins: list[int] = []  # the origin of every TIMESYNC request received
+        self.lying_timesyncs = 0  # answer this many TIMESYNC requests with receive = transmit = 2^64-1
         self.live = True  # False: SAMPLE and episode frames go to the on-board log only (a radio blackout)
         self._t0 = time.monotonic()
         self._conn: socket.socket | None = None
@@ -161,7 +163,11 @@ class FakeAgent:
                 self._send_hello()
             return
         if isinstance(msg, m.Timesync) and msg.receive_us == 0:
+            self.timesync_origins.append(msg.origin_us)
             now = self.now_us()
+            if self.lying_timesyncs > 0:
+                self.lying_timesyncs -= 1
+                now = 2**64 - 1
             self._send(m.Timesync(origin_us=msg.origin_us, receive_us=now, transmit_us=now))
             return
         if not flags & FrameFlag.ACK_REQUESTED:

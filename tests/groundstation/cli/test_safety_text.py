@@ -13,6 +13,7 @@ from typer.testing import CliRunner
 
 from groundstation.cli.app import app
 from groundstation.links import make_link
+from groundstation.links.hub_auth import new_token, tool_side
 from groundstation.links.runs import RunInfo
 from groundstation.links.tcp import parse_host_port
 from groundstation.run.hub import Hub
@@ -73,14 +74,16 @@ def test_garbage_and_bad_text_on_a_runs_hub_never_stop_it(tmp_path: Path) -> Non
         session = Session(make_link(agent.url), SessionConfig(reconnect=False))
         session.add_listener(_Markers(seen))
         with session:
-            hub = Hub(session).start()
+            token = new_token()
+            hub = Hub(session, token).start()
             session.add_listener(hub)
             try:
                 with socket.create_connection(parse_host_port(hub.address)) as sock:
+                    tool_side(sock, token, "hub")  # the run's owner: garbage after the handshake
                     encoder = FrameEncoder()
                     bad_text = encoder.encode_payload(m.Text.MSG_ID, struct.pack("<QB", 0, 1) + b"\xff\xfe[x]").wire
                     sock.sendall(b"\xff\x00\x13garbage\x00" + bad_text)
-                info = RunInfo("1", os.getpid(), hub.address, agent.url, "", 0.0)
+                info = RunInfo("1", os.getpid(), hub.address, agent.url, "", 0.0, token=token)
                 send_marker(info, "ok")
                 assert session.link_up
             finally:

@@ -174,6 +174,7 @@ def test_link_silence_is_measured_in_wall_seconds_faster_than_real_time() -> Non
 def test_signed_replays_truncation_surface_and_the_mark_across_a_restart(tmp_path: Path) -> None:
     key_file = tmp_path / "agent.key"
     key_file.write_text(KEY.hex() + "\n")
+    key_file.chmod(0o600)  # the agent refuses a key file others can read
     args = (*FAST, "--key-file", str(key_file), "--state-dir", str(tmp_path / "state"))
     clock_ns = [T0_NS + 10**15]  # well after 2025, so it is never below a mark of an earlier run
     signer = Signer(KEY, 5, clock_ns=lambda: clock_ns[0])
