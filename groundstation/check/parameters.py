@@ -47,7 +47,9 @@ def listing(probe: Probe) -> str:
 
 
 @check("params.table", SECTION, """Every learner and mission parameter, by index and name [the table of section
-       13: index, name, type, min, max]. A real agent reports start_at_rest with minimum = maximum = 0.""")
+       13: index, name, type, min, max]. An agent that does not implement an optional feature [start_at_rest, the
+       parameters from shared_model on] still lists the parameter at its index, reports it with minimum = maximum =
+       its default.""")
 def table(probe: Probe) -> str:
     values = param_table(probe)
     problems = []
@@ -58,8 +60,12 @@ def table(probe: Probe) -> str:
             continue
         if v.index != d.index or v.param_type != d.param_type:
             problems.append(f"{d.name}: index {v.index} type {v.param_type}, SPEC says {d.index} {int(d.param_type)}")
-        if (v.minimum, v.maximum) not in ((d.minimum, d.maximum), d.firmware_range()):
-            problems.append(f"{d.name}: range [{v.minimum!r}, {v.maximum!r}], SPEC says [{d.minimum!r}, {d.maximum!r}]")
+        if (v.minimum, v.maximum) not in d.ranges_allowed():
+            problems.append(f"{d.name}: range [{v.minimum!r}, {v.maximum!r}], SPEC says [{d.minimum!r}, {d.maximum!r}]"
+                            + (f" or, not implemented, [{d.default!r}, {d.default!r}]" if d.optional else ""))
+        elif v.minimum == v.maximum and v.value != d.default:
+            problems.append(f"{d.name}: fixed at {v.value!r}, an optional parameter not implemented reports its "
+                            f"default {d.default!r}")
     expect(not problems, "; ".join(problems[:4]) + (f" (+{len(problems) - 4} more)" if len(problems) > 4 else ""))
     return f"{len(spec_params.PARAMS)} parameters as SPEC.md lists them"
 
@@ -157,6 +163,11 @@ def refused_in_mode(probe: Probe) -> str:
                 continue
             wanted = AckResult.NOT_ALLOWED_IN_MODE if mode in d.refused_in else AckResult.ACCEPTED
             if ex.result != wanted:
+                # A failure only where the frames on both sides of the ACK show that mode: an episode may end
+                # between the LEARNING the check saw and the PARAM_SET's arrival (issue 26, D3). Not established:
+                # tried again, never judged on a guess.
+                if probe.mode_during(ex) != mode:
+                    continue
                 problems.append(f"{d.name} in {mode.name}: {result_name(ex.result)}, wanted {wanted.name}")
             if mode == Mode.LEARNING:
                 in_learning.add(d.name)
