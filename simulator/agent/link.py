@@ -6,6 +6,7 @@ import os
 from collections.abc import Callable
 from pathlib import Path
 
+from learning import n_states
 from protocol import (
     PROTOCOL_VERSION,
     AckResult,
@@ -360,15 +361,19 @@ class AgentLink:
         assert isinstance(m, messages.DumpRequest)
         if m.kind not in _DUMP_KINDS:
             return (AckResult.BAD_VALUE, f"no dump kind {m.kind}"), []
+        held = None
         if m.dump_id == 0:
-            snap = self.dumps.take(self._prog.learner, DumpKind(m.kind))
+            size = agent_dumps.snapshot_size(n_states(self._prog.config), DumpKind(m.kind))
         else:
             held = self.dumps.get(m.dump_id)
             if held is None or held.kind != m.kind:
                 return (AckResult.STALE, f"dump {m.dump_id} no longer held"), []
-            snap = held
-        if m.offset > len(snap.data):
-            return (AckResult.BAD_VALUE, f"offset {m.offset} past the {len(snap.data)}-byte snapshot"), []
+            size = len(held.data)
+        if m.offset > size:  # SPEC 1.2 s. 10: refused before a snapshot is taken (no id, no place used)
+            return (AckResult.BAD_VALUE, f"offset {m.offset} past the {size}-byte snapshot"), []
+        snap = held if held is not None else self.dumps.take(self._prog.learner, DumpKind(m.kind))
+        # All chunks are rendered here, before the next control step: a live snapshot is never sent as a mix of
+        # two models (SPEC 1.2 s. 10); the link paces them out afterwards.
         return (AckResult.ACCEPTED, ""), list(agent_dumps.chunks(snap, m.offset, m.length))
 
     def _log_request(self, m: Message) -> Outcome:

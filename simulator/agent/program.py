@@ -379,7 +379,8 @@ class OnboardProgram:
             self.table.values[index] = old
             return _not_allowed(self.mode)
         self.params, self.mission = new_params, new_mission
-        if definition.learner and new_config != self.config:
+        # SPEC 1.2 s. 13: a change is a different stored value; the current one again restarts nothing.
+        if definition.learner and self.table.values[index] != old and new_config != self.config:
             self.config = new_config
             self.learner = Learner(new_config, self.rng)
             self._bind_learner(new_config)

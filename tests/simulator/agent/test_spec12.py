@@ -48,3 +48,20 @@ def test_a_ground_hello_empties_the_ack_memory() -> None:
         c.send_raw(get.wire)  # the same (msg_id, seq) in the new session: executed, a PARAM_VALUE follows
         assert c.wait_message(messages.Ack, cmd_seq=get.seq).result == AckResult.ACCEPTED
         c.wait_message(messages.ParamValue, index=3)
+
+
+def test_setting_the_current_value_restarts_nothing_and_a_refused_dump_takes_no_snapshot() -> None:
+    """G13: a change is a different stored value; G10: CMD_DUMP refused for its offset uses no id and no place."""
+    with connected(*FAST) as (_, c):
+        c.encoder = FrameEncoder(600)
+        assert c.command(messages.ParamGet(index=-1, name="gamma")).result == AckResult.ACCEPTED
+        gamma = c.wait_message(messages.ParamValue, name="gamma").value
+        assert c.command(messages.ParamSet(index=-1, value=gamma, name="gamma")).result == AckResult.ACCEPTED
+        c.wait_message(messages.ParamValue, name="gamma")
+        refused = c.command(messages.DumpRequest(kind=2, dump_id=0, offset=10**6, length=0))
+        assert refused.result == AckResult.BAD_VALUE
+        assert c.command(messages.DumpRequest(kind=2, dump_id=0, offset=0, length=0)).result == AckResult.ACCEPTED
+        assert c.wait_message(messages.DumpChunk).dump_id == 1  # the refused request took no id
+        assert not [t for t in c.of(messages.Text) if "restarted" in t.text]
+        assert c.command(messages.ParamSet(index=-1, value=0.95, name="gamma")).result == AckResult.ACCEPTED
+        c.wait_for(lambda f: isinstance(f.message, messages.Text) and "restarted" in f.message.text)
