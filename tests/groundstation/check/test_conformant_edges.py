@@ -58,3 +58,16 @@ def test_status_against_a_keyed_agent_without_or_with_a_wrong_key_fails_with_the
             assert "UNAUTHORIZED" in refused.stderr and "parameters" not in refused.stdout, (args, refused.output)
             lines = [line for line in refused.stderr.splitlines() if line.strip()]
             assert len(lines) == 1 and lines[0].startswith("dive:"), refused.stderr
+
+
+@pytest.mark.slow
+def test_dive_sim_conforms_on_a_115200_baud_link(tmp_path: Path) -> None:
+    """A paced link (bytes at a UART's rate, as through the ESP8266's serial): dumps, log replays and the parameter
+    list compete with SAMPLEs, and those checks still pass. (The whole suite passes too, in about 130 s:
+    scripts/check_soak.py --baud 115200 runs it.)"""
+    with agent(tmp_path, "--tcp", "127.0.0.1:0", "--preset", "paper", "--seed", "4", "--baud", "115200") as url:
+        code, report = check(url, "--allow-motion", "--timeout", "10", "--only", "handshake", "--only", "params.list",
+                             "--only", "dump", "--only", "log", "--only", "timesync")
+    assert by_result(report, "FAIL") == [], report
+    assert code == 0
+    print(f"115200 baud: {report['counts']} in {report['seconds']} s")
