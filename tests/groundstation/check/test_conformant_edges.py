@@ -25,11 +25,13 @@ def test_an_optional_parameter_listed_fixed_at_its_default_passes_the_table(tmp_
 
 @pytest.mark.slow
 def test_at_speed_1_the_check_waits_for_idle_after_a_surface_at_the_surface(tmp_path: Path) -> None:
-    """D2: a CMD_SURFACE at the surface shows SURFACING for one control step (0.1 s at --speed 1); the next check's
-    CMD_START must wait for IDLE, not be sent milliseconds later into SURFACING (NOT_ALLOWED_IN_MODE). The agent
-    reports start_at_rest fixed at 0, as a real agent does, so the check reaches LEARNING through RECOVERING."""
+    """D2: a CMD_SURFACE at the surface shows SURFACING for a while (here a slow agent: 1 s at --speed 1); the next
+    check's CMD_START must wait for IDLE, not be sent milliseconds later into SURFACING (NOT_ALLOWED_IN_MODE). The
+    agent reports start_at_rest fixed at 0, as a real agent does, so the check reaches LEARNING through RECOVERING.
+    (A regression test: against our agents the race's window, one SURFACING SAMPLE period, was too short for the
+    old check to lose it here; the external agent of the review lost it.)"""
     key = write_key_file(tmp_path / "dive.key")
-    script = [str(BROKEN_AGENT), "optional-unimplemented", "serve"]
+    script = [str(BROKEN_AGENT), "optional-unimplemented,slow-surface", "serve"]
     with agent(tmp_path, "--tcp", "127.0.0.1:0", "--speed", "1", "--preset", "hardware", "--seed", "2",
                "--key-file", str(key), script=script) as url:
         code, report = check(url, "--allow-motion", "--key-file", str(key), "--timeout", "10",
