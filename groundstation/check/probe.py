@@ -264,6 +264,16 @@ class Probe:
         self.send_inner(inner, valid)
         return self.await_ack(Exchange(inner[4], int.from_bytes(inner[2:4], "little"), inner, start), timeout_s)
 
+    def burst(self, messages: list[Message]) -> list[Exchange]:
+        """Send commands in one write, without waiting in between (the agent handles them back to back, within a
+        step or two of each other), and wait for each one's ACK."""
+        start = self.end
+        inners = [self.inner(msg.MSG_ID, msg.pack(), _ACK_REQUESTED) for msg in messages]
+        self.send_raw(b"".join(cobs_encode(inner) + b"\x00" for inner in inners))
+        self.sent_valid += len(inners)
+        sent = [Exchange(inner[4], int.from_bytes(inner[2:4], "little"), inner, start) for inner in inners]
+        return [self.await_ack(ex) for ex in sent]
+
     def await_ack(self, ex: Exchange, timeout_s: float | None = None) -> Exchange:
         found = self.wait_message(m.Ack, ex.sent_at, self.timeouts.reply_s if timeout_s is None else timeout_s,
                                   lambda a: a.cmd_msg_id == ex.msg_id and a.cmd_seq == ex.seq)
