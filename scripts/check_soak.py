@@ -97,6 +97,8 @@ def main() -> None:
                     for check_id, detail in fails:
                         tally.failures[check_id] += 1
                         tally.details.append(f"{url}: {check_id}: {detail}")
+                    bar.console.print(f"{url}: {'passed' if passed else 'FAILED ' + ', '.join(c for c, _ in fails)}"
+                                      f" in {took:.0f} s", markup=False, highlight=False)
                     bar.advance(task)
     table = Table(title=f"dive check x {args.runs} per agent" + (f", {args.baud} baud" if args.baud else "")
                   + (", keyed" if args.key else ""))
