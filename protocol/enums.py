@@ -4,7 +4,9 @@ from __future__ import annotations
 
 from enum import IntEnum, IntFlag
 
-PROTOCOL_VERSION = 1
+PROTOCOL_VERSION = 1  # the major version on the wire (frame `ver`, HELLO protocol_version)
+# SPEC.md's version: the minor number is the document's, never sent, so 1.0-1.2 peers share PROTOCOL_VERSION.
+SPEC_VERSION = "1.2"
 
 
 class FrameFlag(IntFlag):
@@ -12,12 +14,12 @@ class FrameFlag(IntFlag):
 
     ACK_REQUESTED = 0x01  # the sender wants an ACK (set on every command)
     REPLAYED = 0x02  # re-sent from the agent's on-board log, not live
-    # Bit 4, an "incompatible" bit (SPEC 1.1): a receiver that does not know it drops signed frames instead of
+    # Bit 4, an "incompatible" bit (SPEC 1.1 on): a receiver that does not know it drops signed frames instead of
     # reading the trailer as payload, as MAVLink 2 does with its incompat flag. Bit 2 (1.0's SIGNED) is reserved.
     SIGNED = 0x10  # a signature trailer ends the payload (see SPEC.md, signing)
 
 
-KNOWN_INCOMPATIBLE_FLAGS = 0x10  # of bits 4-7, version 1.1 defines bit 4 (SIGNED)
+KNOWN_INCOMPATIBLE_FLAGS = 0x10  # of bits 4-7, versions 1.1 and 1.2 define bit 4 (SIGNED)
 # The incompatible bits (4-7) this version does not know: a frame with one of them set is dropped.
 INCOMPATIBLE_FLAGS_MASK = 0xF0 & ~KNOWN_INCOMPATIBLE_FLAGS
 

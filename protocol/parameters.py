@@ -58,6 +58,7 @@ class ParamDef:
     learner: bool  # a change restarts the learner (as CMD_RESET_MODEL) and is checked against the RAM budget
     doc: str
     simulator_only: bool = False  # a real agent reports minimum = maximum = default
+    optional: bool = False  # an agent may leave it out as minimum = maximum = default (SPEC.md 13, optional)
 
     @property
     def integral(self) -> bool:
@@ -68,6 +69,13 @@ class ParamDef:
         if self.simulator_only:
             return self.default, self.default
         return self.minimum, self.maximum
+
+    def ranges_allowed(self) -> tuple[tuple[float, float], ...]:
+        """The (minimum, maximum) pairs a conformant agent may report: the table's, and for an optional parameter
+        it does not implement, (default, default) (SPEC.md 13, optional parameters)."""
+        if self.optional or self.simulator_only:
+            return (self.minimum, self.maximum), (self.default, self.default)
+        return ((self.minimum, self.maximum),)
 
     def refusal(self, value: float, maximum: float | None = None) -> str:
         """Why PARAM_SET of `value` is refused with BAD_VALUE, or "" if it may be stored (SPEC.md section 13)."""
@@ -144,13 +152,19 @@ _ROWS = (
 )
 
 
+# SPEC.md 1.2, section 13: the optional parameters are `start_at_rest` and every parameter from this one on (the
+# shared-model learners' and the learner options added with them, `max_sweeps` and `in_place_sweeps` included).
+OPTIONAL_FROM = "shared_model"
+
+
 def _build() -> tuple[ParamDef, ...]:
     out = []
+    optional_from = next(i for i, row in enumerate(_ROWS) if row[0] == OPTIONAL_FROM)
     for index, (name, kind, unit, default, low, high, refused, learner, doc, sim_only) in enumerate(_ROWS):
         if kind == ParamType.F32:  # an agent stores f32: the table says what it sends
             default, low, high = f32(default), f32(low), f32(high)
         out.append(ParamDef(index, name, kind, unit, float(default), float(low), float(high), refused, learner, doc,
-                            sim_only))
+                            sim_only, sim_only or index >= optional_from))
     return tuple(out)
 
 

@@ -126,9 +126,10 @@ def render_param(p: ParamDef) -> str:
     high = _number(p.maximum, p.param_type)
     if p.simulator_only:
         high += f" (real agent: {_number(p.firmware_range()[1], p.param_type)})"
+    doc = f"*optional*: {p.doc}" if p.optional and not p.simulator_only else p.doc
     return (
         f"| {p.index} | `{p.name}` | {p.param_type.name} | {_cell(p.unit)} | {_number(p.default, p.param_type)} "
-        f"| {_number(p.minimum, p.param_type)} | {high} | {refused} | {'yes' if p.learner else 'no'} | {_cell(p.doc)} |"
+        f"| {_number(p.minimum, p.param_type)} | {high} | {refused} | {'yes' if p.learner else 'no'} | {_cell(doc)} |"
     )
 
 
@@ -139,7 +140,8 @@ def render_params() -> str:
         "value; PARAM_VALUE carries that f32 widened exactly to f64 (0.4 goes out as 0.4000000059604645). "
         "\"refused in\": modes in which PARAM_SET is answered NOT_ALLOWED_IN_MODE; "
         "\"learner\": a change restarts the learner as CMD_RESET_MODEL does and is "
-        "checked against the RAM budget.",
+        "checked against the RAM budget. *optional*: an agent that does not implement it reports minimum = "
+        "maximum = its default (section 13, optional parameters).",
         "",
         "| index | name | type | unit | default | min | max | refused in | learner | meaning |",
         "|---|---|---|---|---|---|---|---|---|---|",

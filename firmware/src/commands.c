@@ -42,6 +42,11 @@ static bool pump_one(void) {
         return true;
     case REPLY_DUMP: {
         if (g_reply.dump_at >= g_reply.dump_end) { break; }
+        uint32_t held_total = 0;
+        uint32_t held_episode = 0;
+        /* 1.2 s. 10: a live snapshot (COUNTS, shared Q_VALUES) that went STALE mid-sending is not sent on: its
+           chunks would mix two models. The ground sees the missing range, asks again and gets STALE. */
+        if (!dumps_find(g_reply.dump_id, g_reply.dump_kind, &held_total, &held_episode)) { break; }
         uint8_t payload[PROTO_MAX_PAYLOAD];
         uint8_t data[DUMPS_CHUNK_BYTES];
         uint32_t n = g_reply.dump_end - g_reply.dump_at;

@@ -122,6 +122,7 @@ void link_init(uint32_t node_id, const uint8_t *key_or_null, const link_upcalls_
 
 void link_reset(void) {
     frame_decoder_resync(&g_decoder);
+    memset(g_answered, 0, sizeof g_answered);  /* 1.2 s. 5: a new link's seqs must not meet an old session's ACKs */
     g_heard = false;
     send_hello();
 }
@@ -164,34 +165,41 @@ static void refuse(const frame_t *f, sign_result_t r) {
     send_ack(f, ACK_RESULT_UNAUTHORIZED, signing_reason(r));
 }
 
+/* ACK reason of a CMD_SURFACE run without a valid signature or timestamp (SPEC 1.2 s. 12): the fail-safe. */
+#define UNVERIFIED_SURFACE "surfacing without a valid signature: the fail-safe"
+
 static void handle_command(const frame_t *f) {
-    /* 1.1 order: (1) SIGNED bit / truncated, (2) HMAC, (3) ACK memory, (4) replay / too old / too new. */
+    /* 1.2 order: (1) SIGNED bit / truncated, (2) HMAC, (3) ACK memory, (4) replay / too old / too new.
+       CMD_SURFACE is exempt from (2) and (4): anyone may make the agent surface, nobody may make it dive. */
     if (f->truncated_signature) {
         refuse(f, SIGN_TRUNCATED);
         return;
     }
+    bool verified = true;
     if (signing_enabled()) {
         sign_result_t r = signing_check_hmac(f);
         if (r != SIGN_VALID) {
-            refuse(f, r);
-            return;
+            if (f->msg_id != MSG_CMD_SURFACE_ID) {
+                refuse(f, r);
+                return;
+            }
+            verified = false;
         }
     }
     const answered_t *memory = answered(f);
     if (memory != NULL) {  /* a retry: the same result again, not executed again (reason may be empty) */
-        alive();
+        if (!signing_enabled()) { alive(); }  /* with a key a replayed frame is no sign of life (1.2 s. 4) */
         send_ack(f, memory->result, "");
         return;
     }
-    if (signing_enabled()) {
+    if (signing_enabled() && verified) {
         sign_result_t r = signing_check_time(f, hal_link_time_us());
-        /* CMD_SURFACE with a valid HMAC runs whatever its timestamp: surfacing is always safe. */
         if (r != SIGN_VALID && f->msg_id != MSG_CMD_SURFACE_ID) {
             refuse(f, r);
             return;
         }
-        if (r == SIGN_VALID) { alive(); }
-    } else {
+        if (r == SIGN_VALID) { alive(); } else { verified = false; }
+    } else if (!signing_enabled()) {
         alive();
     }
     verdict_t v;
@@ -202,7 +210,7 @@ static void handle_command(const frame_t *f) {
     slot->seq = f->seq;
     slot->result = v.result;
     slot->used = true;
-    send_ack(f, v.result, v.reason);
+    send_ack(f, v.result, verified || v.result != ACK_RESULT_ACCEPTED ? v.reason : UNVERIFIED_SURFACE);
     if (v.result == ACK_RESULT_ACCEPTED) { g_up->command(f, true, &v); }
 }
 
@@ -227,6 +235,7 @@ static void handle_frame(const frame_t *f) {
                  (signing_check_hmac(f) == SIGN_VALID && signing_check_time(f, hal_link_time_us()) == SIGN_VALID);
     if (valid) { alive(); }
     if (f->msg_id == MSG_HELLO_ID) {
+        memset(g_answered, 0, sizeof g_answered);  /* a new session: the ACK memory starts empty (1.2 s. 5) */
         send_hello();  /* every ground HELLO is answered */
     } else if (f->msg_id == MSG_TIMESYNC_ID) {
         handle_timesync(f);

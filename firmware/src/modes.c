@@ -423,9 +423,9 @@ void modes_cmd_reset_model(bool apply, verdict_t *v) {
 }
 
 void modes_param_set(uint16_t index, uint64_t value_bits, bool apply, verdict_t *v) {
-    float before = params_get((param_index_t)index);
+    /* 1.2 s. 13: setting the current value is no change: it does not restart the learner. */
+    float before = index < PARAM_COUNT ? params_get((param_index_t)index) : 0.0f;
     params_set(index, value_bits, g.mode, apply, v);
-    /* The value it already had changes nothing: the learner keeps what it learned (issue 27). */
     if (apply && v->result == ACK_RESULT_ACCEPTED && param_defs[index].learner &&
         params_get((param_index_t)index) != before) {
         restart_learner("learner parameter changed: learner restarted");

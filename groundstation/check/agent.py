@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 
 from groundstation.check.probe import Exchange, Probe, result_name
@@ -88,7 +88,10 @@ def states(probe: Probe) -> int:
 
 # ---------------------------------------------------------------------- modes
 def go_idle(probe: Probe) -> None:
-    """CMD_SURFACE unless IDLE already, then wait until the agent is at the surface (IDLE)."""
+    """CMD_SURFACE unless IDLE already, then wait until the agent shows it is at the surface (IDLE).
+
+    "IDLE already" is what the newest frame shows after the last command that moved the agent (Probe.pump forgets
+    the mode at such an ACK): a CMD_SURFACE at the surface shows SURFACING for a step first (SPEC.md 6)."""
     if probe.current_mode() == Mode.IDLE:
         return
     ex = probe.accepted(m.Surface(), "CMD_SURFACE (to reach IDLE)")
@@ -111,9 +114,12 @@ def reach(probe: Probe, target: Mode) -> None:
     if target == Mode.IDLE:
         go_idle(probe)
     elif target == Mode.HOVER:
-        if mode not in (Mode.IDLE, Mode.PAUSED):
-            go_idle(probe)
-        _enter(probe, m.Hover(depth_m=hover_depth(probe)), {Mode.HOVER})
+        def settle() -> None:
+            if probe.current_mode() not in (Mode.IDLE, Mode.PAUSED, Mode.HOVER):
+                go_idle(probe)
+
+        settle()
+        _enter(probe, m.Hover(depth_m=hover_depth(probe)), {Mode.HOVER}, settle)
     elif target == Mode.SURFACING:
         if mode != Mode.HOVER:
             reach(probe, Mode.HOVER)
@@ -123,9 +129,12 @@ def reach(probe: Probe, target: Mode) -> None:
         # A virtual agent at full speed surfaces within a millisecond: the caller's command goes right behind.
         probe.defer(m.Surface(), Mode.SURFACING)
     elif target == Mode.PAUSED:
-        if mode not in (Mode.LEARNING, Mode.RECOVERING):
-            _start(probe)
-        _enter(probe, m.Pause(), {Mode.PAUSED})
+        def moving() -> None:
+            if probe.current_mode() not in (Mode.LEARNING, Mode.RECOVERING):
+                _start(probe)
+
+        moving()
+        _enter(probe, m.Pause(), {Mode.PAUSED}, moving)
     elif target == Mode.RECOVERING:
         _start_at_rest(probe, False)
         _start(probe)
@@ -156,18 +165,46 @@ def reach(probe: Probe, target: Mode) -> None:
                 return
 
 
-def _enter(probe: Probe, command: m.Message, modes: set[Mode]) -> Mode:
-    """Send a command that must be ACCEPTED; the first of `modes` shown after its ACK."""
+ENTER_TRIES = 4  # a command refused because the agent was passing through a mode that ends on its own is retried
+
+
+def _enter(probe: Probe, command: m.Message, modes: set[Mode], prepare: Callable[[], None] = lambda: None) -> Mode:
+    """Send a command that must be ACCEPTED; the first of `modes` shown after its ACK.
+
+    A NOT_ALLOWED_IN_MODE from an agent that the frames around the ACK show in a mode that ends on its own
+    (SURFACING after a CMD_SURFACE at the surface, an episode that just ended) is the check's race, not the
+    agent's fault (issue 26, D2): `prepare` brings the agent back to a mode the command needs and it is sent again.
+    """
     probe.notes["moved"] = 1.0
-    ex = probe.accepted(command, f"{command.DEFINITION.name} (to reach {'/'.join(x.name for x in modes)})")
-    return _wait(probe, modes, ex.ack_at)
+    what = f"{command.DEFINITION.name} (to reach {'/'.join(x.name for x in sorted(modes))})"
+    ack = m.Ack(cmd_msg_id=0, cmd_seq=0, result=0, reason="")
+    met: Mode | None = None
+    for _ in range(ENTER_TRIES):
+        ex = probe.command(command)
+        if ex.ack is None:
+            raise CheckFailed(f"{what}: no ACK within {probe.timeouts.reply_s:g} s")
+        ack = ex.ack
+        if ack.result == AckResult.ACCEPTED:
+            return _wait(probe, modes, ex.ack_at)
+        met = probe.mode_before(ex)
+        if ack.result != AckResult.NOT_ALLOWED_IN_MODE or met not in (None, *TRANSIENT):
+            break
+        prepare()
+    met_name = met.name if met is not None else "a mode its frames do not show"
+    raise CheckFailed(f"{what}: refused with {result_name(ack.result)} ({ack.reason}) in {met_name}")
+
+
+TRANSIENT = (Mode.SURFACING, Mode.LEARNING, Mode.RECOVERING)  # modes an agent leaves on its own
 
 
 def _start(probe: Probe) -> Mode:
     """CMD_START; returns once the agent shows RECOVERING (or LEARNING, when episodes start at once)."""
-    if probe.current_mode() not in (Mode.IDLE, Mode.HOVER, Mode.PAUSED):
-        go_idle(probe)
-    return _enter(probe, m.StartLearning(max_episodes=0), {Mode.RECOVERING, Mode.LEARNING})
+    def settle() -> None:
+        if probe.current_mode() not in (Mode.IDLE, Mode.HOVER, Mode.PAUSED):
+            go_idle(probe)
+
+    settle()
+    return _enter(probe, m.StartLearning(max_episodes=0), {Mode.RECOVERING, Mode.LEARNING}, settle)
 
 
 START_AT_REST = "start_at_rest"

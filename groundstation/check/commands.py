@@ -114,3 +114,22 @@ def memory_16(probe: Probe) -> str:
         expect(other.ack is not None, "LOG_REQUEST: no ACK")
     _retry_not_run(probe, first, "the retry after 15 other commands")
     return "a retry 15 commands later: same ACK, not executed"
+
+
+@check("ack.memory_per_session", SECTION, """(1.2) The memory is emptied at the start of every session (a new
+       connection, or a HELLO from the ground), so a new session's seq never gets an old session's ACK with nothing
+       executed.""")
+def memory_per_session(probe: Probe) -> str:
+    from protocol import NodeKind, definitions_hash
+
+    first = probe.accepted(m.ParamGet(index=1, name=""), "PARAM_GET index 1")
+    expect(probe.wait_message(m.ParamValue, first.ack_at, probe.timeouts.reply_s) is not None,
+           "PARAM_GET index 1: no PARAM_VALUE")
+    probe.send(m.Hello(protocol_version=1, node_kind=int(NodeKind.GROUND), definitions_hash=definitions_hash(),
+                       node_id=0, boot_id=1))  # a new session starts
+    again = probe.command_inner(probe.retry_inner(first.inner))  # the same (msg_id, seq), a fresh signature
+    expect(again.result == AckResult.ACCEPTED, f"the same seq in a new session: {result_name(again.result)}")
+    found = probe.wait_message(m.ParamValue, again.ack_at, probe.timeouts.reply_s)
+    expect(found is not None, "the same (msg_id, seq) after a ground HELLO was answered from the ACK memory "
+           "(no PARAM_VALUE): a new session's command got an old session's ACK")
+    return "after a ground HELLO the same (msg_id, seq) was executed again"

@@ -167,14 +167,27 @@ def counts_stale(probe: Probe) -> str:
     return "STALE after learning steps"
 
 
+NATURAL_END_WAIT_S = 5.0  # how long an episode may end on its own before the check ends it (CMD_STOP)
+
+
 @check("dump.each_episode", SECTION, """If the parameter dump_each_episode is 1, the agent sends a VALUES snapshot
-       and then a POLICY snapshot (new ids, all chunks, unprompted) after every EPISODE_END.""", motion=True)
+       and then a POLICY snapshot (new ids, all chunks, unprompted) after every EPISODE_END, aborted ones included
+       (1.2).""", motion=True)
 def each_episode(probe: Probe) -> str:
     s = states(probe)
     with overridden(probe, {"dump_each_episode": 1.0}):
         reach(probe, Mode.LEARNING)
-        end = probe.wait_message(m.EpisodeEnd, probe.end, probe.timeouts.mode_s)
-        expect(end is not None, f"no EPISODE_END within {probe.timeouts.mode_s:g} s of learning")
+        since = probe.end
+        end = probe.wait_message(m.EpisodeEnd, since, NATURAL_END_WAIT_S)
+        how = "EPISODE_END"
+        if end is None:
+            how = "EPISODE_END aborted (CMD_STOP)"
+            # A learner that holds the depth lasts success_time_s (300 s): end the episode ourselves. SPEC 1.2 s. 10:
+            # the dumps follow every EPISODE_END, an aborted one too.
+            stop = probe.accepted(m.Stop(), "CMD_STOP (to end the episode)")
+            end = probe.wait_message(m.EpisodeEnd, since, probe.timeouts.reply_s)
+            del stop
+        expect(end is not None, f"no EPISODE_END after the episode's CMD_STOP within {probe.timeouts.reply_s:g} s")
         assert end is not None
         size = 5 * s
 
@@ -188,4 +201,4 @@ def each_episode(probe: Probe) -> str:
         expect(order[:2] == [int(DumpKind.VALUES), int(DumpKind.POLICY)],
                f"after EPISODE_END came chunks of kinds {order[:4]}, wanted VALUES then POLICY")
     reach(probe, Mode.IDLE)
-    return "VALUES then POLICY after EPISODE_END"
+    return f"VALUES then POLICY after {how}"

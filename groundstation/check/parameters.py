@@ -6,7 +6,7 @@ import math
 
 from groundstation.check.agent import get_param, is_f32, param_table, reach, require_set, set_param, states
 from groundstation.check.probe import Probe, result_name
-from groundstation.check.registry import check, expect
+from groundstation.check.registry import CheckSkipped, check, expect
 from protocol import AckResult, Mode, ParamType
 from protocol import messages as m
 from protocol import parameters as spec_params
@@ -47,7 +47,9 @@ def listing(probe: Probe) -> str:
 
 
 @check("params.table", SECTION, """Every learner and mission parameter, by index and name [the table of section
-       13: index, name, type, min, max]. A real agent reports start_at_rest with minimum = maximum = 0.""")
+       13: index, name, type, min, max]. An agent that does not implement an optional feature [start_at_rest, the
+       parameters from shared_model on] still lists the parameter at its index, reports it with minimum = maximum =
+       its default.""")
 def table(probe: Probe) -> str:
     values = param_table(probe)
     problems = []
@@ -58,8 +60,12 @@ def table(probe: Probe) -> str:
             continue
         if v.index != d.index or v.param_type != d.param_type:
             problems.append(f"{d.name}: index {v.index} type {v.param_type}, SPEC says {d.index} {int(d.param_type)}")
-        if (v.minimum, v.maximum) not in ((d.minimum, d.maximum), d.firmware_range()):
-            problems.append(f"{d.name}: range [{v.minimum!r}, {v.maximum!r}], SPEC says [{d.minimum!r}, {d.maximum!r}]")
+        if (v.minimum, v.maximum) not in d.ranges_allowed():
+            problems.append(f"{d.name}: range [{v.minimum!r}, {v.maximum!r}], SPEC says [{d.minimum!r}, {d.maximum!r}]"
+                            + (f" or, not implemented, [{d.default!r}, {d.default!r}]" if d.optional else ""))
+        elif v.minimum == v.maximum and v.value != d.default:
+            problems.append(f"{d.name}: fixed at {v.value!r}, an optional parameter not implemented reports its "
+                            f"default {d.default!r}")
     expect(not problems, "; ".join(problems[:4]) + (f" (+{len(problems) - 4} more)" if len(problems) > 4 else ""))
     return f"{len(spec_params.PARAMS)} parameters as SPEC.md lists them"
 
@@ -148,27 +154,37 @@ def refused_in_mode(probe: Probe) -> str:
     problems: list[str] = []
     for _ in range(20):  # a short episode (hardware preset, a loaded host) may end after a few parameters
         reach(probe, Mode.LEARNING)
-        for d in settable:
-            if d.name in in_learning:
+        # All parameters still to meet LEARNING in one write: an agent far faster than real time (the C firmware
+        # at --speed max) ends an episode within milliseconds, too soon for one round trip per parameter.
+        todo = [d for d in settable if d.name not in in_learning]
+        sent = probe.burst([m.ParamSet(index=-1, value=values[d.name].value, name=d.name) for d in todo])
+        for d, ex in zip(todo, sent, strict=True):
+            if ex.ack is None:
+                problems.append(f"{d.name}: no ACK within {probe.timeouts.reply_s:g} s")
                 continue
-            ex = probe.command(m.ParamSet(index=-1, value=values[d.name].value, name=d.name))
             mode = probe.mode_before(ex)
             if mode is None:
                 continue
             wanted = AckResult.NOT_ALLOWED_IN_MODE if mode in d.refused_in else AckResult.ACCEPTED
             if ex.result != wanted:
+                # A failure only where the frames on both sides of the ACK show that mode: an episode may end
+                # between the LEARNING the check saw and the PARAM_SET's arrival (issue 26, D3). Not established:
+                # tried again, never judged on a guess.
+                if probe.mode_during(ex) != mode:
+                    continue
                 problems.append(f"{d.name} in {mode.name}: {result_name(ex.result)}, wanted {wanted.name}")
             if mode == Mode.LEARNING:
                 in_learning.add(d.name)
-        if len(in_learning) == len(settable):
+        if len(in_learning) == len(settable) or problems:
             break
     bad = probe.command(m.ParamSet(index=-1, value=math.nan, name="gamma"))
     expect(bad.result == AckResult.BAD_VALUE,
            f"gamma = NaN in {probe.mode_before(bad)}: {result_name(bad.result)}, wanted BAD_VALUE (value first)")
     expect(not problems, "; ".join(problems[:4]))
     expect(not missing, f"the agent lacks {', '.join(missing)}")
-    expect(len(in_learning) == len(settable),
-           f"only {len(in_learning)} of {len(settable)} parameters met the agent in LEARNING")
+    if len(in_learning) < len(settable):  # the check could not meet LEARNING often enough: not the agent's fault
+        raise CheckSkipped(f"only {len(in_learning)} of {len(settable)} parameters met the agent in LEARNING in 20 "
+                           "episodes (episodes too short for the link's round trips; a lower speed helps)")
     return f"{len(settable)} parameters set in LEARNING (and the modes met on the way) as the table says"
 
 

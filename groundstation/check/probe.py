@@ -30,6 +30,8 @@ _ACK_REQUESTED = int(FrameFlag.ACK_REQUESTED)
 _REPLAYED = int(FrameFlag.REPLAYED)
 _SIGNED = int(FrameFlag.SIGNED)
 _MODES = {int(x) for x in Mode}
+# Commands whose ACCEPTED may change the mode (SPEC.md 6): the mode shown before their ACK is no longer the present.
+_MOVES = {m.StartLearning.MSG_ID, m.Stop.MSG_ID, m.Pause.MSG_ID, m.Surface.MSG_ID, m.Hover.MSG_ID}
 T = TypeVar("T", bound=Message)
 
 
@@ -191,10 +193,15 @@ class Probe:
         frames = self.decoder.feed(data)
         for frame in frames:
             mode = mode_of(frame)
+            msg = frame.message
             if mode is not None:
                 self.mode = mode
-            elif isinstance(frame.message, m.Hello):
-                self.hello = frame.message
+            elif isinstance(msg, m.Hello):
+                self.hello = msg
+            elif _ends_present(frame):
+                # The mode shown so far is the past: an accepted command that moves the agent (CMD_SURFACE in IDLE
+                # shows SURFACING for a step, SPEC.md 6) or an episode that ended. Wait for a frame that shows it.
+                self.mode = None
             self._frames.append(frame)
         while len(self._frames) > KEPT_FRAMES:
             self._frames.popleft()
@@ -257,6 +264,16 @@ class Probe:
         self.send_inner(inner, valid)
         return self.await_ack(Exchange(inner[4], int.from_bytes(inner[2:4], "little"), inner, start), timeout_s)
 
+    def burst(self, messages: list[Message]) -> list[Exchange]:
+        """Send commands in one write, without waiting in between (the agent handles them back to back, within a
+        step or two of each other), and wait for each one's ACK."""
+        start = self.end
+        inners = [self.inner(msg.MSG_ID, msg.pack(), _ACK_REQUESTED) for msg in messages]
+        self.send_raw(b"".join(cobs_encode(inner) + b"\x00" for inner in inners))
+        self.sent_valid += len(inners)
+        sent = [Exchange(inner[4], int.from_bytes(inner[2:4], "little"), inner, start) for inner in inners]
+        return [self.await_ack(ex) for ex in sent]
+
     def await_ack(self, ex: Exchange, timeout_s: float | None = None) -> Exchange:
         found = self.wait_message(m.Ack, ex.sent_at, self.timeouts.reply_s if timeout_s is None else timeout_s,
                                   lambda a: a.cmd_msg_id == ex.msg_id and a.cmd_seq == ex.seq)
@@ -309,10 +326,12 @@ class Probe:
     def current_mode(self) -> Mode:
         """The mode the agent's newest frames show (waits for one if none has come yet)."""
         self.pump(0.0)
-        if self.mode is None:
-            if self.wait(lambda f: mode_of(f) is not None, self.end, self.timeouts.heartbeat_s) is None:
-                raise CheckFailed("no SAMPLE or HEARTBEAT shows the agent's mode")
-        assert self.mode is not None
+        deadline = time.monotonic() + self.timeouts.heartbeat_s
+        while self.mode is None:  # none shown yet, or what was shown is the past (see pump)
+            if self.wait(lambda f: mode_of(f) is not None, self.end, max(0.0, deadline - time.monotonic())) is None:
+                raise CheckFailed(f"no SAMPLE or HEARTBEAT within {self.timeouts.heartbeat_s:g} s shows the agent's "
+                                  "mode")
+            self.drain()  # behind a backlog: the newest frames
         return self.mode
 
     def mode_before(self, ex: Exchange) -> Mode | None:
@@ -327,12 +346,31 @@ class Probe:
             if first.ack is None:
                 self.await_ack(first, 0.0)
         for index in range(ex.ack_at - 1, self._first - 1, -1):
-            shown = mode_of(self.frame(index))
+            frame = self.frame(index)
+            shown = mode_of(frame)
             if shown is not None:
                 return shown
             if entered is not None and index == entered[0].ack_at:
                 return mode if entered[0].result == AckResult.ACCEPTED else None
+            if _ends_present(frame):
+                return None  # the agent left the mode last shown (an episode ended, a command moved it): unknown
         return None
+
+    def mode_during(self, ex: Exchange) -> Mode | None:
+        """The mode the agent was in when it handled a command that does not move it (PARAM_SET, CMD_DUMP...):
+        the last mode shown before the ACK, if the first shown after it is the same and no frame between them
+        says the agent left it (an EPISODE_END, EPISODE_START, another command that moves it). None when the
+        frames around the ACK cannot tell: the caller tries again, it never judges on a guess."""
+        if ex.ack is None:
+            return None
+        before = self.mode_before(ex)
+        if before is None:
+            return None
+        found = self.wait(lambda f: mode_of(f) is not None or _ends_present(f), ex.ack_at + 1,
+                          self.timeouts.heartbeat_s)
+        if found is None or mode_of(found[1]) != before or isinstance(found[1].message, m.EpisodeStart):
+            return None
+        return before
 
     def mode_after(self, ex: Exchange) -> Mode | None:
         """The first mode shown after the command's ACK."""
@@ -366,6 +404,17 @@ class Probe:
             self.link.close()
         except LinkError:
             pass
+
+
+def _ends_present(frame: Frame) -> bool:
+    """A live frame after which the mode shown before it may no longer hold: an EPISODE_END (the agent leaves
+    LEARNING), or the ACCEPTED ACK of a command that moves the agent."""
+    if frame.flags & _REPLAYED:
+        return False
+    msg = frame.message
+    if isinstance(msg, m.EpisodeEnd):
+        return True
+    return isinstance(msg, m.Ack) and msg.result == AckResult.ACCEPTED and msg.cmd_msg_id in _MOVES
 
 
 def result_name(result: int | None) -> str:

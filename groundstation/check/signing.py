@@ -174,3 +174,27 @@ def surface_always(probe: Probe) -> str:
     expect(ex.result == AckResult.ACCEPTED, f"CMD_SURFACE stamped 180 s ago: {result_name(ex.result)}, wanted "
            "ACCEPTED")
     return "CMD_SURFACE stamped 180 s ago was ACCEPTED"
+
+
+@check("signing.surface_unsigned", SECTION, """Emergencies (1.2): an agent with a key executes a CMD_SURFACE that is
+       unsigned or whose signature does not verify: surfacing is the fail-safe state (anyone may make the agent
+       surface, nobody may make it dive). It is ACCEPTED with a reason that says so, not counted in
+       signing_rejects, and no sign of life.""", key=True, motion=True)
+def surface_unsigned(probe: Probe) -> str:
+    from groundstation.check.agent import go_idle
+
+    probe.accepted(_get())
+    before = probe.counters()
+    ex = probe.command(m.Surface(), signer=False)
+    expect(ex.result == AckResult.ACCEPTED, f"an unsigned CMD_SURFACE: {result_name(ex.result)}, wanted ACCEPTED")
+    assert ex.ack is not None
+    expect(bool(ex.ack.reason), "the ACK of an unsigned CMD_SURFACE does not say it ran unverified (empty reason)")
+    other = Signer(os.urandom(32), probe.signer.link_id if probe.signer else 0)
+    wrong = probe.command(m.Surface(), signer=other)
+    expect(wrong.result == AckResult.ACCEPTED,
+           f"a CMD_SURFACE signed with another key: {result_name(wrong.result)}, wanted ACCEPTED")
+    after = probe.counters()
+    grew = (after.signing_rejects - before.signing_rejects) & 0xFFFFFFFF
+    expect(grew == 0, f"signing_rejects +{grew} for CMD_SURFACEs that ran, wanted +0")
+    go_idle(probe)
+    return f"unsigned and wrongly signed CMD_SURFACE ACCEPTED ({ex.ack.reason})"

@@ -85,7 +85,10 @@ class Session(ReceiveLoop):
         return ack
 
     def refresh_params(self, timeout_s: float = 3.0) -> ParamTable:
-        """PARAM_LIST, wait for the whole table; fall back to the disk cache if the agent stays silent."""
+        """PARAM_LIST, wait for the whole table; fall back to the disk cache if the agent stays silent.
+
+        A refusal (UNAUTHORIZED from a keyed agent: no key or a wrong one) is the agent's answer, not silence: it
+        raises CommandError with the agent's reason (issue 26, D4), never a cached table that looks like success."""
         assert self.agent_hello is not None
         key = (self.agent_hello.definitions_hash, self.agent_hello.node_id)
         try:
@@ -93,7 +96,7 @@ class Session(ReceiveLoop):
             with self._cond:
                 self._cond.wait_for(lambda: self._expected_params and len(self.params) >= self._expected_params,
                                     timeout_s)
-        except CommandError:
+        except CommandTimeout:
             cached = load_cached(*key)
             if cached is None:
                 raise

@@ -31,6 +31,14 @@ def snapshot_bytes(learner: Learner, kind: DumpKind) -> bytes:
     raise ValueError(f"unknown dump kind {kind}")
 
 
+BYTES_PER_STATE = {DumpKind.VALUES: 4, DumpKind.POLICY: 1, DumpKind.Q_VALUES: 8}  # COUNTS: 4 S per state
+
+
+def snapshot_size(states: int, kind: DumpKind) -> int:
+    """A snapshot's size before it is taken (SPEC s. 10 layouts): a request refused for its offset takes none."""
+    return BYTES_PER_STATE.get(kind, 4 * states) * states
+
+
 @dataclass(frozen=True)
 class Snapshot:
     dump_id: int

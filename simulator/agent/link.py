@@ -6,6 +6,7 @@ import os
 from collections.abc import Callable
 from pathlib import Path
 
+from learning import n_states
 from protocol import (
     PROTOCOL_VERSION,
     AckResult,
@@ -37,6 +38,8 @@ LOG_REPLAY_SAMPLES = 512  # SPEC s. 7: one LOG_REQUEST replays at most this many
 _DUMP_KINDS = {int(k) for k in DumpKind}
 _SURFACE_ID = messages.Surface.MSG_ID
 _ACK_ID = messages.Ack.MSG_ID
+# The ACK reason of a CMD_SURFACE run without a valid signature or with a stale timestamp (SPEC 1.2 s. 12).
+UNVERIFIED_SURFACE = "surfacing without a valid signature: the fail-safe"
 
 # A command's verdict and what follows its ACK: messages, or inner frames of the on-board log to replay.
 Outcome = tuple[Verdict, list[Message | bytes]]
@@ -196,6 +199,7 @@ class AgentLink:
     def on_connect(self) -> None:
         """A new link: sequence tracking starts over, and the agent introduces itself until it hears the ground."""
         self.decoder.reset_sequence()
+        self._answered.clear()  # SPEC 1.2 s. 5: a new session's seqs must not meet the last one's ACKs
         self._connected, self._heard = True, False
         self.hello()
 
@@ -227,6 +231,7 @@ class AgentLink:
     def _handle(self, frame: Frame) -> None:
         message = frame.message
         if isinstance(message, messages.Hello):  # SPEC s. 4: every ground HELLO is answered
+            self._answered.clear()  # SPEC 1.2 s. 5: a ground HELLO starts a session, with an empty ACK memory
             self.hello()
         elif isinstance(message, messages.Timesync):
             if message.receive_us == 0 and message.transmit_us == 0:
@@ -240,32 +245,42 @@ class AgentLink:
         self._ack(frame, AckResult.UNAUTHORIZED, why)
 
     def _command(self, frame: Frame) -> None:
-        """SPEC s. 5, order of checks: truncated, HMAC, ACK memory, timestamp, unknown id, the command itself."""
+        """SPEC s. 5, order of checks: truncated, HMAC, ACK memory, timestamp, unknown id, the command itself.
+
+        CMD_SURFACE is exempt from the signature checks (SPEC 1.2 s. 12, emergencies): surfacing is the fail-safe
+        state, so anyone may make the agent surface (nobody may make it dive). Its ACK says it ran unverified.
+        """
         message, verifier = frame.message, self.verifier
         if verifier is None:  # without a key every frame counted in rx_frames is a sign of life (SPEC s. 4)
             self._alive()
         if isinstance(message, UndecodedCommand) and message.truncated:
             self._refuse(frame, "truncated signature")
             return
+        unverified = ""
         if verifier is not None:
             check = verifier.authenticate(frame.inner)
             if check is not SignatureCheck.VALID:
-                self._refuse(frame, f"signature {check.name.lower().replace('_', ' ')}")
-                return
+                if frame.msg_id != _SURFACE_ID:
+                    self._refuse(frame, f"signature {check.name.lower().replace('_', ' ')}")
+                    return
+                unverified = check.name.lower().replace("_", " ")
         answered = self._answered.get((frame.msg_id, frame.seq))
         if answered is not None:
             self._ack(frame, AckResult(answered[0]), answered[1])  # a retry: answer again, do not act again
             return
-        if verifier is not None:
+        if verifier is not None and not unverified:
             check = verifier.admit(frame.inner, self.link_clock_s())
             if check is SignatureCheck.VALID:
                 self._alive()
             elif frame.msg_id != _SURFACE_ID:  # surfacing is always safe: CMD_SURFACE runs whatever its timestamp
                 self._refuse(frame, f"signature {check.name.lower().replace('_', ' ')}")
                 return
-        self._execute(frame)
+            else:
+                unverified = check.name.lower().replace("_", " ")
+        self._execute(frame, f"{UNVERIFIED_SURFACE} ({unverified})" if unverified else "")
 
-    def _execute(self, frame: Frame) -> None:
+    def _execute(self, frame: Frame, note: str = "") -> None:
+        """Run a command and ACK it; `note` replaces an ACCEPTED's empty reason (an unverified CMD_SURFACE)."""
         handler = self._handlers.get(type(frame.message))
         replies: list[Message | bytes] = []
         self._deferred = []
@@ -276,6 +291,8 @@ class AgentLink:
                 result, reason = AckResult.UNSUPPORTED, f"command 0x{frame.msg_id:02X} not implemented"
         finally:
             deferred, self._deferred = self._deferred, None
+        if note and result == AckResult.ACCEPTED:
+            reason = note
         answered = self._answered
         answered[(frame.msg_id, frame.seq)] = (int(result), reason)
         if len(answered) > ACK_MEMORY:
@@ -344,15 +361,19 @@ class AgentLink:
         assert isinstance(m, messages.DumpRequest)
         if m.kind not in _DUMP_KINDS:
             return (AckResult.BAD_VALUE, f"no dump kind {m.kind}"), []
+        held = None
         if m.dump_id == 0:
-            snap = self.dumps.take(self._prog.learner, DumpKind(m.kind))
+            size = agent_dumps.snapshot_size(n_states(self._prog.config), DumpKind(m.kind))
         else:
             held = self.dumps.get(m.dump_id)
             if held is None or held.kind != m.kind:
                 return (AckResult.STALE, f"dump {m.dump_id} no longer held"), []
-            snap = held
-        if m.offset > len(snap.data):
-            return (AckResult.BAD_VALUE, f"offset {m.offset} past the {len(snap.data)}-byte snapshot"), []
+            size = len(held.data)
+        if m.offset > size:  # SPEC 1.2 s. 10: refused before a snapshot is taken (no id, no place used)
+            return (AckResult.BAD_VALUE, f"offset {m.offset} past the {size}-byte snapshot"), []
+        snap = held if held is not None else self.dumps.take(self._prog.learner, DumpKind(m.kind))
+        # All chunks are rendered here, before the next control step: a live snapshot is never sent as a mix of
+        # two models (SPEC 1.2 s. 10); the link paces them out afterwards.
         return (AckResult.ACCEPTED, ""), list(agent_dumps.chunks(snap, m.offset, m.length))
 
     def _log_request(self, m: Message) -> Outcome:

@@ -379,8 +379,7 @@ class OnboardProgram:
             self.table.values[index] = old
             return _not_allowed(self.mode)
         self.params, self.mission = new_params, new_mission
-        # The value it already had changes nothing (issue 27): the learner keeps what it learned. Compared as
-        # stored, since the config built from the table may differ from the preset's (f32 against f64).
+        # SPEC 1.2 s. 13: a change is a different stored value; the current one again restarts nothing.
         if definition.learner and self.table.values[index] != old and new_config != self.config:
             self.config = new_config
             self.learner = Learner(new_config, self.rng)

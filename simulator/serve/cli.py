@@ -25,6 +25,7 @@ from simulator.serve.firmware_qemu import QemuConfig, serve_qemu
 from simulator.serve.loop import FIRMWARES, AgentServer, ServeConfig
 
 EXIT_BAD_ARGUMENT = 2
+MIN_BAUD, MAX_BAUD = 1200, 10_000_000  # below 1200 not even a 1 Hz HEARTBEAT and IDLE SAMPLE fit comfortably
 
 
 def parse_tcp(text: str) -> tuple[str, int]:
@@ -160,11 +161,15 @@ def serve(
     report: Annotated[
         Path | None, typer.Option(help="At exit, write what the faults did and the samples produced (JSON).")
     ] = None,
+    baud: Annotated[int | None, typer.Option(help=(
+        "Pace the bytes to the ground at a UART's rate, 10 bits a byte (115200: the ESP8266 bridge's serial), "
+        "so dumps and log replays compete with SAMPLEs as on the real agent."))] = None,
 ) -> None:
     """Serve a virtual diving agent over TCP or a pseudo-terminal; prints what to connect to first."""
     if firmware == "qemu":
         refused = {"--preset": preset_name != "paper", "--learner": learner != "paper", "--params": params is not None,
-                   "--report": report is not None, "fault options": bool(drop or corrupt or delay or disconnect_every)
+                   "--report": report is not None, "--baud": baud is not None,
+                   "fault options": bool(drop or corrupt or delay or disconnect_every)
                    or blackout_below is not None}
         serve_on_qemu(tcp, pty, speed, seed, key_file, [name for name, given in refused.items() if given])
         return
@@ -172,6 +177,8 @@ def serve(
         if firmware == "c":
             _refuse_for_firmware(learner, params)
         host, port = parse_tcp(tcp)
+        if baud is not None and not MIN_BAUD <= baud <= MAX_BAUD:
+            raise ParamsError(f"--baud wants {MIN_BAUD}-{MAX_BAUD} (10 bits a byte), got {baud}")
         plant = preset(preset_name)
         learner_config = learner_preset(learner)
         mission = MissionConfig()
@@ -183,7 +190,7 @@ def serve(
             host=host, port=port, pty=pty, speed=parse_speed(speed), seed=seed,
             key=read_key_file(key_file) if key_file is not None else None,
             mark_file=mark_path(key_file, state_dir) if key_file is not None else None,
-            firmware=parse_firmware(firmware),
+            firmware=parse_firmware(firmware), baud=baud,
         )
         server = AgentServer(config)
     except (SimulatorError, LearningError) as e:

@@ -20,7 +20,7 @@ from simulator.agent.mission import MissionConfig
 from simulator.agent.onboard import OnboardAgent, PythonAgent
 from simulator.parameters import PlantParams
 from simulator.serve.faults import MAX_LOGGED_SEQS, DelayLine, FaultConfig, FrameFaults, frame_seq
-from simulator.serve.transport import PtyTransport, TcpTransport, Transport
+from simulator.serve.transport import Pacer, PtyTransport, TcpTransport, Transport
 
 SLICE_S = 0.004  # longest the program runs before the sockets are served again
 MAX_WAIT_S = 0.02  # longest select() waits, so pty opens and delayed bytes are noticed
@@ -50,6 +50,7 @@ class ServeConfig:
     key: bytes | None = None  # signing key: commands must be signed (SPEC s. 12)
     mark_file: Path | None = None  # where the signing mark survives a restart (SPEC s. 12)
     firmware: str = "python"  # the on-board program: python (the reference), c (firmware/ host build)
+    baud: int | None = None  # bytes to the ground leave at a UART's rate (10 bits a byte); None = as fast as taken
 
 
 class AgentServer:
@@ -64,6 +65,8 @@ class AgentServer:
         self.transport: Transport = (
             PtyTransport(self.selector) if config.pty else TcpTransport(self.selector, config.host, config.port)
         )
+        if config.baud is not None:
+            self.transport.pacer = Pacer(config.baud)
         faults = config.faults
         self.out_faults = FrameFaults(faults, fault_rng)
         self._out_faulty = faults.active
@@ -266,6 +269,9 @@ class AgentServer:
         else:
             # Sleep until the next control step is due in agent time.
             wait = min(MAX_WAIT_S, max(0.0, (self.agent.t_us + 1 - due_us) / 1e6 / speed))
+        pacer, pending = self.transport.pacer, len(self.transport.outbuf)
+        if pacer is not None and pending and self.transport.connected:
+            wait = min(wait, pacer.wait_s(pending))  # the UART takes more bytes then
         for line in (self.out_delay, self.in_delay):
             release = line.next_release_s()
             if release is not None:

@@ -8,6 +8,7 @@ import os
 import select
 import selectors
 import socket
+import time
 import tty
 from abc import ABC, abstractmethod
 from collections.abc import Callable
@@ -27,6 +28,35 @@ class TransportError(SimulatorError, OSError):
     """The port cannot be opened (address in use, no pty available)."""
 
 
+BITS_PER_BYTE = 10  # a UART's 8N1 frame: a start bit, 8 data bits, a stop bit
+FIFO_BYTES = 64  # what a UART takes at once (its transmit FIFO): the burst a paced link allows
+
+
+class Pacer:
+    """Bytes leave at a UART's rate (baud / 10 a wall second), as through the ESP8266's 115 200-baud serial."""
+
+    def __init__(self, baud: int, clock: Callable[[], float] = time.monotonic) -> None:
+        self.bytes_per_s = baud / BITS_PER_BYTE
+        self._clock = clock
+        self._credit = float(FIFO_BYTES)
+        self._at = clock()
+
+    def allowed(self) -> int:
+        """Bytes the UART takes now."""
+        now = self._clock()
+        self._credit = min(float(FIFO_BYTES), self._credit + (now - self._at) * self.bytes_per_s)
+        self._at = now
+        return int(self._credit)
+
+    def spent(self, count: int) -> None:
+        self._credit -= count
+
+    def wait_s(self, pending: int) -> float:
+        """Wall seconds until the UART takes min(pending, its FIFO) bytes: when the loop should flush again."""
+        want = min(pending, FIFO_BYTES)
+        return max(0.0, (want - self._credit) / self.bytes_per_s)
+
+
 class Transport(ABC):
     """One client at a time; bytes out are buffered and flushed when the OS takes them.
 
@@ -38,6 +68,7 @@ class Transport(ABC):
     def __init__(self, selector: selectors.BaseSelector) -> None:
         self.selector = selector
         self.outbuf = bytearray()
+        self.pacer: Pacer | None = None  # --baud: bytes leave at a UART's rate
         self.on_connect: Callable[[], None] = lambda: None
         self.on_data: Callable[[bytes], None] = lambda data: None
         self.on_disconnect: Callable[[], None] = lambda: None
@@ -54,7 +85,20 @@ class Transport(ABC):
 
     @abstractmethod
     def flush(self) -> None:
-        """Write what the OS takes of the out buffer now, without blocking."""
+        """Write what the OS (and a paced link's UART) takes of the out buffer now, without blocking."""
+
+    def _sendable(self) -> bytes | bytearray:
+        """What to offer the OS now: all of the out buffer, or on a paced link what the UART takes."""
+        if self.pacer is None:
+            return self.outbuf
+        return self.outbuf[: self.pacer.allowed()]
+
+    def _sent(self, offered: int, sent: int) -> int:
+        """Account `sent` bytes; the selector events to wait for (writable only if the OS refused bytes)."""
+        if self.pacer is not None:
+            self.pacer.spent(sent)
+        del self.outbuf[:sent]
+        return selectors.EVENT_READ | (selectors.EVENT_WRITE if self.outbuf and sent < offered else 0)
 
     def poll(self) -> None:  # noqa: B027 - a hook: TCP is driven by selector events alone
         """Work that is not driven by selector events (pty open/close detection)."""
@@ -146,15 +190,15 @@ class TcpTransport(Transport):
         client = self.client
         if client is None or not self.outbuf:
             return
+        data = self._sendable()
         try:
-            sent = client.send(self.outbuf)
+            sent = client.send(data) if data else 0
         except (BlockingIOError, InterruptedError):
             sent = 0
         except OSError:
             self.drop_client()
             return
-        del self.outbuf[:sent]
-        want = selectors.EVENT_READ | (selectors.EVENT_WRITE if self.outbuf else 0)
+        want = self._sent(len(data), sent)
         if self.selector.get_key(client).events != want:
             self.selector.modify(client, want, self._ready)
 
@@ -237,8 +281,9 @@ class PtyTransport(Transport):
     def flush(self) -> None:
         if not self._open or not self.outbuf:
             return
+        data = self._sendable()
         try:
-            sent = os.write(self.master, self.outbuf)
+            sent = os.write(self.master, data) if data else 0
         except BlockingIOError:
             sent = 0
         except OSError as e:
@@ -246,8 +291,7 @@ class PtyTransport(Transport):
                 self.drop_client()
                 return
             raise
-        del self.outbuf[:sent]
-        want = selectors.EVENT_READ | (selectors.EVENT_WRITE if self.outbuf else 0)
+        want = self._sent(len(data), sent)
         if self.selector.get_key(self.master).events != want:
             self.selector.modify(self.master, want, self._ready)
 

@@ -103,3 +103,34 @@ def test_mark_survives_a_reboot(keyed: KeyedAgent) -> None:
     clock.ns += 11 * 10**9  # past the persisted mark (accepted + 10 s)
     fresh = FrameEncoder(first_seq=500, signer=Signer(KEY, 8, clock))
     assert results(keyed.send(fresh.encode(messages.Hover(depth_m=0.2), ACK).wire)) == [AckResult.ACCEPTED]
+
+
+def test_unsigned_or_wrongly_signed_surface_runs_and_says_so(keyed: KeyedAgent) -> None:
+    """SPEC.md 1.2 s. 12, emergencies: anyone may make a keyed agent surface; the ACK says it ran unverified."""
+    ground = FrameEncoder(first_seq=600, signer=Signer(KEY, 9))
+    assert results(keyed.send(ground.encode(messages.Hover(depth_m=0.2), ACK).wire)) == [AckResult.ACCEPTED]
+    plain = FrameEncoder(first_seq=700)
+    assert results(keyed.send(plain.encode(messages.Hover(depth_m=0.3), ACK).wire)) == [AckResult.UNAUTHORIZED]
+    surface = plain.encode(messages.Surface(), ACK).wire
+    acks = keyed.send(surface)
+    assert results(acks) == [AckResult.ACCEPTED] and "without a valid signature" in acks[0].reason
+    assert keyed.texts() == 1  # HOVER -> SURFACING
+    assert results(keyed.send(surface)) == [AckResult.ACCEPTED] and keyed.texts() == 0  # from the ACK memory
+    other = FrameEncoder(first_seq=800, signer=Signer(bytes(32), 3))
+    assert results(keyed.send(other.encode(messages.Surface(), ACK).wire)) == [AckResult.ACCEPTED]
+    assert keyed.agent.counters()["signing_rejects"] == 1  # the unsigned CMD_HOVER only
+
+
+def test_a_ground_hello_empties_the_ack_memory(keyed: KeyedAgent) -> None:
+    """SPEC.md 1.2 s. 5 (G1): after a ground HELLO, a remembered (msg_id, seq) is not answered from memory: with a
+    key its old timestamp is then refused as replayed, never given a stale ACK."""
+    from protocol import NodeKind, definitions_hash
+
+    ground = FrameEncoder(first_seq=900, signer=Signer(KEY, 10))
+    wire = ground.encode(messages.Hover(depth_m=0.2), ACK).wire
+    assert results(keyed.send(wire)) == [AckResult.ACCEPTED]
+    assert results(keyed.send(wire)) == [AckResult.ACCEPTED]  # remembered
+    hello = messages.Hello(protocol_version=1, node_kind=int(NodeKind.GROUND), definitions_hash=definitions_hash(),
+                           node_id=7, boot_id=1)
+    keyed.send(ground.encode(hello).wire)
+    assert results(keyed.send(wire)) == [AckResult.UNAUTHORIZED]  # memory emptied: the timestamp is a replay

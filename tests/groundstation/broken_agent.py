@@ -5,6 +5,13 @@
 Faults: `unknown-no-ack` (no ACK for an unknown command id, as the 1.0 agent did), `rejects-as-frames` (HEARTBEAT
 counts rejected chunks in rx_frames instead of rx_rejects), `silence-in-agent-time` (link silence measured on the
 agent's clock, which at --speed max runs far ahead of the link's real one).
+
+Conformant variants (what another lab's agent may do, and `dive check` must pass): `optional-unimplemented` (the
+optional parameters of SPEC.md 13, `start_at_rest` and those from `shared_model` on, listed with minimum = maximum
+= default, as a real agent without the shared-model learners reports them; with `--preset hardware`, whose
+`start_at_rest` is 0, it recovers before every episode as a real agent does), `slow-surface` (SURFACING lasts at
+least 1 s of agent time, at the surface too: a CMD_SURFACE in IDLE shows SURFACING for a second, as an agent whose
+depth filter settles slowly does; SPEC.md 6 says only "until shallower than 0.02 m").
 """
 
 from __future__ import annotations
@@ -54,8 +61,47 @@ def silence_in_agent_time() -> None:
     Link.__init__ = init  # type: ignore[method-assign]
 
 
+def optional_unimplemented() -> None:
+    from protocol.parameters import PARAMS
+    from simulator.agent.params_table import ParamTable
+
+    original = ParamTable.message
+
+    def message(self: ParamTable, index: int) -> messages.ParamValue:
+        built = original(self, index)
+        d = PARAMS[index]
+        if d.optional:
+            return messages.ParamValue(index=index, count=built.count, param_type=built.param_type, value=d.default,
+                                       minimum=d.default, maximum=d.default, name=built.name)
+        return built
+
+    ParamTable.message = message  # type: ignore[method-assign]
+
+
+SLOW_SURFACE_US = 1_000_000
+
+
+def slow_surface() -> None:
+    from protocol import Mode
+    from simulator.agent.program import OnboardProgram
+
+    original = OnboardProgram._enter
+
+    def enter(self: OnboardProgram, mode: Mode, why: str) -> None:
+        if mode == Mode.SURFACING and self.mode != Mode.SURFACING:
+            self.surfacing_since_us = self.t_us  # type: ignore[attr-defined]
+        elif self.mode == Mode.SURFACING and mode == Mode.IDLE and \
+                self.t_us - getattr(self, "surfacing_since_us", 0) < SLOW_SURFACE_US:
+            return  # not yet: the surface is noticed a second later
+        original(self, mode, why)
+
+    OnboardProgram._enter = enter  # type: ignore[method-assign]
+
+
 FAULTS: dict[str, Callable[[], None]] = {"unknown-no-ack": unknown_no_ack, "rejects-as-frames": rejects_as_frames,
-                                         "silence-in-agent-time": silence_in_agent_time}
+                                         "silence-in-agent-time": silence_in_agent_time,
+                                         "optional-unimplemented": optional_unimplemented,
+                                         "slow-surface": slow_surface}
 
 if __name__ == "__main__":
     for name in sys.argv.pop(1).split(","):
