@@ -9,7 +9,7 @@ from typer.testing import CliRunner
 
 from groundstation.cli.app import app
 from groundstation.session.keys import write_key_file
-from tests.groundstation.check.test_checks import BROKEN_AGENT, agent, by_result, check
+from tests.groundstation.check_helpers import BROKEN_AGENT, agent, by_result, check
 
 
 @pytest.mark.slow
