@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from learning import LearnerConfig
+from learning import LearnerConfig, resolve_learner
 from simulator.errors import StudyError
 from simulator.parameters import PlantParams
 from simulator.study.figures import write_figures
@@ -40,6 +40,7 @@ def build_summary(
     return {
         "preset": preset,
         "learner": learner,
+        "learner_preset": resolve_learner(learner),
         "trials": int(result.durations_s.shape[0]),
         "episodes": int(result.durations_s.shape[1]),
         "seed": result.seed,

@@ -6,6 +6,7 @@ import os
 import threading
 import time
 from collections.abc import Callable, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numba
@@ -17,7 +18,7 @@ from learning.config import kernel_spec
 from learning.rng import new_stream
 from simulator.errors import StudyError
 from simulator.parameters import PlantParams, kernel_params
-from simulator.study.kernel import N_COUNTERS, TrialArrays, run_trials
+from simulator.study.kernel import N_COUNTERS, TrialArrays, run_trial, run_trials
 
 _POLL_S = 0.1
 
@@ -54,11 +55,13 @@ def run_study(
     on_progress: Callable[[int], None] | None = None,
     threads: int | None = None,
     seeds: Sequence[int] | None = None,
+    plants: Sequence[PlantParams] | None = None,
 ) -> StudyResult:
     """Run the trials in parallel; on_progress(episodes done over all trials) is called as they go.
 
     With seeds, `trials` trials of each seed are pooled (trial t of seed k is the same trial as in a
-    study of that seed alone).
+    study of that seed alone). With plants (one per pooled trial, a plant family's draws), each trial
+    runs on its own plant; a trial on `params` gives the same result either way.
     """
     if trials <= 0 or episodes <= 0:
         raise StudyError(f"trials and episodes must be positive (got {trials} and {episodes})")
@@ -76,18 +79,31 @@ def run_study(
     policy = np.zeros((trials, s_count), dtype=np.int8)
     progress = np.zeros(trials, dtype=np.int64)
     counters = np.zeros((trials, N_COUNTERS), dtype=np.int64)
-    args = (
-        learner_streams, env_streams, params.target_depth_m, kernel_params(params), kernel_spec(config),
-        TrialArrays(durations, values, policy, counters), progress,
-    )
+    if plants is not None and len(plants) != trials:
+        raise StudyError(f"{len(plants)} plants for {trials} trials")
+    out = TrialArrays(durations, values, policy, counters)
+    lspec = kernel_spec(config)
+    args = (learner_streams, env_streams, params.target_depth_m, kernel_params(params), lspec, out, progress)
     failure: list[BaseException] = []
+
+    def one_trial(t: int) -> None:
+        assert plants is not None
+        rows = TrialArrays(durations[t], values[t], policy[t], counters[t])
+        run_trial(learner_streams[t], env_streams[t], plants[t].target_depth_m, kernel_params(plants[t]), lspec,
+                  rows, progress, t)
 
     def work() -> None:
         try:
-            numba.set_num_threads(threads)
-            # Trials differ in length: hand them out one at a time so neither core idles at the end.
-            with numba.parallel_chunksize(1):
-                run_trials(*args)
+            if plants is None:
+                numba.set_num_threads(threads)
+                # Trials differ in length: hand them out one at a time so neither core idles at the end.
+                with numba.parallel_chunksize(1):
+                    run_trials(*args)
+            else:
+                # One plant per trial: numba's prange takes one spec, so trials go to threads here (the
+                # trial kernel releases the GIL), one at a time as in the batch.
+                with ThreadPoolExecutor(threads) as pool:
+                    list(pool.map(one_trial, range(trials)))
         except BaseException as e:  # re-raised in the caller's thread below
             failure.append(e)
 
