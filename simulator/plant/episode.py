@@ -54,7 +54,8 @@ def neutral_alpha_kernel(spec: KernelSpec) -> float:
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _measure(env: NDArray[np.float64], dt_s: float, spec: KernelSpec, rng_state: NDArray[np.uint64]) -> None:
+def measure_kernel(env: NDArray[np.float64], dt_s: float, spec: KernelSpec, rng_state: NDArray[np.uint64]) -> None:
+    """Read the sensor into the measured depth; update the observer and the velocity the learner sees."""
     pressure_pa = sense_pressure_kernel(env[:E_PLANT_END], spec, rng_state)
     env[E_DEPTH_MEAS] = depth_from_pressure_kernel(pressure_pa, spec)
     obs = env[E_OBS_X1:E_OBS_X2 + 1]
@@ -72,7 +73,7 @@ def _recover(
     plant = env[:E_PLANT_END]
     dt = spec.recovery_period_s
     while True:
-        _measure(env, dt, spec, rng_state)
+        measure_kernel(env, dt, spec, rng_state)
         env[E_CMD] = recovery_update_kernel(
             rec, env[E_DEPTH_MEAS], env[E_OBS_X2], env[E_ALPHA], start_depth_m, dt, spec
         )
@@ -116,7 +117,7 @@ def episode_reset_kernel(
         plant_place(env[:E_PLANT_END], start_m, 0.0, env[E_CENTER])
         env[E_OBS_X1] = start_m
         env[E_OBS_X2] = 0.0
-        _measure(env, 0.0, spec, rng_state)
+        measure_kernel(env, 0.0, spec, rng_state)
     env[E_STARTED] = 1.0
     if lspec.velocity_diff_steps > 0:
         # The agent has been measuring depth all along (recovery, or at rest): a full, flat history.
@@ -176,7 +177,7 @@ def episode_step_kernel(
     # The learner believes every step lasts control_period_s; the plant may run a jittered one.
     plant_step(env[:E_PLANT_END], env[E_CMD], jittered_period_s(spec.control_period_s, spec, rng_state), spec)
     env[E_STEPS] += 1.0
-    _measure(env, spec.control_period_s, spec, rng_state)
+    measure_kernel(env, spec.control_period_s, spec, rng_state)
     if lspec.velocity_diff_steps > 0:
         _depth_difference(env, spec, lspec)
     next_state = _state(env, target_depth_m, spec, lspec)

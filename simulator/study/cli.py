@@ -123,6 +123,8 @@ def study(
             print(json.dumps(rows, indent=2))
         else:
             _print_table(rows, err)
+            for run, summary in zip(runs, summaries, strict=True):
+                _print_quality(run.label, summary, err)
             err.print(f"results in {out_dir}")
         return
     summary, result = summaries[0], results[0]
@@ -132,10 +134,32 @@ def study(
         curves = summary["alc_curves"]
         median = curves["median"]["stable_from"]
         best = curves["best_quarter_q75"]["stable_from"]
+        own = summary["across_trials"]["alc_stable_from"]
         err.print(
             f"wall {result.wall_s:.1f} s on {result.threads} threads; median ALC stable from {median}, "
-            f"best quarter from {best}; results in {out_dir}"
+            f"best quarter from {best}; never stable {_percent(own['fraction_never'], own['fraction_never_ci95'])}"
+            f"; results in {out_dir}"
         )
+        _print_quality(runs[0].label, summary, err)
+
+
+def _print_quality(label: str, summary: dict[str, Any], console: Console) -> None:
+    """Hold quality beside the recovery controller's, and the hardware goals judged on their intervals."""
+    hold = summary.get("hold_quality")
+    if hold is not None and hold["learner"]["episodes"]:
+        mine, rec = hold["learner"], hold.get("recovery", {})
+
+        def med(block: dict[str, Any], key: str) -> str:
+            return _fmt(block.get(key, {}).get("median"))
+
+        console.print(
+            f"{label} hold (median over {mine['episodes']} late successful episodes; recovery controller in "
+            f"brackets): RMS {med(mine, 'rms_depth_error_mm')} mm ({med(rec, 'rms_depth_error_mm')}), "
+            f"peak-to-peak {med(mine, 'peak_to_peak_mm')} mm ({med(rec, 'peak_to_peak_mm')}), "
+            f"travel {med(mine, 'actuator_travel_deg_per_min')} deg/min "
+            f"({med(rec, 'actuator_travel_deg_per_min')})")
+    for line in summary.get("hardware_goals", []):
+        console.print(f"{label} goal {line}")
 
 
 def _advance(bar: Progress, task: TaskID, done: int) -> None:

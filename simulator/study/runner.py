@@ -18,6 +18,7 @@ from learning.config import kernel_spec
 from learning.rng import new_stream
 from simulator.errors import StudyError
 from simulator.parameters import PlantParams, kernel_params
+from simulator.study.hold import N_HOLD, RECOVERY_HOLDS, recovery_hold_trial, recovery_holds
 from simulator.study.kernel import N_COUNTERS, TrialArrays, run_trial, run_trials
 
 _POLL_S = 0.1
@@ -37,6 +38,8 @@ class StudyResult:
     # [trials, 4]: model slot evictions, planning sweeps in all, most sweeps of one call, planning calls
     counters: NDArray[np.int64] | None = None
     seeds: tuple[int, ...] = ()  # every seed pooled, trials of seeds[0] first
+    hold: NDArray[np.float64] | None = None  # [trials, episodes, N_HOLD] hold quality per successful episode
+    recovery_hold: NDArray[np.float64] | None = None  # [trials, RECOVERY_HOLDS, N_HOLD] the recovery controller's
 
 
 def trial_streams(seed: int, trial: int) -> tuple[NDArray[np.uint64], NDArray[np.uint64]]:
@@ -81,16 +84,21 @@ def run_study(
     counters = np.zeros((trials, N_COUNTERS), dtype=np.int64)
     if plants is not None and len(plants) != trials:
         raise StudyError(f"{len(plants)} plants for {trials} trials")
-    out = TrialArrays(durations, values, policy, counters)
+    hold = np.zeros((trials, episodes, N_HOLD))
+    recovery_hold = np.zeros((trials, RECOVERY_HOLDS, N_HOLD))
+    out = TrialArrays(durations, values, policy, counters, hold)
     lspec = kernel_spec(config)
     args = (learner_streams, env_streams, params.target_depth_m, kernel_params(params), lspec, out, progress)
+    # The recovery controller's holds start from the trials' own first starts: copies of their fresh streams.
+    hold_streams = env_streams.copy()
     failure: list[BaseException] = []
 
     def one_trial(t: int) -> None:
         assert plants is not None
-        rows = TrialArrays(durations[t], values[t], policy[t], counters[t])
-        run_trial(learner_streams[t], env_streams[t], plants[t].target_depth_m, kernel_params(plants[t]), lspec,
-                  rows, progress, t)
+        rows = TrialArrays(durations[t], values[t], policy[t], counters[t], hold[t])
+        spec = kernel_params(plants[t])
+        run_trial(learner_streams[t], env_streams[t], plants[t].target_depth_m, spec, lspec, rows, progress, t)
+        recovery_hold_trial(hold_streams[t], plants[t].target_depth_m, spec, lspec, recovery_hold[t])
 
     def work() -> None:
         try:
@@ -99,6 +107,7 @@ def run_study(
                 # Trials differ in length: hand them out one at a time so neither core idles at the end.
                 with numba.parallel_chunksize(1):
                     run_trials(*args)
+                recovery_holds(hold_streams, params.target_depth_m, args[3], lspec, recovery_hold)
             else:
                 # One plant per trial: numba's prange takes one spec, so trials go to threads here (the
                 # trial kernel releases the GIL), one at a time as in the batch.
@@ -118,4 +127,4 @@ def run_study(
     if failure:
         raise StudyError(f"study failed: {failure[0]}") from failure[0]
     return StudyResult(durations, values, policy, wall_s, model_memory_bytes(config), threads, seed, counters,
-                       seed_list)
+                       seed_list, hold, recovery_hold)
