@@ -73,3 +73,21 @@ def test_study_command_records_each_trials_plant(tmp_path: Path) -> None:
     assert len(plants) == 2 and plants[0] != plants[1]
     bad = CliRunner().invoke(app, ["study", "--plant-family", str(tmp_path / "none.toml"), "--out", str(tmp_path)])
     assert bad.exit_code != 0 and "cannot read" in bad.stderr and len(bad.stderr.strip().splitlines()) == 1
+
+
+def test_a_sweep_over_plant_files_and_a_family(tmp_path: Path) -> None:
+    from simulator.study.sweep import load_sweep, run_sweep
+
+    (tmp_path / "noisy.toml").write_text("pressure_noise_pa = 13.0\n")
+    (tmp_path / "fam.toml").write_text("[backlash_deg]\nuniform = [0.0, 2.0]\n")
+    sweep = tmp_path / "sweep.toml"
+    sweep.write_text('trials = 2\nepisodes = 3\npresets = ["hardware"]\nlearners = ["hardware"]\n'
+                     'plants = ["", "noisy.toml"]\nplant_family = "fam.toml"\n')
+    tasks = load_sweep(sweep)
+    assert [Path(t["plant"]).name if t["plant"] else "" for t in tasks] == ["", "noisy.toml"]
+    rows = run_sweep(tasks)
+    assert [(r["plant"], r["plant_family"]) for r in rows] == [("", "fam"), ("noisy", "fam")]
+    assert all(0.0 <= r["never_stable_ci95_low"] <= r["never_stable_ci95_high"] <= 1.0 for r in rows)
+    sweep.write_text('learners = ["hardware"]\nplants = ["missing.toml"]\n')
+    with pytest.raises(ParamsError, match="cannot read"):
+        load_sweep(sweep)
