@@ -63,6 +63,10 @@ def main() -> None:
           f"(per thread: {scaled_s / study_s / result.threads:.0f}x)")
     # CPU time is what a shared machine distorts least: work per learner step, all threads summed.
     cpu_ratio = (loop_cpu_s / loop_steps) / (study_cpu_s / study_steps)
+    # Issue 29's unit for sweep planning: CPU per trial-episode (planning included; 1.77 ms for the hardware
+    # learner, 0.54-0.69 ms for the paper learners when the issue was filed).
+    print(f"cpu per trial-episode: study {study_cpu_s / (args.trials * args.episodes) * 1e3:.3f} ms "
+          f"({args.preset}/{args.learner})")
     print(f"cpu per learner step: python loop {loop_cpu_s / loop_steps * 1e6:.2f} us, "
           f"study {study_cpu_s / study_steps * 1e9:.0f} ns; ratio {cpu_ratio:.0f}x; "
           f"study cpu {study_cpu_s:.1f} s = {study_cpu_s / result.threads:.1f} s per thread")

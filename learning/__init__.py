@@ -3,7 +3,7 @@
 from learning.config import LearnerConfig, ModelForm, n_states, terminal_state
 from learning.errors import LearnerConfigError, LearningError
 from learning.learner import Learner, learner_memory_bytes, model_memory_bytes, state_index
-from learning.presets import learner_names, learner_preset
+from learning.presets import learner_help, learner_names, learner_preset, resolve_learner
 
 __all__ = [
     "Learner",
@@ -11,11 +11,13 @@ __all__ = [
     "LearnerConfigError",
     "LearningError",
     "ModelForm",
+    "learner_help",
     "learner_names",
     "learner_preset",
     "learner_memory_bytes",
     "model_memory_bytes",
     "n_states",
+    "resolve_learner",
     "state_index",
     "terminal_state",
 ]

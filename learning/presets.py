@@ -47,15 +47,52 @@ _PRESETS: dict[str, LearnerConfig] = {
 }
 
 
+# Plain names a user can pick: the recommended learner of each plant preset (docs/reproduction.md).
+ALIASES: dict[str, str] = {
+    "hardware": "shared-z20-bins7-diff8-term100-vpen1",
+    "paper-best": "shared",
+}
+
+# One line each for `--help` (at most 34 characters: name, line and the help panel fit 80 columns).
+DESCRIPTIONS: dict[str, str] = {
+    "hardware": "alias: recommended on the robot",
+    "paper-best": "alias: best on the paper preset",
+    "paper": "the paper's, errata fixed",
+    "actuator3": "paper + 3 actuator bins in state",
+    "rmax": "paper + R-MAX (known at 3 tries)",
+    "literal": "every printed erratum",
+    "shared": "shared relocatable model",
+    "shared-bins3": "shared + 3 actuator bins",
+    "shared-bins13": "shared + 13 actuator bins",
+    "shared-bins13-diff4": "13 bins, 4-step depth diff",
+    "shared-bins7-diff8-term100-vpen1": "7 bins, 8-step diff, -100 end",
+    "shared-z20-bins7-diff8-term100-vpen1": "the same, 20 depth cells",
+    "shared-dirichlet": "shared as per-state prior",
+    "shared-epsilon": "shared + paper's exploration",
+    "shared-bonus": "shared + MBIE-EB count bonus",
+}
+
+
 def learner_names() -> list[str]:
-    """Names accepted by learner_preset."""
-    return sorted(_PRESETS)
+    """Names accepted by learner_preset: the aliases first, then the presets."""
+    return [*ALIASES, *sorted(_PRESETS)]
+
+
+def resolve_learner(name: str) -> str:
+    """The preset an alias stands for (a preset name is itself)."""
+    return ALIASES.get(name, name)
+
+
+def learner_help() -> str:
+    """Every learner with its one line, one per line, for a command's help."""
+    width = max(len(n) for n in learner_names())
+    return "\n".join(f"{n:<{width}}  {DESCRIPTIONS.get(n, '')}".rstrip() for n in learner_names())
 
 
 def learner_preset(name: str, **overrides: Any) -> LearnerConfig:
-    """The named learner configuration, optionally with fields replaced."""
+    """The named learner configuration (or an alias's), optionally with fields replaced."""
     try:
-        config = _PRESETS[name]
+        config = _PRESETS[resolve_learner(name)]
     except KeyError:
         choices = ", ".join(learner_names())
         raise LearnerConfigError(f"unknown learner {name!r}; choose one of {choices}") from None

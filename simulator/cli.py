@@ -6,6 +6,7 @@ import os
 
 import typer
 
+from learning import learner_help
 from simulator.fit.cli import fit
 from simulator.serve.cli import serve
 from simulator.study.cli import study
@@ -29,7 +30,8 @@ def _root() -> None:
     """The virtual diving agent and the batch study runner."""
 
 
-app.command(name="study")(study)
+# Every learner on a line of its own (typer's help keeps a line break only between paragraphs).
+app.command(name="study", epilog="\n\n".join(["Learners:", *learner_help().splitlines()]))(study)
 app.command(name="fit")(fit)
 
 

@@ -35,8 +35,12 @@ class PlantParams:
     stroke_volume_m3: float = 14.44e-6  # F: A_dia 707 mm^2 x h_max 20.42 mm
     alpha_max_deg: float = 130.0  # F: gear output range 0..130 deg, neutral at mid-stroke
     alpha_rate_dps: float = 35.2  # F: 500 full steps/s, 18 deg/step, 256:1 gear
+    # The real actuator's imperfections (docs/robust-plant.md; 0 = the ideal actuator above).
+    backlash_deg: float = 0.0  # E: gear output lost motion on reversal; robot 0..3 deg (256:1 spur train)
+    dead_band_deg: float = 0.0  # E: the stepper stops within half of it short of the command; robot 0..1 deg
     # --- the learner's actuator interface
     control_period_s: float = 0.1  # F: RL loop period (P: 0.02-0.2 s)
+    control_jitter_s: float = 0.0  # E: each learner step lasts the period +/- up to this (uniform); robot 0..0.01 s
     action_step_deg: float = 2.1  # F: alpha_cmd -/+ 2.1 deg per RL step
     action_window_deg: float = 19.5  # F: alpha_cmd clipped to alpha_avg +/- 19.5 deg (+/- 2.17 ml)
     # --- integration
@@ -47,6 +51,12 @@ class PlantParams:
     pressure_lsb_pa: float = 1.0  # S: output resolution 0.01 mbar
     pressure_min_pa: float = 1000.0  # S: range 10 mbar ..
     pressure_max_pa: float = 130000.0  # S: .. 1300 mbar, about 2.9 m of water
+    # The real sensor's imperfections (docs/robust-plant.md; 0 = the ideal sensor above).
+    pressure_bias_pa: float = 0.0  # E: offset of every reading (P0 taken at a wavy surface); robot -100..100 Pa
+    pressure_drift_pa_per_s: float = 0.0  # E: the offset grows with plant time (weather, warm-up); robot +/-0.03
+    pressure_lag_s: float = 0.0  # E: first-order lag of the sensed depth behind the true one; robot 0..0.3 s
+    pressure_noise_corr_s: float = 0.0  # E: AR(1) noise correlation time (0 = white); robot 0..1 s
+    depth_scale_error: float = 0.0  # E: sensed depth = true depth x (1 + this) (water density, span); +/-0.03
     # --- sliding mode velocity observer (diving-agent.md s. 3)
     use_observer: bool = True  # F: the agent measures depth only; False feeds the true velocity
     observer_rho_mps: float = 2.5  # F
@@ -151,6 +161,13 @@ def validate(params: PlantParams) -> PlantParams:
         raise ParamsError("substep_s must not exceed the control periods")
     if params.added_mass_kg < 0 or params.drag_kgpm < 0 or params.pressure_noise_pa < 0:
         raise ParamsError("added mass, drag and noise must not be negative")
+    for name in ("backlash_deg", "dead_band_deg", "control_jitter_s", "pressure_lag_s", "pressure_noise_corr_s"):
+        if getattr(params, name) < 0:
+            raise ParamsError(f"parameter {name!r} must not be negative")
+    if params.control_jitter_s >= params.control_period_s - params.substep_s:
+        raise ParamsError("control_jitter_s must be shorter than control_period_s less one substep_s")
+    if params.depth_scale_error <= -0.5 or params.depth_scale_error >= 0.5:
+        raise ParamsError("depth_scale_error must lie within -0.5 .. 0.5")
     return params
 
 

@@ -1,4 +1,4 @@
-/* simulator/plant_kernel.py in C: z'' = a0 + a_alpha alpha + a_z z - a_drag z'|z'|, semi-implicit Euler. */
+/* simulator/plant/kernel.py in C: z'' = a0 + a_alpha alpha + a_z z - a_drag z'|z'|, semi-implicit Euler. */
 #include "plant.h"
 
 #include <math.h>
@@ -18,6 +18,28 @@ void plant_hardware_params(plant_params_t *p)
     p->alpha_max_deg = 130.0;
     p->alpha_rate_dps = 35.2;
     p->substep_s = 0.005;
+    p->backlash_deg = 0.0;
+    p->dead_band_deg = 0.0;
+    p->pressure_lag_s = 0.0;
+    p->control_jitter_s = 0.0;
+}
+
+void plant_place(plant_state_t *x, double depth_m, double velocity_mps, double alpha_deg)
+{
+    x->z_m = depth_m;
+    x->zdot_mps = velocity_mps;
+    x->alpha_deg = alpha_deg;
+    x->motor_deg = alpha_deg;
+    x->sensed_z_m = depth_m;
+}
+
+double plant_jittered_period_s(const plant_params_t *p, rng_t *r, double period_s)
+{
+    if (p->control_jitter_s > 0.0) {
+        double u = (double)rng_draw53(r) * (1.0 / 9007199254740992.0);
+        return period_s + p->control_jitter_s * (2.0 * u - 1.0);
+    }
+    return period_s;
 }
 
 double plant_neutral_alpha_deg(const plant_params_t *p)
@@ -51,9 +73,24 @@ void plant_step(plant_state_t *x, const plant_params_t *p, double alpha_cmd_deg,
     double h_a0 = h * a0, h_alpha = h * a_alpha, h_z = h * a_z, h_drag = h * a_drag;
     int compressible = a_z != 0.0;
     double z = x->z_m, zdot = x->zdot_mps, alpha = x->alpha_deg;
+    int real_gear = p->backlash_deg > 0.0 || p->dead_band_deg > 0.0;
+    double motor = real_gear ? x->motor_deg : alpha;
+    double half_dead = 0.5 * p->dead_band_deg, half_lash = 0.5 * p->backlash_deg;
+    int lagged = p->pressure_lag_s > 0.0;
+    double sensed = x->sensed_z_m;
+    double lag_gain = lagged ? 1.0 - exp(-h / p->pressure_lag_s) : 1.0;
     for (long i = 0; i < n_sub; i++) {
-        /* The stepper moves toward the command at its top rate and stops at the end stops. */
-        alpha += clamp(target_deg - alpha, -max_move_deg, max_move_deg);
+        if (real_gear) {
+            /* The stepper stops within half the dead band; the output waits for the lost motion. */
+            double error = target_deg - motor;
+            if (fabs(error) > half_dead) {
+                motor += clamp(error, -max_move_deg, max_move_deg);
+            }
+            alpha = clamp(alpha, motor - half_lash, motor + half_lash);
+        } else {
+            /* The stepper moves toward the command at its top rate and stops at the end stops. */
+            alpha += clamp(target_deg - alpha, -max_move_deg, max_move_deg);
+        }
         double push = h_a0 + h_alpha * alpha;
         if (compressible) {
             push += h_z * z;
@@ -68,8 +105,14 @@ void plant_step(plant_state_t *x, const plant_params_t *p, double alpha_cmd_deg,
             z = p->floor_depth_m;
             zdot = zdot < 0.0 ? zdot : 0.0;
         }
+        if (lagged) {
+            sensed += lag_gain * (z - sensed);
+        }
     }
     x->z_m = z;
     x->zdot_mps = zdot;
     x->alpha_deg = alpha;
+    x->motor_deg = real_gear ? motor : alpha;
+    x->sensed_z_m = lagged ? sensed : z;
+    x->clock_s += dt_s;
 }

@@ -32,7 +32,7 @@ class SimulatedHardware:
 
     # ---- what the firmware may use
     def read_pressure_pa(self) -> float:
-        return self.sensor.read(self.plant.depth_m)
+        return self.sensor.sense(self.plant.state)
 
     def depth_from_pressure_m(self, pressure_pa: float) -> float:
         """The firmware's conversion z = (P - P0) / (rho g), with its calibration constants."""

@@ -13,10 +13,10 @@ from numba import njit
 from numpy.typing import NDArray
 
 from learning.spec import KernelSpec
-from simulator.plant.kernel import ALPHA, ZDOT, Z
+from simulator.plant.kernel import ALPHA, ZDOT
 from simulator.plant.observer import observer_update_kernel
 from simulator.plant.recovery import recovery_gave_up, recovery_settled, recovery_update_kernel
-from simulator.plant.sensor import depth_from_pressure_kernel, read_pressure_kernel
+from simulator.plant.sensor import depth_from_pressure_kernel, sense_pressure_kernel
 
 
 @njit(cache=True, error_model="numpy")
@@ -32,7 +32,7 @@ def sense_kernel(
 
     Without the observer (the paper preset) the velocity is the plant's true one.
     """
-    pressure_pa = read_pressure_kernel(plant[Z], spec, rng_state)
+    pressure_pa = sense_pressure_kernel(plant, spec, rng_state)
     depth_m = depth_from_pressure_kernel(pressure_pa, spec)
     estimate_mps = observer_update_kernel(observer, depth_m, dt_s, spec)
     return pressure_pa, depth_m, estimate_mps if use_observer else plant[ZDOT]

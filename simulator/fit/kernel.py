@@ -7,7 +7,7 @@ from numba import njit
 from numpy.typing import NDArray
 
 from learning.spec import KernelSpec
-from simulator.plant.kernel import ALPHA, PLANT_SIZE, ZDOT, Z, plant_step
+from simulator.plant.kernel import ALPHA, PLANT_SIZE, Z, plant_place, plant_step
 
 
 @njit(cache=True, error_model="numpy")
@@ -17,12 +17,10 @@ def simulate_windows(
     depth_out: NDArray[np.float64], alpha_out: NDArray[np.float64],
 ) -> None:
     """Each window from its own start state (z0, v0, alpha0) under the recorded commands, held between samples."""
-    state = np.empty(PLANT_SIZE)
+    state = np.zeros(PLANT_SIZE)  # the fitted plant is the ideal one: its gear and port states start settled
     for w in range(len(starts)):
         first, stop = starts[w], ends[w]
-        state[Z] = z0_m[w]
-        state[ZDOT] = v0_mps[w]
-        state[ALPHA] = alpha0_deg[w]
+        plant_place(state, z0_m[w], v0_mps[w], alpha0_deg[w])
         depth_out[first] = state[Z]
         alpha_out[first] = state[ALPHA]
         for i in range(first, stop - 1):

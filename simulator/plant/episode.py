@@ -11,24 +11,25 @@ from learning.config import MAX_VELOCITY_DIFF_STEPS
 from learning.rng import uniform
 from learning.shared import raw_cell_kernel
 from learning.spec import KernelSpec
-from simulator.plant.kernel import plant_step
+from simulator.plant.kernel import ALPHA, PLANT_SIZE, ZDOT, Z, jittered_period_s, plant_place, plant_step
 from simulator.plant.observer import observer_update_kernel
 from simulator.plant.recovery import AVG, recovery_gave_up, recovery_init, recovery_settled, recovery_update_kernel
-from simulator.plant.sensor import depth_from_pressure_kernel, read_pressure_kernel
+from simulator.plant.sensor import depth_from_pressure_kernel, sense_pressure_kernel
 
 # Layout of the environment state array: plant, command, observer, recovery, bookkeeping.
-E_Z, E_ZDOT, E_ALPHA = 0, 1, 2  # plant (same order as plant_kernel)
-E_CMD = 3  # alpha_cmd, deg
-E_CENTER = 4  # centre of the learner's actuator window (alpha_avg at hand-over), deg
-E_OBS_X1, E_OBS_X2 = 5, 6  # observer
-E_REC_AVG, E_REC_CALM, E_REC_ELAPSED = 7, 8, 9  # recovery controller
-E_STEPS = 10  # learner steps taken in the current episode
-E_DEPTH_MEAS = 11  # last measured depth, m
-E_VEL_EST = 12  # velocity the learner sees, m/s
-E_RECOVERY_S = 13  # time the recovery controller needed before this episode, s
-E_STARTED = 14  # 1 after the first reset (the plant state carries over between episodes)
-E_RING_POS = 15  # next slot of the depth ring (the learner's own k-step depth difference)
-E_RING = 16  # measured depths of the last MAX_VELOCITY_DIFF_STEPS control steps
+E_Z, E_ZDOT, E_ALPHA = Z, ZDOT, ALPHA  # plant (the first PLANT_SIZE entries, plant_step's layout)
+E_PLANT_END = PLANT_SIZE
+E_CMD = PLANT_SIZE  # alpha_cmd, deg
+E_CENTER = E_CMD + 1  # centre of the learner's actuator window (alpha_avg at hand-over), deg
+E_OBS_X1, E_OBS_X2 = E_CMD + 2, E_CMD + 3  # observer
+E_REC_AVG, E_REC_CALM, E_REC_ELAPSED = E_CMD + 4, E_CMD + 5, E_CMD + 6  # recovery controller
+E_STEPS = E_CMD + 7  # learner steps taken in the current episode
+E_DEPTH_MEAS = E_CMD + 8  # last measured depth, m
+E_VEL_EST = E_CMD + 9  # velocity the learner sees, m/s
+E_RECOVERY_S = E_CMD + 10  # time the recovery controller needed before this episode, s
+E_STARTED = E_CMD + 11  # 1 after the first reset (the plant state carries over between episodes)
+E_RING_POS = E_CMD + 12  # next slot of the depth ring (the learner's own k-step depth difference)
+E_RING = E_CMD + 13  # measured depths of the last MAX_VELOCITY_DIFF_STEPS control steps
 ENV_SIZE = E_RING + MAX_VELOCITY_DIFF_STEPS
 _MAX_RECOVERY_ATTEMPTS = 20
 
@@ -37,7 +38,7 @@ _MAX_RECOVERY_ATTEMPTS = 20
 def new_env_state(spec: KernelSpec) -> NDArray[np.float64]:
     """An environment before its first episode: at the surface, gear at mid-stroke."""
     env = np.zeros(ENV_SIZE)
-    env[E_ALPHA] = spec.alpha_max_deg / 2.0
+    plant_place(env[:E_PLANT_END], 0.0, 0.0, spec.alpha_max_deg / 2.0)
     env[E_CMD] = env[E_ALPHA]
     env[E_CENTER] = env[E_ALPHA]
     env[E_REC_AVG] = env[E_ALPHA]
@@ -53,8 +54,9 @@ def neutral_alpha_kernel(spec: KernelSpec) -> float:
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _measure(env: NDArray[np.float64], dt_s: float, spec: KernelSpec, rng_state: NDArray[np.uint64]) -> None:
-    pressure_pa = read_pressure_kernel(env[E_Z], spec, rng_state)
+def measure_kernel(env: NDArray[np.float64], dt_s: float, spec: KernelSpec, rng_state: NDArray[np.uint64]) -> None:
+    """Read the sensor into the measured depth; update the observer and the velocity the learner sees."""
+    pressure_pa = sense_pressure_kernel(env[:E_PLANT_END], spec, rng_state)
     env[E_DEPTH_MEAS] = depth_from_pressure_kernel(pressure_pa, spec)
     obs = env[E_OBS_X1:E_OBS_X2 + 1]
     estimate = observer_update_kernel(obs, env[E_DEPTH_MEAS], dt_s, spec)
@@ -68,10 +70,10 @@ def _recover(
     """Run the recovery controller to start_depth_m; True once settled, False if it gave up."""
     rec = env[E_REC_AVG:E_REC_ELAPSED + 1]
     recovery_init(rec, rec[AVG])
-    plant = env[E_Z:E_ALPHA + 1]
+    plant = env[:E_PLANT_END]
     dt = spec.recovery_period_s
     while True:
-        _measure(env, dt, spec, rng_state)
+        measure_kernel(env, dt, spec, rng_state)
         env[E_CMD] = recovery_update_kernel(
             rec, env[E_DEPTH_MEAS], env[E_OBS_X2], env[E_ALPHA], start_depth_m, dt, spec
         )
@@ -110,14 +112,12 @@ def episode_reset_kernel(
     else:
         # The paper's simulation: restart at rest at a random depth, gear at neutral.
         start_m = target_depth_m + half_m * (2.0 * uniform(rng_state) - 1.0)
-        env[E_Z] = start_m
-        env[E_ZDOT] = 0.0
         env[E_CENTER] = neutral_alpha_kernel(spec) + spec.start_trim_error_deg
         env[E_CMD] = env[E_CENTER]
-        env[E_ALPHA] = env[E_CENTER]
+        plant_place(env[:E_PLANT_END], start_m, 0.0, env[E_CENTER])
         env[E_OBS_X1] = start_m
         env[E_OBS_X2] = 0.0
-        _measure(env, 0.0, spec, rng_state)
+        measure_kernel(env, 0.0, spec, rng_state)
     env[E_STARTED] = 1.0
     if lspec.velocity_diff_steps > 0:
         # The agent has been measuring depth all along (recovery, or at rest): a full, flat history.
@@ -174,9 +174,10 @@ def episode_step_kernel(
     low = env[E_CENTER] - spec.action_window_deg
     high = env[E_CENTER] + spec.action_window_deg
     env[E_CMD] = min(max(env[E_CMD] + step, low), high)
-    plant_step(env[E_Z:E_ALPHA + 1], env[E_CMD], spec.control_period_s, spec)
+    # The learner believes every step lasts control_period_s; the plant may run a jittered one.
+    plant_step(env[:E_PLANT_END], env[E_CMD], jittered_period_s(spec.control_period_s, spec, rng_state), spec)
     env[E_STEPS] += 1.0
-    _measure(env, spec.control_period_s, spec, rng_state)
+    measure_kernel(env, spec.control_period_s, spec, rng_state)
     if lspec.velocity_diff_steps > 0:
         _depth_difference(env, spec, lspec)
     next_state = _state(env, target_depth_m, spec, lspec)

@@ -7,7 +7,7 @@ from numpy.typing import NDArray
 
 from learning.spec import KernelSpec, direct_entry
 from simulator.parameters import PlantParams, kernel_params, neutral_alpha_deg
-from simulator.plant.kernel import ALPHA, PLANT_SIZE, ZDOT, Z, plant_step
+from simulator.plant.kernel import ALPHA, MOTOR, PLANT_SIZE, SENSED_Z, ZDOT, Z, plant_step
 
 
 class Plant:
@@ -21,6 +21,7 @@ class Plant:
         self._state = np.zeros(PLANT_SIZE)
         self.alpha_cmd_deg = neutral_alpha_deg(params)
         self._state[ALPHA] = self.alpha_cmd_deg
+        self._state[MOTOR] = self.alpha_cmd_deg
         self._step = direct_entry(plant_step, self._state, 0.0, 0.0, self._spec)
 
     @property
@@ -56,13 +57,15 @@ class Plant:
         alpha_deg: float | None = None,
         alpha_cmd_deg: float | None = None,
     ) -> None:
-        """Place the agent; fields left None keep their value."""
+        """Place the agent; fields left None keep their value (a placed gear and port start settled)."""
         if depth_m is not None:
             self._state[Z] = depth_m
+            self._state[SENSED_Z] = depth_m
         if velocity_mps is not None:
             self._state[ZDOT] = velocity_mps
         if alpha_deg is not None:
             self._state[ALPHA] = alpha_deg
+            self._state[MOTOR] = alpha_deg
         if alpha_cmd_deg is not None:
             self.alpha_cmd_deg = alpha_cmd_deg
 

@@ -15,6 +15,7 @@ from simulator.study.runner import StudyResult
 from simulator.study.stats import WINDOW, bootstrap_samples, moving_average
 
 _LEVEL = 95.0
+PAPER_STABLE_FROM = 230.0  # the paper's Fig. 5: median ALC stable from episode 230 (docs/reproduction.md)
 
 
 def _interval(samples: NDArray[np.float64]) -> list[float]:
@@ -56,9 +57,14 @@ def compare_rows(
             "own_stable_from_median": across["alc_stable_from"]["median"],
             "own_stable_from_ci95": across["alc_stable_from"]["median_ci95"],
             "never_stable_fraction": round(across["alc_stable_from"]["fraction_never"], 4),
+            "never_stable_ci95": across["alc_stable_from"]["fraction_never_ci95"],
             "reference": labels[ref],
             "ratio_to_reference": ratio,
             "ratio_ci95": _interval(medians[ref] / medians[i]) if ref != i else [1.0, 1.0],
+            # The paper's own figure as the reference: no draw of our reference run in the ratio.
+            "ratio_to_published": (round(PAPER_STABLE_FROM / own, 3) if presets[i] == "paper" and own else None),
+            "ratio_to_published_ci95": (_interval(PAPER_STABLE_FROM / np.maximum(medians[i], 1.0))
+                                        if presets[i] == "paper" else None),
             "memory_bytes": result.memory_bytes,
             "evictions": int(counters[:, 0].sum()),
             "sweeps_per_plan_mean": round(float(counters[:, 1].sum()) / plans, 2),

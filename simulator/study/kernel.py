@@ -18,8 +18,11 @@ from simulator.plant.episode import (
     episode_cell_kernel,
     episode_reset_kernel,
     episode_step_kernel,
+    episode_steps,
     new_env_state,
 )
+from simulator.plant.kernel import MOTOR, Z
+from simulator.study.hold import N_ACC, hold_add, hold_reset, hold_write
 
 # Columns of a trial's planning/model counters.
 C_EVICTIONS, C_SWEEPS_TOTAL, C_SWEEPS_MAX, C_PLANS = 0, 1, 2, 3
@@ -34,6 +37,7 @@ class TrialArrays(NamedTuple):
     values: NDArray[np.float64]  # [states] value function after the last episode
     policy: NDArray[np.int8]  # [states] greedy policy after the last episode
     counters: NDArray[np.int64]  # [N_COUNTERS] evictions, sweeps in all, most sweeps of one call, planning calls
+    hold: NDArray[np.float64]  # [episodes, N_HOLD] hold quality of each successful episode (NaN otherwise)
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
@@ -48,7 +52,7 @@ def run_trial(
     trial: int,
 ) -> None:
     """One learning trial: len(out.durations_s) episodes; fills durations, final values, policy and counters."""
-    durations_s, values, policy, counters = out
+    durations_s, values, policy, counters, hold = out
     n_states = values.shape[0]
     sparse = lspec.model_form == 1
     shared = lspec.shared_model
@@ -62,14 +66,20 @@ def run_trial(
     else:
         plan_kernel(succ_idx, succ_cnt, reward_sum, values, q, policy, lspec, learner_stream)
     env = new_env_state(spec)
+    acc = np.zeros(N_ACC)
+    hold_from = episode_steps(spec) // 2
     for episode in range(durations_s.shape[0]):
         state = episode_reset_kernel(env, target_depth_m, spec, lspec, env_stream)
         p_explore = explore_probability(episode, lspec)
+        hold_reset(acc)
         while True:
             action = select_action_kernel(policy, state, p_explore, lspec, learner_stream)
+            motor_before = env[MOTOR]
             next_state, reward, terminated, truncated = episode_step_kernel(
                 env, action, target_depth_m, spec, lspec, env_stream
             )
+            if env[E_STEPS] > hold_from:
+                hold_add(acc, env[Z] - target_depth_m, abs(env[MOTOR] - motor_before), spec.control_period_s)
             if shared:
                 cell = episode_cell_kernel(env, target_depth_m, spec, lspec)
                 if record_shared(model, state, action, cell, lspec):
@@ -82,6 +92,7 @@ def run_trial(
             if terminated or truncated:
                 break
         durations_s[episode] = env[E_STEPS] * spec.control_period_s
+        hold_write(acc, hold[episode], truncated)
         if shared:
             sweeps = plan_shared_kernel(model, values, q, policy, lspec, learner_stream)
         else:
@@ -104,5 +115,5 @@ def run_trials(
 ) -> None:
     """All trials in parallel; row t of every output belongs to trial t."""
     for t in prange(out.durations_s.shape[0]):
-        rows = TrialArrays(out.durations_s[t], out.values[t], out.policy[t], out.counters[t])
+        rows = TrialArrays(out.durations_s[t], out.values[t], out.policy[t], out.counters[t], out.hold[t])
         run_trial(learner_streams[t], env_streams[t], target_depth_m, spec, lspec, rows, progress, t)

@@ -10,10 +10,12 @@ from typing import Any
 
 import numpy as np
 
-from learning import LearnerConfig
+from learning import LearnerConfig, resolve_learner
 from simulator.errors import StudyError
 from simulator.parameters import PlantParams
 from simulator.study.figures import write_figures
+from simulator.study.goals import goal_lines
+from simulator.study.hold import hold_summary
 from simulator.study.runner import StudyResult
 from simulator.study.stats import moving_average, summarise
 
@@ -37,9 +39,10 @@ def build_summary(
     stats = summarise(result.durations_s, params.episode_limit_s, result.seed)
     counters = result.counters if result.counters is not None else np.zeros((1, 4), dtype=np.int64)
     plans = max(int(counters[:, 3].sum()), 1)
-    return {
+    out = {
         "preset": preset,
         "learner": learner,
+        "learner_preset": resolve_learner(learner),
         "trials": int(result.durations_s.shape[0]),
         "episodes": int(result.durations_s.shape[1]),
         "seed": result.seed,
@@ -55,9 +58,13 @@ def build_summary(
             "planning_sweeps_per_call_max": int(counters[:, 2].max()),
         },
         **stats,
+        "hold_quality": None if result.hold is None else hold_summary(result.hold, result.recovery_hold),
         "params": asdict(params),
         "learner_config": {k: (int(v) if hasattr(v, "value") else v) for k, v in asdict(config).items()},
     }
+    if preset == "hardware":
+        out["hardware_goals"] = goal_lines(out)
+    return out
 
 
 def write_results(

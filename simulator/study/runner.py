@@ -6,6 +6,7 @@ import os
 import threading
 import time
 from collections.abc import Callable, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numba
@@ -17,7 +18,8 @@ from learning.config import kernel_spec
 from learning.rng import new_stream
 from simulator.errors import StudyError
 from simulator.parameters import PlantParams, kernel_params
-from simulator.study.kernel import N_COUNTERS, TrialArrays, run_trials
+from simulator.study.hold import N_HOLD, RECOVERY_HOLDS, recovery_hold_trial, recovery_holds
+from simulator.study.kernel import N_COUNTERS, TrialArrays, run_trial, run_trials
 
 _POLL_S = 0.1
 
@@ -36,6 +38,8 @@ class StudyResult:
     # [trials, 4]: model slot evictions, planning sweeps in all, most sweeps of one call, planning calls
     counters: NDArray[np.int64] | None = None
     seeds: tuple[int, ...] = ()  # every seed pooled, trials of seeds[0] first
+    hold: NDArray[np.float64] | None = None  # [trials, episodes, N_HOLD] hold quality per successful episode
+    recovery_hold: NDArray[np.float64] | None = None  # [trials, RECOVERY_HOLDS, N_HOLD] the recovery controller's
 
 
 def trial_streams(seed: int, trial: int) -> tuple[NDArray[np.uint64], NDArray[np.uint64]]:
@@ -54,11 +58,13 @@ def run_study(
     on_progress: Callable[[int], None] | None = None,
     threads: int | None = None,
     seeds: Sequence[int] | None = None,
+    plants: Sequence[PlantParams] | None = None,
 ) -> StudyResult:
     """Run the trials in parallel; on_progress(episodes done over all trials) is called as they go.
 
     With seeds, `trials` trials of each seed are pooled (trial t of seed k is the same trial as in a
-    study of that seed alone).
+    study of that seed alone). With plants (one per pooled trial, a plant family's draws), each trial
+    runs on its own plant; a trial on `params` gives the same result either way.
     """
     if trials <= 0 or episodes <= 0:
         raise StudyError(f"trials and episodes must be positive (got {trials} and {episodes})")
@@ -76,18 +82,37 @@ def run_study(
     policy = np.zeros((trials, s_count), dtype=np.int8)
     progress = np.zeros(trials, dtype=np.int64)
     counters = np.zeros((trials, N_COUNTERS), dtype=np.int64)
-    args = (
-        learner_streams, env_streams, params.target_depth_m, kernel_params(params), kernel_spec(config),
-        TrialArrays(durations, values, policy, counters), progress,
-    )
+    if plants is not None and len(plants) != trials:
+        raise StudyError(f"{len(plants)} plants for {trials} trials")
+    hold = np.zeros((trials, episodes, N_HOLD))
+    recovery_hold = np.zeros((trials, RECOVERY_HOLDS, N_HOLD))
+    out = TrialArrays(durations, values, policy, counters, hold)
+    lspec = kernel_spec(config)
+    args = (learner_streams, env_streams, params.target_depth_m, kernel_params(params), lspec, out, progress)
+    # The recovery controller's holds start from the trials' own first starts: copies of their fresh streams.
+    hold_streams = env_streams.copy()
     failure: list[BaseException] = []
+
+    def one_trial(t: int) -> None:
+        assert plants is not None
+        rows = TrialArrays(durations[t], values[t], policy[t], counters[t], hold[t])
+        spec = kernel_params(plants[t])
+        run_trial(learner_streams[t], env_streams[t], plants[t].target_depth_m, spec, lspec, rows, progress, t)
+        recovery_hold_trial(hold_streams[t], plants[t].target_depth_m, spec, lspec, recovery_hold[t])
 
     def work() -> None:
         try:
-            numba.set_num_threads(threads)
-            # Trials differ in length: hand them out one at a time so neither core idles at the end.
-            with numba.parallel_chunksize(1):
-                run_trials(*args)
+            if plants is None:
+                numba.set_num_threads(threads)
+                # Trials differ in length: hand them out one at a time so neither core idles at the end.
+                with numba.parallel_chunksize(1):
+                    run_trials(*args)
+                recovery_holds(hold_streams, params.target_depth_m, args[3], lspec, recovery_hold)
+            else:
+                # One plant per trial: numba's prange takes one spec, so trials go to threads here (the
+                # trial kernel releases the GIL), one at a time as in the batch.
+                with ThreadPoolExecutor(threads) as pool:
+                    list(pool.map(one_trial, range(trials)))
         except BaseException as e:  # re-raised in the caller's thread below
             failure.append(e)
 
@@ -102,4 +127,4 @@ def run_study(
     if failure:
         raise StudyError(f"study failed: {failure[0]}") from failure[0]
     return StudyResult(durations, values, policy, wall_s, model_memory_bytes(config), threads, seed, counters,
-                       seed_list)
+                       seed_list, hold, recovery_hold)

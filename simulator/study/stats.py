@@ -10,6 +10,17 @@ from numpy.typing import NDArray
 WINDOW = 50  # paper V-A: the ALC is the moving average of the LC over 50 episodes
 BOOTSTRAP_SAMPLES = 1000
 _EPS_S = 1e-6
+_Z95 = 1.959963984540054  # two-sided 95 % normal quantile
+
+
+def wilson_interval(successes: int, n: int, z: float = _Z95) -> list[float]:
+    """Wilson score interval of a proportion (95 % by default): honest at 0, 1 and small n."""
+    if n <= 0:
+        return [0.0, 1.0]
+    p = successes / n
+    centre = (p + z * z / (2 * n)) / (1 + z * z / n)
+    half = z / (1 + z * z / n) * np.sqrt(p * (1 - p) / n + z * z / (4 * n * n))
+    return [round(max(0.0, float(centre - half)), 5), round(min(1.0, float(centre + half)), 5)]
 
 
 def moving_average(durations_s: NDArray[np.float64], window: int = WINDOW) -> NDArray[np.float64]:
@@ -65,7 +76,11 @@ def _spread(values: list[int | None], never: float, censored: bool = True) -> di
     """
     x = np.array([never if v is None else v for v in values], dtype=float)
     n_never = sum(v is None for v in values) if censored else 0
-    out: dict[str, Any] = {"censored_at": never, "fraction_never": sum(v is None for v in values) / len(values)}
+    count_never = sum(v is None for v in values)
+    out: dict[str, Any] = {
+        "censored_at": never, "fraction_never": count_never / len(values),
+        "count_never": count_never, "fraction_never_ci95": wilson_interval(count_never, len(values)),
+    }
     for key, q in (("q25", 25.0), ("median", 50.0), ("q75", 75.0)):
         value = float(np.percentile(x, q))
         out[key] = None if (n_never and value >= never) else value
@@ -132,6 +147,7 @@ def summarise(durations_s: NDArray[np.float64], limit_s: float, seed: int) -> di
     # Never reached: censored at the end of the run (first success, stable from); a trial that never
     # failed has its last failure before episode 0.
     never = {"first_success": float(n_episodes), "last_failure": -1.0, "alc_stable_from": float(n_episodes)}
+    late = durations_s[:, -WINDOW:] >= limit_s - _EPS_S
     curve = {}
     for label, q in (("median", 50.0), ("best_quarter_q75", 75.0), ("worst_quarter_q25", 25.0)):
         curve[label] = {
@@ -152,6 +168,8 @@ def summarise(durations_s: NDArray[np.float64], limit_s: float, seed: int) -> di
             for key in ("first_success", "last_failure", "alc_stable_from")
         },
         "alc_curves": curve,
-        "success_rate_last_50": float(np.mean(durations_s[:, -WINDOW:] >= limit_s - _EPS_S)),
+        "success_rate_last_50": float(np.mean(late)),
+        # Episodes of one trial are not independent: the Wilson interval over episodes is a floor on the spread.
+        "success_rate_last_50_ci95": wilson_interval(int(late.sum()), int(late.size)),
         "trials": trials,
     }

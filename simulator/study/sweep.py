@@ -8,11 +8,14 @@ File format (every key optional except learners):
     seeds = [0, 1, 2]
     presets = ["paper"]
     learners = ["paper", "shared"]
+    plants = ["", "noise2.toml"]  # --params files (relative to this file; "" = the preset as it is)
+    plant_family = "tank.toml"    # optional: every trial draws its plant from this family
     [grid]                  # LearnerConfig fields, each a list of values; the grid is their product
     actuator_bins = [1, 3]
 
-Each grid point and seed is one task; a task's trials draw their random streams from (seed, trial) only,
-so the same file gives the same table here and on any cluster.
+Each grid point and seed is one task; a task's trials draw their random streams (and, with a family, their
+plants) from (seed, trial) only, so the same file gives the same table here and on any cluster (whose workers
+must see the plant files at the same absolute paths).
 """
 
 from __future__ import annotations
@@ -33,7 +36,8 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 
 from learning import LearnerConfig, LearningError, learner_preset
 from simulator.errors import ClusterUnreachableError, SimulatorError, StudyError
-from simulator.parameters import preset, preset_names
+from simulator.parameters import PlantParams, load_params, preset, preset_names
+from simulator.study.family import PlantFamily, load_family
 from simulator.study.output import prepare_out_dir
 from simulator.study.runner import run_study
 from simulator.study.stats import summarise
@@ -48,7 +52,7 @@ def load_sweep(path: Path) -> list[dict[str, Any]]:
         data = tomllib.loads(path.read_text())
     except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as e:
         raise SimulatorError(f"cannot read sweep file {path}: {e}") from None
-    unknown = set(data) - {"trials", "episodes", "seeds", "presets", "learners", "grid"}
+    unknown = set(data) - {"trials", "episodes", "seeds", "presets", "learners", "grid", "plants", "plant_family"}
     if unknown:
         raise SimulatorError(f"sweep file {path}: unknown keys {sorted(unknown)}")
     grid = data.get("grid", {})
@@ -67,9 +71,13 @@ def load_sweep(path: Path) -> list[dict[str, Any]]:
     trials, episodes = int(data.get("trials", 100)), int(data.get("episodes", 400))
     if trials <= 0 or episodes <= 0:
         raise SimulatorError(f"sweep file {path}: trials and episodes must be positive")
+    plants = [_sweep_path(path, p) for p in _strings(path, data, "plants", [""])]
+    family = _sweep_path(path, data.get("plant_family", ""))
+    for preset_name, plant in itertools.product(presets, plants):
+        _task_params(preset_name, plant, family)  # refuse a bad plant file before hours of computing
     names = sorted(grid)
     tasks = []
-    for preset_name, learner in itertools.product(presets, learners):
+    for preset_name, plant, learner in itertools.product(presets, plants, learners):
         for values in itertools.product(*(grid[n] for n in names)):
             overrides = dict(zip(names, values, strict=True))
             try:
@@ -78,20 +86,46 @@ def load_sweep(path: Path) -> list[dict[str, Any]]:
                 raise SimulatorError(f"sweep file {path}: {learner} with {overrides}: {e}") from None
             for seed in data.get("seeds", [0]):
                 tasks.append({"preset": preset_name, "learner": learner, "overrides": overrides,
-                              "seed": int(seed), "trials": trials, "episodes": episodes})
+                              "seed": int(seed), "trials": trials, "episodes": episodes, "plant": plant,
+                              "plant_family": family})
     return tasks
+
+
+def _strings(path: Path, data: dict[str, Any], key: str, default: list[str]) -> list[str]:
+    value = data.get(key, default)
+    if not isinstance(value, list) or not value or not all(isinstance(v, str) for v in value):
+        raise SimulatorError(f"sweep file {path}: {key} must be a non-empty list of file names")
+    return value
+
+
+def _sweep_path(sweep_file: Path, name: Any) -> str:
+    """A plant file named in a sweep file, relative to it; "" stays "" (no file)."""
+    if not isinstance(name, str):
+        raise SimulatorError(f"sweep file {sweep_file}: plant files must be strings")
+    return "" if not name else str((sweep_file.parent / name).resolve())
+
+
+def _task_params(preset_name: str, plant: str, family: str) -> tuple[PlantParams, PlantFamily | None]:
+    """The base plant of a task (preset and --params file) and its family, if any."""
+    params = preset(preset_name)
+    if plant:
+        params = load_params(Path(plant), params)
+    return params, (load_family(Path(family), params) if family else None)
 
 
 def sweep_task(task: dict[str, Any]) -> dict[str, Any]:
     """One study of the grid and its statistics as a flat row (runs on a Dask worker as well as here)."""
-    params = preset(task["preset"])
+    params, family = _task_params(task["preset"], task.get("plant", ""), task.get("plant_family", ""))
     config = learner_preset(task["learner"], **task["overrides"])
-    result = run_study(params, config, task["trials"], task["episodes"], task["seed"])
+    plants = None if family is None else [family.draw(params, task["seed"], t) for t in range(task["trials"])]
+    result = run_study(params, config, task["trials"], task["episodes"], task["seed"], plants=plants)
     stats = summarise(result.durations_s, params.episode_limit_s, result.seed)
     across, curves = stats["across_trials"], stats["alc_curves"]
     counters = result.counters if result.counters is not None else np.zeros((1, 4), dtype=np.int64)
     return {
         "preset": task["preset"], "learner": task["learner"],
+        "plant": Path(task["plant"]).stem if task.get("plant") else "",
+        "plant_family": Path(task["plant_family"]).stem if task.get("plant_family") else "",
         **{f"param_{k}": v for k, v in task["overrides"].items()},
         "seed": task["seed"], "trials": task["trials"], "episodes": task["episodes"],
         "first_success_median": across["first_success"]["median"],
@@ -101,7 +135,11 @@ def sweep_task(task: dict[str, Any]) -> dict[str, Any]:
         "best_quarter_stable_from": curves["best_quarter_q75"]["stable_from"],
         "own_stable_from_median": across["alc_stable_from"]["median"],
         "never_stable_fraction": across["alc_stable_from"]["fraction_never"],
+        "never_stable_ci95_low": across["alc_stable_from"]["fraction_never_ci95"][0],
+        "never_stable_ci95_high": across["alc_stable_from"]["fraction_never_ci95"][1],
         "success_rate_last_50": stats["success_rate_last_50"],
+        "success_rate_last_50_ci95_low": stats["success_rate_last_50_ci95"][0],
+        "success_rate_last_50_ci95_high": stats["success_rate_last_50_ci95"][1],
         "memory_bytes": result.memory_bytes,
         "evictions": int(counters[:, 0].sum()),
         "sweeps_per_plan_max": int(counters[:, 2].max()),
@@ -180,7 +218,8 @@ def write_sweep(rows: list[dict[str, Any]], out_dir: Path) -> list[Path]:
 
 def _point_label(row: dict[str, Any]) -> str:
     params = ", ".join(f"{k[6:]}={v}" for k, v in row.items() if k.startswith("param_"))
-    return f"{row['preset']}/{row['learner']}" + (f" ({params})" if params else "")
+    plant = "+".join(p for p in (row.get("plant"), row.get("plant_family")) if p)
+    return f"{row['preset']}{'+' + plant if plant else ''}/{row['learner']}" + (f" ({params})" if params else "")
 
 
 def _plot(rows: list[dict[str, Any]], path: Path) -> None:

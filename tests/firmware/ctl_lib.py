@@ -81,17 +81,20 @@ class PlantParamsC(ctypes.Structure):
     _fields_ = [(name, ctypes.c_double) for name in (
         "mass_kg", "added_mass_kg", "water_density_kgpm3", "gravity_mps2", "trim_error_fraction",
         "compressibility_m3pm", "drag_kgpm", "floor_depth_m", "stroke_volume_m3", "alpha_max_deg",
-        "alpha_rate_dps", "substep_s",
+        "alpha_rate_dps", "substep_s", "backlash_deg", "dead_band_deg", "pressure_lag_s", "control_jitter_s",
     )]
 
 
 class PlantStateC(ctypes.Structure):
-    _fields_ = [("z_m", ctypes.c_double), ("zdot_mps", ctypes.c_double), ("alpha_deg", ctypes.c_double)]
+    _fields_ = [(name, ctypes.c_double) for name in (
+        "z_m", "zdot_mps", "alpha_deg", "motor_deg", "sensed_z_m", "clock_s", "noise_pa", "last_read_s",
+    )]
 
 
 class SensorParamsC(ctypes.Structure):
     _fields_ = [(name, ctypes.c_double) for name in (
         "surface_pressure_pa", "water_density_kgpm3", "gravity_mps2", "noise_pa", "lsb_pa", "min_pa", "max_pa",
+        "bias_pa", "drift_pa_per_s", "noise_corr_s", "depth_scale_error", "lag_s",
     )]
 
 
@@ -148,7 +151,12 @@ _SIGNATURES: dict[str, tuple[object, list[object]]] = {
     "plant_neutral_alpha_deg": (ctypes.c_double, [ctypes.POINTER(PlantParamsC)]),
     "plant_step": (None, [ctypes.POINTER(PlantStateC), ctypes.POINTER(PlantParamsC), ctypes.c_double,
                           ctypes.c_double]),
+    "plant_place": (None, [ctypes.POINTER(PlantStateC), ctypes.c_double, ctypes.c_double, ctypes.c_double]),
+    "plant_jittered_period_s": (ctypes.c_double, [ctypes.POINTER(PlantParamsC), ctypes.POINTER(RngC),
+                                                  ctypes.c_double]),
     "sensor_hardware_params": (None, [ctypes.POINTER(SensorParamsC)]),
+    "sensor_sense_pa": (ctypes.c_double, [ctypes.POINTER(SensorParamsC), ctypes.POINTER(RngC),
+                                          ctypes.POINTER(PlantStateC)]),
     "sensor_read_pa": (ctypes.c_double, [ctypes.POINTER(SensorParamsC), ctypes.POINTER(RngC), ctypes.c_double]),
 }
 

@@ -62,7 +62,8 @@ def test_c_plant_follows_python_plant(ctl: ctypes.CDLL) -> None:
     ctl.plant_hardware_params(ctypes.byref(c_params))
     start = dict(depth_m=0.3, velocity_mps=0.0, alpha_deg=60.0)
     plant.set_state(**start)
-    x = PlantStateC(0.3, 0.0, 60.0)
+    x = PlantStateC()
+    ctl.plant_place(ctypes.byref(x), 0.3, 0.0, 60.0)
     rng = np.random.default_rng(SEED)
     depths = []
     for step in range(3000):

@@ -54,7 +54,7 @@ uint64_t hal_link_time_us(void)
 
 float hal_pressure_pa(void)
 {
-    return (float)sensor_read_pa(&board.sensor, &board.sensor_rng, board.x.z_m);
+    return (float)sensor_sense_pa(&board.sensor, &board.sensor_rng, &board.x);
 }
 
 void hal_stepper_set_cmd_deg(float deg)
@@ -141,9 +141,7 @@ bool hal_sim_place(float depth_m)
 {
     /* The paper's simulated restart: at rest at depth_m, gear at true neutral. */
     double neutral = plant_neutral_alpha_deg(&board.plant);
-    board.x.z_m = (double)depth_m;
-    board.x.zdot_mps = 0.0;
-    board.x.alpha_deg = neutral;
+    plant_place(&board.x, (double)depth_m, 0.0, neutral);
     board.alpha_cmd_deg = neutral;
     return true;
 }
@@ -154,9 +152,7 @@ static void board_init(void)
     plant_hardware_params(&board.plant);
     sensor_hardware_params(&board.sensor);
     /* At the surface, gear at mid-stroke (the firmware's assumed neutral), as simulator/onboard_hw.py. */
-    board.x.z_m = 0.0;
-    board.x.zdot_mps = 0.0;
-    board.x.alpha_deg = board.plant.alpha_max_deg / 2.0;
+    plant_place(&board.x, 0.0, 0.0, board.plant.alpha_max_deg / 2.0);
     board.alpha_cmd_deg = board.x.alpha_deg;
     rng_seed(&board.sensor_rng, args->seed ^ 0x5EED5EED5EED5EEDull);
     rng_seed(&board.entropy, args->seed);
