@@ -111,8 +111,10 @@ class ServerProcess:
         assert self.proc.stdout is not None
         self.address = self.proc.stdout.readline().strip()
         if not self.address:
+            self.proc.wait(30)
+            why = self.proc.stderr.read() if self.proc.stderr else ""
             self.stop()
-            raise RuntimeError(f"server did not start: {self.proc.stderr.read() if self.proc.stderr else ''}")
+            raise RuntimeError(f"server did not start: {why}")
 
     def stop(self) -> int:
         if self.proc.poll() is None:

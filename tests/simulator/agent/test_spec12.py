@@ -17,6 +17,7 @@ ACK = FrameFlag.ACK_REQUESTED
 def test_a_keyed_agent_surfaces_on_an_unsigned_or_wrongly_signed_cmd_surface(tmp_path: Path) -> None:
     key_file = tmp_path / "agent.key"
     key_file.write_text(KEY.hex() + "\n")
+    key_file.chmod(0o600)  # the agent refuses a key file others can read
     with connected(*FAST, "--key-file", str(key_file), "--state-dir", str(tmp_path)) as (_, c):
         c.encoder = FrameEncoder(100, signer=Signer(KEY, 4))
         assert c.command(messages.Hover(depth_m=0.5)).result == AckResult.ACCEPTED
