@@ -129,18 +129,20 @@ class _AgentWatch:
     FIRST_HEARTBEAT_WAIT_S = 2.0  # heartbeats come at 1 Hz of agent time
     START_WAIT_S = 60.0
     BACKFILL_AT_SURFACE_S = 3.0  # wait after the last backfilled sample before a restart (at most 4x in all)
+    BATTERY_MARGIN_V = 0.005  # HEARTBEAT.battery_mv is whole millivolts: 3.399 V reads as 3.40 at 3.40 V
 
     def __init__(self, session: Session, episodes: int, status: RunStatus) -> None:
         self.session, self.episodes, self.status = session, episodes, status
         self.first_episode = 0
         self.left_idle = False
         self.restarts = 0
+        self._episode_before = 0  # the agent's episode counter when the run last sent CMD_START
         self.hub: Hub | None = None  # a tool's CMD_SURFACE / STOP / HOVER / PAUSE through it: no restart
         self._operator: str | None = None  # the take-over last said
 
     def start(self) -> None:
         beat = self._wait_unless_surfacing()
-        self.first_episode = beat.episode if beat is not None else 0
+        self.first_episode = self._episode_before = beat.episode if beat is not None else 0
         if beat is not None and beat.mode in (Mode.LEARNING, Mode.RECOVERING):
             self.status.messages.append(f"the agent is already learning (episode {beat.episode}): recording it")
             self.left_idle = True
@@ -157,8 +159,10 @@ class _AgentWatch:
         if beat.mode != Mode.IDLE:
             self.left_idle = True
             return False
-        if not self.left_idle:
-            return False  # the heartbeat from before CMD_START
+        if not self.left_idle and beat.episode <= self._episode_before:
+            # the heartbeat from before CMD_START; an IDLE one that counts more episodes is from after it (an agent
+            # that surfaced at once, between two heartbeats)
+            return False
         done = beat.episode - self.first_episode
         if self.episodes and done >= self.episodes:
             return True
@@ -167,8 +171,15 @@ class _AgentWatch:
         if self.restarts >= self.MAX_RESTARTS:
             self.status.messages.append(f"the agent surfaced {self.restarts} times; stopping")
             return True
+        flat = self._flat_battery_v(beat)
+        if flat is not None:
+            # It would surface again at once (SPEC s. 6): restarting only adds aborted episodes.
+            self.status.messages.append(f"the agent's battery is flat ({flat:.2f} V, it surfaces below low_batt_v): "
+                                        "stopping; recharge it (a virtual agent starts full)")
+            return True
         self.restarts += 1
         self.left_idle = False
+        self._episode_before = beat.episode
         left = self.episodes - done if self.episodes else 0
         self.status.messages.append(f"the agent surfaced after episode {beat.episode}; starting it again")
         # At the surface the radio works: fetch what was lost while it was deep before it dives again, or the
@@ -180,6 +191,13 @@ class _AgentWatch:
             self.left_idle = True  # try again on the next look
             self.status.messages.append(f"restart refused: {e}")
         return False
+
+    def _flat_battery_v(self, beat: m.Heartbeat) -> float | None:
+        """The agent's battery voltage if it is at or below the voltage it surfaces at (low_batt_v), else None."""
+        if not beat.battery_mv or "low_batt_v" not in self.session.params:
+            return None
+        volts = beat.battery_mv / 1000
+        return volts if volts <= self.session.params.get("low_batt_v").value + self.BATTERY_MARGIN_V else None
 
     def follow_operator(self) -> None:
         """One line when an operator takes the agent from the run through the hub, and when they hand it back."""
