@@ -17,6 +17,7 @@ from urllib.parse import quote
 import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
+from rerun.encodings import TimeInt
 
 from groundstation.session.events import LinkEvent, Received, Sent
 from groundstation.view.errors import ViewError
@@ -53,6 +54,7 @@ class ViewConfig:
     grpc_port: int = 9876
     viewer_memory_limit: str = "1GiB"  # the native viewer drops the oldest data past this
     server_memory_limit: str = "256MiB"  # the gRPC server's buffer for late-connecting viewers
+    replay: bool = False  # a recording: the viewer opens paused on the first episode, not following the end
 
     @property
     def wanted(self) -> bool:
@@ -70,6 +72,8 @@ class Layout:
 
     zdot_tol_mps: float = _f32_free(DEFAULT_GRID["zdot_tol_mps"])
     heatmap: Bounds = bounds(default_grid())
+    replay: bool = False
+    first_episode_s: tuple[float, float] | None = None  # a replay's first episode in agent time, once seen
 
     def velocity_range_mps(self) -> tuple[float, float]:
         """Three times the learning region's bound: the bounds sit a third of the way out, and the plot's ticks
@@ -81,7 +85,30 @@ class Layout:
         bound = batch.get("velocity/bound_max_mps")
         zdot_tol_mps = _f32_free(bound.values[-1]) if bound else self.zdot_tol_mps
         frames = batch.get("value_function/frame") or batch.get("policy/frame")
-        return Layout(zdot_tol_mps, frames.values[-1].bounds if frames else self.heatmap)
+        heatmap = frames.values[-1].bounds if frames else self.heatmap
+        return Layout(zdot_tol_mps, heatmap, self.replay, self._first_episode(batch))
+
+    def _first_episode(self, batch: Batch) -> tuple[float, float] | None:
+        """From the first episode's start to the next start (or the batch's last sample): a replay's opening view."""
+        starts = batch.get("depth/episode_start_m")
+        if not self.replay or self.first_episode_s is not None or not starts:
+            return self.first_episode_s
+        depth = batch.get("depth/depth_m")
+        first_s = starts.agent_time_s[0]
+        end_s = starts.agent_time_s[1] if len(starts) > 1 else depth.agent_time_s[-1] if depth else first_s
+        return (first_s, max(first_s, end_s))
+
+    def time_panel(self) -> rrb.TimePanel:
+        """Live: the viewer follows the newest data. Replay: paused, so the viewer opens at the timeline's start
+        rather than its end, with the first episode selected (rerun 0.41's blueprint cannot place the cursor)."""
+        if not self.replay:
+            return rrb.TimePanel(timeline="agent_time", expanded=False)
+        selection = None
+        if self.first_episode_s is not None:
+            start_s, end_s = self.first_episode_s
+            selection = rrb.components.AbsoluteTimeRange(min=TimeInt(seconds=start_s), max=TimeInt(seconds=end_s))
+        return rrb.TimePanel(timeline="agent_time", expanded=False, play_state="paused", loop_mode="off",
+                             time_selection=selection)
 
 
 def _heatmap_view(origin: str, name: str, layout: Layout) -> rrb.Spatial2DView:
@@ -125,7 +152,7 @@ def blueprint(layout: Layout | None = None) -> rrb.Blueprint:
     )
     return rrb.Blueprint(
         rrb.Horizontal(series, right, column_shares=[1, 1]),
-        rrb.TimePanel(timeline="agent_time", expanded=False),
+        layout.time_panel(),
         collapse_panels=True,
     )
 
@@ -231,14 +258,14 @@ def open_sinks(rec: rr.RecordingStream, config: ViewConfig) -> str | None:
         if config.rrd is not None:
             config.rrd.parent.mkdir(parents=True, exist_ok=True)
             sinks.append(rr.FileSink(config.rrd))
-        rec.set_sinks(*sinks, default_blueprint=blueprint())
+        rec.set_sinks(*sinks, default_blueprint=blueprint(Layout(replay=config.replay)))
         if config.viewer == Viewer.WEB:
             rr.serve_web_viewer(web_port=config.web_port, open_browser=False, connect_to=sinks[0].uri)
     except ViewError:
         raise
     except (OSError, RuntimeError, ValueError) as e:
         raise ViewError(f"cannot open the {config.viewer.value} viewer: {e}") from e
-    rec.send_blueprint(blueprint(), make_active=True)
+    rec.send_blueprint(blueprint(Layout(replay=config.replay)), make_active=True)
     send_styles(rec)
     return address
 
@@ -250,7 +277,8 @@ class RerunView:
     `view.close()` at the end (or `with RerunView.open(...) as view:`).
     """
 
-    def __init__(self, rec: rr.RecordingStream, address: str | None, flush_interval_s: float = 0.1) -> None:
+    def __init__(self, rec: rr.RecordingStream, address: str | None, flush_interval_s: float = 0.1,
+                 replay: bool = False) -> None:
         self._rec = rec
         self._model = ViewModel()
         self._lock = threading.Lock()  # the session's reader thread and the caller may both feed it
@@ -258,14 +286,14 @@ class RerunView:
         # replay or a backfill burst would otherwise spend its time in per-frame sends.
         self._flush_interval_s = flush_interval_s
         self._last_send_s = 0.0
-        self._layout = Layout()  # what the blueprint sent last was made for
+        self._layout = Layout(replay=replay)  # what the blueprint sent last was made for
         self.address = address
 
     @classmethod
     def open(cls, config: ViewConfig, name: str = "live") -> RerunView:
         rec = new_recording(name)
         address = open_sinks(rec, config)
-        return cls(rec, address)
+        return cls(rec, address, replay=config.replay)
 
     def _send_if_due(self) -> None:
         now_s = time.monotonic()
