@@ -52,7 +52,7 @@ def convert_columns(mcap: Path, rrd: Path) -> tuple[float, int]:
     rec.flush()
     rec.disconnect()
     columns_cpu_s = time.process_time() - cpu
-    return time.perf_counter() - began, len(batch["depth/depth_m"])
+    return time.perf_counter() - began, len(batch["depth/z_up_m"])
 
 
 columns_cpu_s = 0.0  # CPU seconds of the last convert_columns (this process; rerun's threads included)
@@ -85,7 +85,7 @@ def convert_rows(mcap: Path, rrd: Path) -> tuple[float, int]:
                 rec.log(path, rr.Image(value, color_model="RGB"))
     rec.flush()
     rec.disconnect()
-    return time.perf_counter() - began, len(batch["depth/depth_m"])
+    return time.perf_counter() - began, len(batch["depth/z_up_m"])
 
 
 class _AgentClock:

@@ -27,14 +27,14 @@ from groundstation.view.options import Viewer
 
 APPLICATION_ID = "diving_agent"
 _COLOURS: dict[str, tuple[int, int, int]] = {
-    "depth/depth_m": (40, 120, 220),
-    "depth/target_depth_m": (60, 180, 75),
-    "depth/region_min_m": (150, 150, 150),
-    "depth/region_max_m": (150, 150, 150),
-    "depth/episode_start_m": (60, 180, 75),
-    "depth/episode_success_m": (40, 200, 120),
-    "depth/episode_failure_m": (230, 60, 60),
-    "depth/episode_aborted_m": (200, 160, 40),
+    "depth/z_up_m": (40, 120, 220),
+    "depth/target_z_up_m": (60, 180, 75),
+    "depth/region_top_z_up_m": (150, 150, 150),
+    "depth/region_bottom_z_up_m": (150, 150, 150),
+    "depth/episode_start_z_up_m": (60, 180, 75),
+    "depth/episode_success_z_up_m": (40, 200, 120),
+    "depth/episode_failure_z_up_m": (230, 60, 60),
+    "depth/episode_aborted_z_up_m": (200, 160, 40),
     "velocity/bound_min_mps": (150, 150, 150),
     "velocity/bound_max_mps": (150, 150, 150),
     "actuator/actuator_cmd_deg": (150, 150, 150),
@@ -90,10 +90,10 @@ class Layout:
 
     def _first_episode(self, batch: Batch) -> tuple[float, float] | None:
         """From the first episode's start to the next start (or the batch's last sample): a replay's opening view."""
-        starts = batch.get("depth/episode_start_m")
+        starts = batch.get("depth/episode_start_z_up_m")
         if not self.replay or self.first_episode_s is not None or not starts:
             return self.first_episode_s
-        depth = batch.get("depth/depth_m")
+        depth = batch.get("depth/z_up_m")
         first_s = starts.agent_time_s[0]
         end_s = starts.agent_time_s[1] if len(starts) > 1 else depth.agent_time_s[-1] if depth else first_s
         return (first_s, max(first_s, end_s))
@@ -125,7 +125,8 @@ def blueprint(layout: Layout | None = None) -> rrb.Blueprint:
     """The shipped layout: time series on the left; learning curve, heatmaps (the most room) and logs on the right."""
     layout = layout or Layout()
     series = rrb.Vertical(
-        rrb.TimeSeriesView(origin="depth", name="Depth [m] (z down), target, learning region, episodes"),
+        rrb.TimeSeriesView(origin="depth", name="Depth drawn downward: z up = -depth [m] (surface 0), "
+                                                          "target, learning region, episodes"),
         rrb.TimeSeriesView(origin="velocity", name="Velocity [m/s] and bounds",
                            axis_y=rrb.ScalarAxis(range=layout.velocity_range_mps())),
         rrb.TimeSeriesView(origin="actuator", name="Actuator [deg]"),
@@ -141,8 +142,8 @@ def blueprint(layout: Layout | None = None) -> rrb.Blueprint:
     right = rrb.Vertical(
         rrb.TimeSeriesView(origin="learning_curve", name="Learning curve: duration per episode [s]"),
         rrb.Horizontal(
-            _heatmap_view("value_function", "Value function v(depth, velocity)", layout),
-            _heatmap_view("policy", "Policy: greedy action per cell", layout),
+            _heatmap_view("value_function", "Value function v(depth down, velocity)", layout),
+            _heatmap_view("policy", "Policy: greedy action per cell (depth down)", layout),
         ),
         rrb.Tabs(
             rrb.TextLogView(origin="log/agent", name="Agent log"),
