@@ -81,6 +81,8 @@ def convert_rows(mcap: Path, rrd: Path) -> tuple[float, int]:
                 rec.log(path, rr.Boxes2D(centers=[value[:2]], half_sizes=[(0.5, 0.5)], labels=[value[2]]))
             elif kind == Kind.FRAME:
                 log_frame(rec, path, value)  # logged row by row by the view too
+            elif kind == Kind.BARS:
+                rec.log(path, rr.BarChart(value[1], abscissa=value[0]))
             else:
                 rec.log(path, rr.Image(value, color_model="RGB"))
     rec.flush()

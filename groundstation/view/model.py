@@ -28,6 +28,9 @@ from protocol import messages as m
 
 SUCCESS_TIME_S = 300.0  # an episode that lasts this long is a success (paper V-A)
 MOVING_AVERAGE_EPISODES = 50
+# The by-episode curve is sent whole at each episode end (the viewer shows the latest one, on any timeline):
+# bounded so a night of short episodes does not grow the recording by the square of their number.
+CURVE_EPISODES = 1000
 
 
 class Kind(Enum):
@@ -37,6 +40,7 @@ class Kind(Enum):
     IMAGE = "image"  # HxWx3 uint8 per row
     BOX = "box"  # (center_x, center_y, label) per row: the agent's cell on a heatmap
     FRAME = "frame"  # heatmap.Frame per row: a heatmap's axes, tick values and colour legend
+    BARS = "bars"  # (episode numbers, durations) per row: the whole learning curve up to this episode
 
 
 # Entity path -> (kind, legend name). The blueprint groups them by their first path component.
@@ -62,6 +66,7 @@ ENTITIES: dict[str, tuple[Kind, str]] = {
     "learning_curve/duration_s": (Kind.POINT, "duration [s]"),
     "learning_curve/moving_average_s": (Kind.SCALAR, f"{MOVING_AVERAGE_EPISODES}-episode mean [s]"),
     "learning_curve/success_line_s": (Kind.SCALAR, f"{SUCCESS_TIME_S:.0f} s"),
+    "learning_curve_by_episode/duration_s": (Kind.BARS, "duration [s] per episode"),
     "value_function/image": (Kind.IMAGE, "v(s)"),
     "value_function/current_cell": (Kind.BOX, "agent"),
     "value_function/frame": (Kind.FRAME, "axes and legend"),
@@ -127,6 +132,7 @@ class ViewModel:
         self._zdot_cells = int(DEFAULT_GRID["zdot_cells"])
         self._grid_cells: int | None = None  # known from the first dump
         self._durations: deque[float] = deque(maxlen=MOVING_AVERAGE_EPISODES)
+        self._curve: deque[tuple[int, float]] = deque(maxlen=CURVE_EPISODES)  # (episode, duration), by-episode curve
         self._dumps = DumpAssembler()
         self._values: NDArray[np.float32] | None = None  # the latest VALUES dump
         self._untried: NDArray[np.bool_] | None = None  # the states the latest POLICY dump says were never left
@@ -323,6 +329,10 @@ class ViewModel:
             self._row("learning_curve/duration_s", e.duration_s, host_time_ns)
             self._row("learning_curve/moving_average_s", sum(self._durations) / len(self._durations), host_time_ns)
             self._row("learning_curve/success_line_s", SUCCESS_TIME_S, host_time_ns)
+            self._curve.append((e.episode, e.duration_s))
+            episodes, durations = zip(*self._curve, strict=True)
+            self._row("learning_curve_by_episode/duration_s",
+                      (np.asarray(episodes, np.float64), np.asarray(durations, np.float64)), host_time_ns)
 
     def _dump_chunk(self, chunk: m.DumpChunk, host_time_ns: int) -> None:
         dump = self._dumps.feed(chunk)

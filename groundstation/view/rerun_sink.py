@@ -41,6 +41,7 @@ _COLOURS: dict[str, tuple[int, int, int]] = {
     "learning_curve/duration_s": (40, 120, 220),
     "learning_curve/moving_average_s": (230, 120, 30),
     "learning_curve/success_line_s": (60, 180, 75),
+    "learning_curve_by_episode/duration_s": (40, 120, 220),
 }
 
 
@@ -140,7 +141,11 @@ def blueprint(layout: Layout | None = None) -> rrb.Blueprint:
         ),
     )
     right = rrb.Vertical(
-        rrb.TimeSeriesView(origin="learning_curve", name="Learning curve: duration per episode [s]"),
+        rrb.Horizontal(
+            rrb.BarChartView(origin="learning_curve_by_episode", name="Learning curve: duration [s] by episode number",
+                             plot_legend=_NO_LEGEND),
+            rrb.TimeSeriesView(origin="learning_curve", name="Episode durations [s] over agent time"),
+        ),
         rrb.Horizontal(
             _heatmap_view("value_function", "Value function v(depth down, velocity)", layout),
             _heatmap_view("policy", "Policy: greedy action per cell (depth down)", layout),
@@ -210,11 +215,14 @@ def send_batch(rec: rr.RecordingStream, batch: Batch) -> None:
             centres = np.column_stack((np.asarray(xs, np.float32), np.asarray(ys, np.float32)))
             rec.send_columns(path, indexes=_indexes(rows), columns=rr.Boxes2D.columns(
                 centers=centres, half_sizes=np.full_like(centres, 0.5), labels=list(labels)))
-        else:  # images and their frames: one per dump, a handful per episode, so row logging costs nothing here
+        else:  # images, their frames, curves: a handful per episode, so row logging costs nothing here
             for i, value in enumerate(rows.values):
                 _set_row_time(rec, rows, i)
                 if kind == Kind.FRAME:
                     log_frame(rec, path, value)
+                elif kind == Kind.BARS:
+                    episodes, durations = value
+                    rec.log(path, rr.BarChart(durations, abscissa=episodes, color=_COLOURS.get(path)))
                 else:
                     rec.log(path, rr.Image(value, color_model="RGB", magnification_filter="Nearest"))
             rec.reset_time()
