@@ -22,7 +22,7 @@ from rerun.encodings import TimeInt
 from groundstation.session.events import LinkEvent, Received, Sent
 from groundstation.view.errors import ViewError
 from groundstation.view.heatmap import AXIS_COLOUR, DEFAULT_GRID, SWATCH_RADIUS, Bounds, Frame, bounds, default_grid
-from groundstation.view.model import ENTITIES, Batch, Kind, Rows, ViewModel
+from groundstation.view.model import ENTITIES, MOVING_AVERAGE_EPISODES, SUCCESS_TIME_S, Batch, Kind, Rows, ViewModel
 from groundstation.view.options import Viewer
 
 APPLICATION_ID = "diving_agent"
@@ -35,9 +35,14 @@ _COLOURS: dict[str, tuple[int, int, int]] = {
     "depth/episode_success_z_up_m": (40, 200, 120),
     "depth/episode_failure_z_up_m": (230, 60, 60),
     "depth/episode_aborted_z_up_m": (200, 160, 40),
+    "velocity/velocity_mps": (40, 120, 220),
     "velocity/bound_min_mps": (150, 150, 150),
     "velocity/bound_max_mps": (150, 150, 150),
+    "actuator/actuator_deg": (40, 120, 220),
     "actuator/actuator_cmd_deg": (150, 150, 150),
+    "link/loss_ratio": (230, 60, 60),
+    "link/rtt_s": (40, 120, 220),
+    "link/backfilled_samples": (200, 160, 40),
     "learning_curve/duration_s": (40, 120, 220),
     "learning_curve/moving_average_s": (230, 120, 30),
     "learning_curve/success_line_s": (60, 180, 75),
@@ -118,33 +123,38 @@ def _heatmap_view(origin: str, name: str, layout: Layout) -> rrb.Spatial2DView:
                              visual_bounds=rrb.VisualBounds2D(x_range=(b.x_min, b.x_max), y_range=(b.y_min, b.y_max)))
 
 
-# A panel of one series says what it is in its title: no legend box over its data.
+# Rerun draws a plot's legend inside the plot, over the data, whatever its corner: every plot hides it and its
+# title names each series (by the colour _COLOURS gives it).
 _NO_LEGEND = rrb.PlotLegend(visible=False)
+
+
+def _plot(origin: str, name: str, **options: Any) -> rrb.TimeSeriesView:
+    return rrb.TimeSeriesView(origin=origin, name=name, plot_legend=_NO_LEGEND, **options)
 
 
 def blueprint(layout: Layout | None = None) -> rrb.Blueprint:
     """The shipped layout: time series on the left; learning curve, heatmaps (the most room) and logs on the right."""
     layout = layout or Layout()
     series = rrb.Vertical(
-        rrb.TimeSeriesView(origin="depth", name="Depth drawn downward: z up = -depth [m] (surface 0), "
-                                                          "target, learning region, episodes"),
-        rrb.TimeSeriesView(origin="velocity", name="Velocity [m/s] and bounds",
-                           axis_y=rrb.ScalarAxis(range=layout.velocity_range_mps())),
-        rrb.TimeSeriesView(origin="actuator", name="Actuator [deg]"),
-        rrb.TimeSeriesView(origin="action", name="Action (0 less volume, 1 more)", plot_legend=_NO_LEGEND),
-        rrb.TimeSeriesView(origin="reward", name="Reward", plot_legend=_NO_LEGEND),
-        rrb.TimeSeriesView(origin="link", name="Link: loss, RTT [s], backfilled samples"),
+        _plot("depth", "Depth drawn downward: z up = -depth [m] (surface 0): blue z, green target, grey learning "
+                       "region; dots: green episode start or success, red failure, amber aborted"),
+        _plot("velocity", "Velocity [m/s]: blue velocity, grey bounds",
+              axis_y=rrb.ScalarAxis(range=layout.velocity_range_mps())),
+        _plot("actuator", "Actuator [deg]: blue position, grey command"),
+        _plot("action", "Action (0 less volume, 1 more)"),
+        _plot("reward", "Reward"),
+        _plot("link", "Link: red loss ratio, blue RTT [s], amber backfilled samples"),
         rrb.Horizontal(
-            rrb.TimeSeriesView(origin="battery", name="Battery [V]", plot_legend=_NO_LEGEND),
-            rrb.TimeSeriesView(origin="mode", name="Mode (0 idle 1 learn 2 recover 3 hover 4 surface 5 pause)",
-                               plot_legend=_NO_LEGEND),
+            _plot("battery", "Battery [V]"),
+            _plot("mode", "Mode (0 idle 1 learn 2 recover 3 hover 4 surface 5 pause)"),
         ),
     )
     right = rrb.Vertical(
         rrb.Horizontal(
             rrb.BarChartView(origin="learning_curve_by_episode", name="Learning curve: duration [s] by episode number",
                              plot_legend=_NO_LEGEND),
-            rrb.TimeSeriesView(origin="learning_curve", name="Episode durations [s] over agent time"),
+            _plot("learning_curve", f"Episode durations [s] over agent time: blue dots, orange "
+                  f"{MOVING_AVERAGE_EPISODES}-episode mean, green {SUCCESS_TIME_S:.0f} s success line"),
         ),
         rrb.Horizontal(
             _heatmap_view("value_function", "Value function v(depth down, velocity)", layout),
