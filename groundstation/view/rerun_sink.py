@@ -26,7 +26,7 @@ from groundstation.view.model import ENTITIES, MOVING_AVERAGE_EPISODES, SUCCESS_
 from groundstation.view.options import Viewer
 
 APPLICATION_ID = "diving_agent"
-_COLOURS: dict[str, tuple[int, int, int]] = {
+SERIES_COLOURS: dict[str, tuple[int, int, int]] = {
     "depth/z_up_m": (40, 120, 220),
     "depth/target_z_up_m": (60, 180, 75),
     "depth/region_top_z_up_m": (150, 150, 150),
@@ -124,7 +124,7 @@ def _heatmap_view(origin: str, name: str, layout: Layout) -> rrb.Spatial2DView:
 
 
 # Rerun draws a plot's legend inside the plot, over the data, whatever its corner: every plot hides it and its
-# title names each series (by the colour _COLOURS gives it).
+# title names each series (by the colour SERIES_COLOURS gives it).
 _NO_LEGEND = rrb.PlotLegend(visible=False)
 
 
@@ -183,7 +183,7 @@ def new_recording(name: str) -> rr.RecordingStream:
 def send_styles(rec: rr.RecordingStream) -> None:
     """Static series names and colours, so every source looks the same."""
     for path, (kind, label) in ENTITIES.items():
-        colour = _COLOURS.get(path)
+        colour = SERIES_COLOURS.get(path)
         colours = [colour] if colour else None
         if kind == Kind.SCALAR:
             rec.log(path, rr.SeriesLines(names=[label], colors=colours), static=True)
@@ -232,7 +232,7 @@ def send_batch(rec: rr.RecordingStream, batch: Batch) -> None:
                     log_frame(rec, path, value)
                 elif kind == Kind.BARS:
                     episodes, durations = value
-                    rec.log(path, rr.BarChart(durations, abscissa=episodes, color=_COLOURS.get(path)))
+                    rec.log(path, rr.BarChart(durations, abscissa=episodes, color=SERIES_COLOURS.get(path)))
                 else:
                     rec.log(path, rr.Image(value, color_model="RGB", magnification_filter="Nearest"))
             rec.reset_time()

@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 import rerun.chunk as rrc
 
-from groundstation.view.rerun_sink import _COLOURS, RerunView, ViewConfig
+from groundstation.view.rerun_sink import SERIES_COLOURS, RerunView, ViewConfig
 from tests.groundstation.rrd_readback import blueprint_values
 from tests.groundstation.synthetic_agent import generate, play_session
 
@@ -47,5 +47,5 @@ def test_multi_series_titles_name_each_series_by_its_colour(live_rrd: Path) -> N
     for origin, start in (("depth", "Depth"), ("velocity", "Velocity"), ("actuator", "Actuator"), ("link", "Link"),
                           ("learning_curve", "Episode durations")):
         title = next(name for name in names if name.startswith(start))
-        colours = {COLOUR_NAMES[rgb] for path, rgb in _COLOURS.items() if path.startswith(f"{origin}/")}
+        colours = {COLOUR_NAMES[rgb] for path, rgb in SERIES_COLOURS.items() if path.startswith(f"{origin}/")}
         assert colours and all(colour in title for colour in colours), (origin, title)
