@@ -52,7 +52,7 @@ def convert_columns(mcap: Path, rrd: Path) -> tuple[float, int]:
     rec.flush()
     rec.disconnect()
     columns_cpu_s = time.process_time() - cpu
-    return time.perf_counter() - began, len(batch["depth/depth_m"])
+    return time.perf_counter() - began, len(batch["depth/z_up_m"])
 
 
 columns_cpu_s = 0.0  # CPU seconds of the last convert_columns (this process; rerun's threads included)
@@ -81,11 +81,13 @@ def convert_rows(mcap: Path, rrd: Path) -> tuple[float, int]:
                 rec.log(path, rr.Boxes2D(centers=[value[:2]], half_sizes=[(0.5, 0.5)], labels=[value[2]]))
             elif kind == Kind.FRAME:
                 log_frame(rec, path, value)  # logged row by row by the view too
+            elif kind == Kind.BARS:
+                rec.log(path, rr.BarChart(value[1], abscissa=value[0]))
             else:
                 rec.log(path, rr.Image(value, color_model="RGB"))
     rec.flush()
     rec.disconnect()
-    return time.perf_counter() - began, len(batch["depth/depth_m"])
+    return time.perf_counter() - began, len(batch["depth/z_up_m"])
 
 
 class _AgentClock:

@@ -42,7 +42,7 @@ from groundstation.view.rerun_sink import RerunView, ViewConfig
 from protocol import messages as m
 
 SPEEDS = ("1", "100", "max")  # the first is the anchor
-DEPTH_ENTITY = "/depth/depth_m"
+DEPTH_ENTITY = "/depth/z_up_m"
 
 
 class SampleTimes:

@@ -179,7 +179,7 @@ def replay(
                        "the timeline has a hole there", err=True)
         chosen = default_viewer(viewer, rrd)
         web_port, grpc_port = viewer_ports(chosen, web_port, grpc_port)
-        config = ViewConfig(viewer=chosen, rrd=rrd, web_port=web_port, grpc_port=grpc_port)
+        config = ViewConfig(viewer=chosen, rrd=rrd, web_port=web_port, grpc_port=grpc_port, replay=True)
         statuses = [RecordingContents() for _ in parts.files]
         tally = rp.Tally()
         items = rp.select(rp.read_parts(parts, statuses), *bounds, tally)

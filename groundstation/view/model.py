@@ -28,6 +28,9 @@ from protocol import messages as m
 
 SUCCESS_TIME_S = 300.0  # an episode that lasts this long is a success (paper V-A)
 MOVING_AVERAGE_EPISODES = 50
+# The by-episode curve is sent whole at each episode end (the viewer shows the latest one, on any timeline):
+# bounded so a night of short episodes does not grow the recording by the square of their number.
+CURVE_EPISODES = 1000
 
 
 class Kind(Enum):
@@ -37,18 +40,20 @@ class Kind(Enum):
     IMAGE = "image"  # HxWx3 uint8 per row
     BOX = "box"  # (center_x, center_y, label) per row: the agent's cell on a heatmap
     FRAME = "frame"  # heatmap.Frame per row: a heatmap's axes, tick values and colour legend
+    BARS = "bars"  # (episode numbers, durations) per row: the whole learning curve up to this episode
 
 
 # Entity path -> (kind, legend name). The blueprint groups them by their first path component.
+# The depth panel plots z up (= -depth): deeper is drawn lower, as the heatmaps draw it (a plot axis cannot flip).
 ENTITIES: dict[str, tuple[Kind, str]] = {
-    "depth/depth_m": (Kind.SCALAR, "depth [m]"),
-    "depth/target_depth_m": (Kind.SCALAR, "target [m]"),
-    "depth/region_min_m": (Kind.SCALAR, "region top [m]"),
-    "depth/region_max_m": (Kind.SCALAR, "region bottom [m]"),
-    "depth/episode_start_m": (Kind.POINT, "episode start"),
-    "depth/episode_success_m": (Kind.POINT, "success"),
-    "depth/episode_failure_m": (Kind.POINT, "failure"),
-    "depth/episode_aborted_m": (Kind.POINT, "aborted"),
+    "depth/z_up_m": (Kind.SCALAR, "z up = -depth [m]"),
+    "depth/target_z_up_m": (Kind.SCALAR, "target z up [m]"),
+    "depth/region_top_z_up_m": (Kind.SCALAR, "region top z up [m]"),
+    "depth/region_bottom_z_up_m": (Kind.SCALAR, "region bottom z up [m]"),
+    "depth/episode_start_z_up_m": (Kind.POINT, "episode start"),
+    "depth/episode_success_z_up_m": (Kind.POINT, "success"),
+    "depth/episode_failure_z_up_m": (Kind.POINT, "failure"),
+    "depth/episode_aborted_z_up_m": (Kind.POINT, "aborted"),
     "velocity/velocity_mps": (Kind.SCALAR, "velocity [m/s]"),
     "velocity/bound_min_mps": (Kind.SCALAR, "bound [m/s]"),
     "velocity/bound_max_mps": (Kind.SCALAR, "bound [m/s]"),
@@ -61,6 +66,7 @@ ENTITIES: dict[str, tuple[Kind, str]] = {
     "learning_curve/duration_s": (Kind.POINT, "duration [s]"),
     "learning_curve/moving_average_s": (Kind.SCALAR, f"{MOVING_AVERAGE_EPISODES}-episode mean [s]"),
     "learning_curve/success_line_s": (Kind.SCALAR, f"{SUCCESS_TIME_S:.0f} s"),
+    "learning_curve_by_episode/duration_s": (Kind.BARS, "duration [s] per episode"),
     "value_function/image": (Kind.IMAGE, "v(s)"),
     "value_function/current_cell": (Kind.BOX, "agent"),
     "value_function/frame": (Kind.FRAME, "axes and legend"),
@@ -126,6 +132,7 @@ class ViewModel:
         self._zdot_cells = int(DEFAULT_GRID["zdot_cells"])
         self._grid_cells: int | None = None  # known from the first dump
         self._durations: deque[float] = deque(maxlen=MOVING_AVERAGE_EPISODES)
+        self._curve: deque[tuple[int, float]] = deque(maxlen=CURVE_EPISODES)  # (episode, duration), by-episode curve
         self._dumps = DumpAssembler()
         self._values: NDArray[np.float32] | None = None  # the latest VALUES dump
         self._untried: NDArray[np.bool_] | None = None  # the states the latest POLICY dump says were never left
@@ -200,7 +207,7 @@ class ViewModel:
     def _sample(self, s: m.Sample, host_time_ns: int, replayed: bool) -> None:
         self._agent_time_s = s.t_us / 1e6
         self._episode, self._step, self._depth_m = s.episode, s.step, s.depth_m
-        self._row("depth/depth_m", s.depth_m, host_time_ns)
+        self._row("depth/z_up_m", -s.depth_m, host_time_ns)
         self._row("velocity/velocity_mps", s.velocity_mps, host_time_ns)
         self._row("actuator/actuator_deg", s.actuator_deg, host_time_ns)
         self._row("actuator/actuator_cmd_deg", s.actuator_cmd_deg, host_time_ns)
@@ -209,9 +216,9 @@ class ViewModel:
             self._row("action/action", float(s.action), host_time_ns)
         region = self._region
         if region is not None:
-            self._row("depth/target_depth_m", region.target_depth_m, host_time_ns)
-            self._row("depth/region_min_m", region.target_depth_m - region.z_tol_m, host_time_ns)
-            self._row("depth/region_max_m", region.target_depth_m + region.z_tol_m, host_time_ns)
+            self._row("depth/target_z_up_m", -region.target_depth_m, host_time_ns)
+            self._row("depth/region_top_z_up_m", -(region.target_depth_m - region.z_tol_m), host_time_ns)
+            self._row("depth/region_bottom_z_up_m", -(region.target_depth_m + region.z_tol_m), host_time_ns)
             self._row("velocity/bound_min_mps", -region.zdot_tol_mps, host_time_ns)
             self._row("velocity/bound_max_mps", region.zdot_tol_mps, host_time_ns)
         cell = self._cell(s.state)
@@ -250,8 +257,7 @@ class ViewModel:
                 target.step += [steps[i] for i in keep]
             target.values += values
 
-        depth = records["depth_m"].tolist()
-        rows("depth/depth_m", depth)
+        rows("depth/z_up_m", (-records["depth_m"]).tolist())
         rows("velocity/velocity_mps", records["velocity_mps"].tolist())
         rows("actuator/actuator_deg", records["actuator_deg"].tolist())
         rows("actuator/actuator_cmd_deg", records["actuator_cmd_deg"].tolist())
@@ -262,9 +268,9 @@ class ViewModel:
             rows("action/action", actions[acted].astype(np.float64).tolist(), acted)
         region = self._region
         if region is not None:
-            for path, value in (("depth/target_depth_m", region.target_depth_m),
-                                ("depth/region_min_m", region.target_depth_m - region.z_tol_m),
-                                ("depth/region_max_m", region.target_depth_m + region.z_tol_m),
+            for path, value in (("depth/target_z_up_m", -region.target_depth_m),
+                                ("depth/region_top_z_up_m", -(region.target_depth_m - region.z_tol_m)),
+                                ("depth/region_bottom_z_up_m", -(region.target_depth_m + region.z_tol_m)),
                                 ("velocity/bound_min_mps", -region.zdot_tol_mps),
                                 ("velocity/bound_max_mps", region.zdot_tol_mps)):
                 rows(path, [value] * count)
@@ -276,7 +282,8 @@ class ViewModel:
             first = self._backfilled + 1
             self._backfilled += len(again)
             rows("link/backfilled_samples", [float(n) for n in range(first, self._backfilled + 1)], again)
-        self._agent_time_s, self._episode, self._step, self._depth_m = agent_s[-1], episodes[-1], steps[-1], depth[-1]
+        self._agent_time_s, self._episode, self._step, self._depth_m = (agent_s[-1], episodes[-1], steps[-1],
+                                                                      float(records["depth_m"][-1]))
 
     def _cells(self, states: NDArray[np.integer[Any]]) -> list[tuple[float, float, str]]:
         """_cell of many states."""
@@ -304,7 +311,7 @@ class ViewModel:
         self._agent_time_s = e.t_us / 1e6
         self._episode, self._step, self._depth_m = e.episode, 0, e.depth_m
         self._region = Region(e.target_depth_m, e.z_tol_m, e.zdot_tol_mps)
-        self._row("depth/episode_start_m", e.depth_m, host_time_ns)
+        self._row("depth/episode_start_z_up_m", -e.depth_m, host_time_ns)
         text = f"episode {e.episode} start at {e.depth_m:.3f} m, target {e.target_depth_m:.3f} m, " \
             f"p_explore {e.p_explore:.3f}"
         self._row("log/events", (text, "INFO"), host_time_ns)
@@ -313,7 +320,7 @@ class ViewModel:
         self._agent_time_s = e.t_us / 1e6
         self._episode = e.episode
         outcome = _OUTCOME.get(e.reason, "aborted")
-        self._row(f"depth/episode_{outcome}_m", self._depth_m, host_time_ns)
+        self._row(f"depth/episode_{outcome}_z_up_m", -self._depth_m, host_time_ns)
         text = f"episode {e.episode} {outcome} after {e.duration_s:.1f} s, {e.steps} steps, " \
             f"return {e.episode_return:.2f}, {e.successes} successes"
         self._row("log/events", (text, "INFO" if outcome == "success" else "WARN"), host_time_ns)
@@ -322,6 +329,10 @@ class ViewModel:
             self._row("learning_curve/duration_s", e.duration_s, host_time_ns)
             self._row("learning_curve/moving_average_s", sum(self._durations) / len(self._durations), host_time_ns)
             self._row("learning_curve/success_line_s", SUCCESS_TIME_S, host_time_ns)
+            self._curve.append((e.episode, e.duration_s))
+            episodes, durations = zip(*self._curve, strict=True)
+            self._row("learning_curve_by_episode/duration_s",
+                      (np.asarray(episodes, np.float64), np.asarray(durations, np.float64)), host_time_ns)
 
     def _dump_chunk(self, chunk: m.DumpChunk, host_time_ns: int) -> None:
         dump = self._dumps.feed(chunk)

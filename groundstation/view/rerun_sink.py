@@ -17,29 +17,36 @@ from urllib.parse import quote
 import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
+from rerun.encodings import TimeInt
 
 from groundstation.session.events import LinkEvent, Received, Sent
 from groundstation.view.errors import ViewError
 from groundstation.view.heatmap import AXIS_COLOUR, DEFAULT_GRID, SWATCH_RADIUS, Bounds, Frame, bounds, default_grid
-from groundstation.view.model import ENTITIES, Batch, Kind, Rows, ViewModel
+from groundstation.view.model import ENTITIES, MOVING_AVERAGE_EPISODES, SUCCESS_TIME_S, Batch, Kind, Rows, ViewModel
 from groundstation.view.options import Viewer
 
 APPLICATION_ID = "diving_agent"
-_COLOURS: dict[str, tuple[int, int, int]] = {
-    "depth/depth_m": (40, 120, 220),
-    "depth/target_depth_m": (60, 180, 75),
-    "depth/region_min_m": (150, 150, 150),
-    "depth/region_max_m": (150, 150, 150),
-    "depth/episode_start_m": (60, 180, 75),
-    "depth/episode_success_m": (40, 200, 120),
-    "depth/episode_failure_m": (230, 60, 60),
-    "depth/episode_aborted_m": (200, 160, 40),
+SERIES_COLOURS: dict[str, tuple[int, int, int]] = {
+    "depth/z_up_m": (40, 120, 220),
+    "depth/target_z_up_m": (60, 180, 75),
+    "depth/region_top_z_up_m": (150, 150, 150),
+    "depth/region_bottom_z_up_m": (150, 150, 150),
+    "depth/episode_start_z_up_m": (60, 180, 75),
+    "depth/episode_success_z_up_m": (40, 200, 120),
+    "depth/episode_failure_z_up_m": (230, 60, 60),
+    "depth/episode_aborted_z_up_m": (200, 160, 40),
+    "velocity/velocity_mps": (40, 120, 220),
     "velocity/bound_min_mps": (150, 150, 150),
     "velocity/bound_max_mps": (150, 150, 150),
+    "actuator/actuator_deg": (40, 120, 220),
     "actuator/actuator_cmd_deg": (150, 150, 150),
+    "link/loss_ratio": (230, 60, 60),
+    "link/rtt_s": (40, 120, 220),
+    "link/backfilled_samples": (200, 160, 40),
     "learning_curve/duration_s": (40, 120, 220),
     "learning_curve/moving_average_s": (230, 120, 30),
     "learning_curve/success_line_s": (60, 180, 75),
+    "learning_curve_by_episode/duration_s": (40, 120, 220),
 }
 
 
@@ -53,6 +60,7 @@ class ViewConfig:
     grpc_port: int = 9876
     viewer_memory_limit: str = "1GiB"  # the native viewer drops the oldest data past this
     server_memory_limit: str = "256MiB"  # the gRPC server's buffer for late-connecting viewers
+    replay: bool = False  # a recording: the viewer opens paused on the first episode, not following the end
 
     @property
     def wanted(self) -> bool:
@@ -70,6 +78,8 @@ class Layout:
 
     zdot_tol_mps: float = _f32_free(DEFAULT_GRID["zdot_tol_mps"])
     heatmap: Bounds = bounds(default_grid())
+    replay: bool = False
+    first_episode_s: tuple[float, float] | None = None  # a replay's first episode in agent time, once seen
 
     def velocity_range_mps(self) -> tuple[float, float]:
         """Three times the learning region's bound: the bounds sit a third of the way out, and the plot's ticks
@@ -81,7 +91,30 @@ class Layout:
         bound = batch.get("velocity/bound_max_mps")
         zdot_tol_mps = _f32_free(bound.values[-1]) if bound else self.zdot_tol_mps
         frames = batch.get("value_function/frame") or batch.get("policy/frame")
-        return Layout(zdot_tol_mps, frames.values[-1].bounds if frames else self.heatmap)
+        heatmap = frames.values[-1].bounds if frames else self.heatmap
+        return Layout(zdot_tol_mps, heatmap, self.replay, self._first_episode(batch))
+
+    def _first_episode(self, batch: Batch) -> tuple[float, float] | None:
+        """From the first episode's start to the next start (or the batch's last sample): a replay's opening view."""
+        starts = batch.get("depth/episode_start_z_up_m")
+        if not self.replay or self.first_episode_s is not None or not starts:
+            return self.first_episode_s
+        depth = batch.get("depth/z_up_m")
+        first_s = starts.agent_time_s[0]
+        end_s = starts.agent_time_s[1] if len(starts) > 1 else depth.agent_time_s[-1] if depth else first_s
+        return (first_s, max(first_s, end_s))
+
+    def time_panel(self) -> rrb.TimePanel:
+        """Live: the viewer follows the newest data. Replay: paused, so the viewer opens at the timeline's start
+        rather than its end, with the first episode selected (rerun 0.41's blueprint cannot place the cursor)."""
+        if not self.replay:
+            return rrb.TimePanel(timeline="agent_time", expanded=False)
+        selection = None
+        if self.first_episode_s is not None:
+            start_s, end_s = self.first_episode_s
+            selection = rrb.components.AbsoluteTimeRange(min=TimeInt(seconds=start_s), max=TimeInt(seconds=end_s))
+        return rrb.TimePanel(timeline="agent_time", expanded=False, play_state="paused", loop_mode="off",
+                             time_selection=selection)
 
 
 def _heatmap_view(origin: str, name: str, layout: Layout) -> rrb.Spatial2DView:
@@ -90,32 +123,42 @@ def _heatmap_view(origin: str, name: str, layout: Layout) -> rrb.Spatial2DView:
                              visual_bounds=rrb.VisualBounds2D(x_range=(b.x_min, b.x_max), y_range=(b.y_min, b.y_max)))
 
 
-# A panel of one series says what it is in its title: no legend box over its data.
+# Rerun draws a plot's legend inside the plot, over the data, whatever its corner: every plot hides it and its
+# title names each series (by the colour SERIES_COLOURS gives it).
 _NO_LEGEND = rrb.PlotLegend(visible=False)
+
+
+def _plot(origin: str, name: str, **options: Any) -> rrb.TimeSeriesView:
+    return rrb.TimeSeriesView(origin=origin, name=name, plot_legend=_NO_LEGEND, **options)
 
 
 def blueprint(layout: Layout | None = None) -> rrb.Blueprint:
     """The shipped layout: time series on the left; learning curve, heatmaps (the most room) and logs on the right."""
     layout = layout or Layout()
     series = rrb.Vertical(
-        rrb.TimeSeriesView(origin="depth", name="Depth [m] (z down), target, learning region, episodes"),
-        rrb.TimeSeriesView(origin="velocity", name="Velocity [m/s] and bounds",
-                           axis_y=rrb.ScalarAxis(range=layout.velocity_range_mps())),
-        rrb.TimeSeriesView(origin="actuator", name="Actuator [deg]"),
-        rrb.TimeSeriesView(origin="action", name="Action (0 less volume, 1 more)", plot_legend=_NO_LEGEND),
-        rrb.TimeSeriesView(origin="reward", name="Reward", plot_legend=_NO_LEGEND),
-        rrb.TimeSeriesView(origin="link", name="Link: loss, RTT [s], backfilled samples"),
+        _plot("depth", "Depth drawn downward: z up = -depth [m] (surface 0): blue z, green target, grey learning "
+                       "region; dots: green episode start or success, red failure, amber aborted"),
+        _plot("velocity", "Velocity [m/s]: blue velocity, grey bounds",
+              axis_y=rrb.ScalarAxis(range=layout.velocity_range_mps())),
+        _plot("actuator", "Actuator [deg]: blue position, grey command"),
+        _plot("action", "Action (0 less volume, 1 more)"),
+        _plot("reward", "Reward"),
+        _plot("link", "Link: red loss ratio, blue RTT [s], amber backfilled samples"),
         rrb.Horizontal(
-            rrb.TimeSeriesView(origin="battery", name="Battery [V]", plot_legend=_NO_LEGEND),
-            rrb.TimeSeriesView(origin="mode", name="Mode (0 idle 1 learn 2 recover 3 hover 4 surface 5 pause)",
-                               plot_legend=_NO_LEGEND),
+            _plot("battery", "Battery [V]"),
+            _plot("mode", "Mode (0 idle 1 learn 2 recover 3 hover 4 surface 5 pause)"),
         ),
     )
     right = rrb.Vertical(
-        rrb.TimeSeriesView(origin="learning_curve", name="Learning curve: duration per episode [s]"),
         rrb.Horizontal(
-            _heatmap_view("value_function", "Value function v(depth, velocity)", layout),
-            _heatmap_view("policy", "Policy: greedy action per cell", layout),
+            rrb.BarChartView(origin="learning_curve_by_episode", name="Learning curve: duration [s] by episode number",
+                             plot_legend=_NO_LEGEND),
+            _plot("learning_curve", f"Episode durations [s] over agent time: blue dots, orange "
+                  f"{MOVING_AVERAGE_EPISODES}-episode mean, green {SUCCESS_TIME_S:.0f} s success line"),
+        ),
+        rrb.Horizontal(
+            _heatmap_view("value_function", "Value function v(depth down, velocity)", layout),
+            _heatmap_view("policy", "Policy: greedy action per cell (depth down)", layout),
         ),
         rrb.Tabs(
             rrb.TextLogView(origin="log/agent", name="Agent log"),
@@ -125,7 +168,7 @@ def blueprint(layout: Layout | None = None) -> rrb.Blueprint:
     )
     return rrb.Blueprint(
         rrb.Horizontal(series, right, column_shares=[1, 1]),
-        rrb.TimePanel(timeline="agent_time", expanded=False),
+        layout.time_panel(),
         collapse_panels=True,
     )
 
@@ -140,7 +183,7 @@ def new_recording(name: str) -> rr.RecordingStream:
 def send_styles(rec: rr.RecordingStream) -> None:
     """Static series names and colours, so every source looks the same."""
     for path, (kind, label) in ENTITIES.items():
-        colour = _COLOURS.get(path)
+        colour = SERIES_COLOURS.get(path)
         colours = [colour] if colour else None
         if kind == Kind.SCALAR:
             rec.log(path, rr.SeriesLines(names=[label], colors=colours), static=True)
@@ -182,11 +225,14 @@ def send_batch(rec: rr.RecordingStream, batch: Batch) -> None:
             centres = np.column_stack((np.asarray(xs, np.float32), np.asarray(ys, np.float32)))
             rec.send_columns(path, indexes=_indexes(rows), columns=rr.Boxes2D.columns(
                 centers=centres, half_sizes=np.full_like(centres, 0.5), labels=list(labels)))
-        else:  # images and their frames: one per dump, a handful per episode, so row logging costs nothing here
+        else:  # images, their frames, curves: a handful per episode, so row logging costs nothing here
             for i, value in enumerate(rows.values):
                 _set_row_time(rec, rows, i)
                 if kind == Kind.FRAME:
                     log_frame(rec, path, value)
+                elif kind == Kind.BARS:
+                    episodes, durations = value
+                    rec.log(path, rr.BarChart(durations, abscissa=episodes, color=SERIES_COLOURS.get(path)))
                 else:
                     rec.log(path, rr.Image(value, color_model="RGB", magnification_filter="Nearest"))
             rec.reset_time()
@@ -231,14 +277,14 @@ def open_sinks(rec: rr.RecordingStream, config: ViewConfig) -> str | None:
         if config.rrd is not None:
             config.rrd.parent.mkdir(parents=True, exist_ok=True)
             sinks.append(rr.FileSink(config.rrd))
-        rec.set_sinks(*sinks, default_blueprint=blueprint())
+        rec.set_sinks(*sinks, default_blueprint=blueprint(Layout(replay=config.replay)))
         if config.viewer == Viewer.WEB:
             rr.serve_web_viewer(web_port=config.web_port, open_browser=False, connect_to=sinks[0].uri)
     except ViewError:
         raise
     except (OSError, RuntimeError, ValueError) as e:
         raise ViewError(f"cannot open the {config.viewer.value} viewer: {e}") from e
-    rec.send_blueprint(blueprint(), make_active=True)
+    rec.send_blueprint(blueprint(Layout(replay=config.replay)), make_active=True)
     send_styles(rec)
     return address
 
@@ -250,7 +296,8 @@ class RerunView:
     `view.close()` at the end (or `with RerunView.open(...) as view:`).
     """
 
-    def __init__(self, rec: rr.RecordingStream, address: str | None, flush_interval_s: float = 0.1) -> None:
+    def __init__(self, rec: rr.RecordingStream, address: str | None, flush_interval_s: float = 0.1,
+                 replay: bool = False) -> None:
         self._rec = rec
         self._model = ViewModel()
         self._lock = threading.Lock()  # the session's reader thread and the caller may both feed it
@@ -258,14 +305,14 @@ class RerunView:
         # replay or a backfill burst would otherwise spend its time in per-frame sends.
         self._flush_interval_s = flush_interval_s
         self._last_send_s = 0.0
-        self._layout = Layout()  # what the blueprint sent last was made for
+        self._layout = Layout(replay=replay)  # what the blueprint sent last was made for
         self.address = address
 
     @classmethod
     def open(cls, config: ViewConfig, name: str = "live") -> RerunView:
         rec = new_recording(name)
         address = open_sinks(rec, config)
-        return cls(rec, address)
+        return cls(rec, address, replay=config.replay)
 
     def _send_if_due(self) -> None:
         now_s = time.monotonic()

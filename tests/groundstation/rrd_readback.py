@@ -50,3 +50,8 @@ def blueprint_values(path: Path, component: str) -> list[Any]:
     reader = rrc.RrdReader(path)
     chunks = [chunk for store in reader.blueprints() for chunk in reader.stream(store=store).collect().stream()]
     return [row[component] for row in _component_rows(chunks, None) if component in row]  # each one a new store
+
+
+def component_rows(path: Path, entity: str) -> list[dict[str, Any]]:
+    """Every logged row of the entity, in logging order ({"Scalars:scalars": [...], ...}), as Rerun reads them."""
+    return _component_rows(rrc.RrdReader(path).stream().collect().stream(), entity)

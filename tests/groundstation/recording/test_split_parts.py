@@ -112,7 +112,7 @@ def test_the_folder_replays_as_the_unsplit_recording(parts: list[Path], whole: P
     one, _ = rp.convert_recording(whole, RecordingContents())
     assert {path: len(rows.values) for path, rows in split.items()} == \
         {path: len(rows.values) for path, rows in one.items()}
-    assert split["depth/depth_m"].agent_time_s == one["depth/depth_m"].agent_time_s
+    assert split["depth/z_up_m"].agent_time_s == one["depth/z_up_m"].agent_time_s
 
 
 def test_a_window_across_parts_is_one_timeline(parts: list[Path], tmp_path: Path) -> None:

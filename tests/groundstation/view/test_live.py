@@ -61,7 +61,7 @@ def test_a_live_run_and_its_replay_show_the_same_rows(tmp_path: Path) -> None:
         samples = sum(1 for _s, _c, msg in make_reader(stream).iter_messages(topics=["/raw/rx"]) if msg.data[4] == 0x20)
     live, replayed = rows_per_entity(live_rrd), rows_per_entity(tmp_path / "replay.rrd")
     assert set(live) == set(replayed)
-    assert replayed["/depth/depth_m"] == samples > 0
-    assert live["/depth/depth_m"] == samples
+    assert replayed["/depth/z_up_m"] == samples > 0
+    assert live["/depth/z_up_m"] == samples
     assert replayed["/learning_curve/duration_s"] >= EPISODES
     assert replayed["/value_function/image"] >= EPISODES and replayed["/policy/image"] >= EPISODES

@@ -45,7 +45,7 @@ def test_a_recording_cut_short_by_a_crash_replays_what_was_complete(
     result = CliRunner().invoke(app, ["replay", str(cut), "--rrd", str(tmp_path / "cut.rrd")])
     assert result.exit_code == 0, result.output
     assert "cut short" in result.output
-    shown = rows_per_entity(tmp_path / "cut.rrd")["/depth/depth_m"]
+    shown = rows_per_entity(tmp_path / "cut.rrd")["/depth/z_up_m"]
     assert 0.4 * traffic.samples < shown < traffic.samples
 
 

@@ -25,6 +25,8 @@ def _same(a: Batch, b: Batch) -> None:
         for x, y in zip(left.values, right.values, strict=True):
             if isinstance(x, np.ndarray):
                 assert np.array_equal(x, y), path
+            elif isinstance(x, tuple) and isinstance(x[0], np.ndarray):  # a learning curve: (episodes, durations)
+                assert len(x) == len(y) and all(np.array_equal(u, v) for u, v in zip(x, y, strict=True)), path
             else:
                 assert x == y and type(x) is type(y), path
 

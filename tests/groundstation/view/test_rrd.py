@@ -52,16 +52,16 @@ def test_live_and_replayed_rrd_hold_the_same_entities_with_every_sample(
     assert samples == traffic.samples == 1200
     assert set(live) == set(replayed)
     assert live == replayed  # same rows, not just the same names
-    assert replayed["/depth/depth_m"] == samples
-    for entity in ("/velocity/velocity_mps", "/actuator/actuator_deg", "/reward/reward", "/depth/target_depth_m",
+    assert replayed["/depth/z_up_m"] == samples
+    for entity in ("/velocity/velocity_mps", "/actuator/actuator_deg", "/reward/reward", "/depth/target_z_up_m",
                    "/value_function/image", "/policy/image", "/value_function/current_cell",
                    "/learning_curve/duration_s", "/learning_curve/moving_average_s", "/link/loss_ratio",
                    "/link/rtt_s", "/link/backfilled_samples", "/log/agent", "/log/events",
-                   "/depth/episode_start_m", "/depth/episode_failure_m"):
+                   "/depth/episode_start_z_up_m", "/depth/episode_failure_z_up_m"):
         assert replayed[entity] > 0, entity
     episodes = sum(isinstance(r.message, m.EpisodeEnd) for r in traffic.frames)
     assert replayed["/learning_curve/duration_s"] == episodes
-    assert timelines(tmp_path / "replay.rrd", "/depth/depth_m") == {"agent_time", "host_time", "episode", "step"}
+    assert timelines(tmp_path / "replay.rrd", "/depth/z_up_m") == {"agent_time", "host_time", "episode", "step"}
 
 
 def test_replay_at_a_finite_speed_shows_the_same_rows_as_max(recording: Path, tmp_path: Path) -> None:
@@ -76,7 +76,7 @@ def test_an_episode_range_shows_only_those_episodes(traffic: Traffic, recording:
     result = CliRunner().invoke(app, ["replay", str(recording), "--from", "3", "--to", "5", "--rrd", str(out)])
     assert result.exit_code == 0, result.output
     wanted = sum(isinstance(r.message, m.Sample) and 3 <= r.message.episode <= 5 for r in traffic.frames)
-    assert rows_per_entity(out)["/depth/depth_m"] == wanted
+    assert rows_per_entity(out)["/depth/z_up_m"] == wanted
     assert rows_per_entity(out)["/learning_curve/duration_s"] == 3
 
 
@@ -84,4 +84,4 @@ def test_a_time_range_shows_only_that_window(recording: Path, tmp_path: Path) ->
     out = tmp_path / "window.rrd"
     result = CliRunner().invoke(app, ["replay", str(recording), "--from", "30s", "--to", "1m", "--rrd", str(out)])
     assert result.exit_code == 0, result.output
-    assert rows_per_entity(out)["/depth/depth_m"] == 301  # 10 Hz from 30.0 s to 60.0 s inclusive
+    assert rows_per_entity(out)["/depth/z_up_m"] == 301  # 10 Hz from 30.0 s to 60.0 s inclusive
