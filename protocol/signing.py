@@ -27,6 +27,9 @@ NEW_LINK_WINDOW_S = 60.0
 # Once the receiver has an estimate, a timestamp further than this ahead of it is refused (too new), so that one
 # frame from a clock far ahead cannot lock every later frame out as a replay.
 FUTURE_WINDOW_S = 60.0
+# One accepted frame moves the estimate at most this far past where it was (issue 25 L5): a clock ahead but inside
+# FUTURE_WINDOW_S cannot ratchet the estimate a minute per frame until every new link id is refused as too old.
+ESTIMATE_STEP_S = 10.0
 LINK_IDS_HELD = 16  # replay state kept for this many link ids; the least recently accepted one is forgotten
 # The highest accepted timestamp survives a reboot: the receiver stores mark = accepted + this whenever an accepted
 # timestamp passes the stored mark (at most one non-volatile write per 10 s) and refuses timestamps <= the mark.
@@ -207,8 +210,10 @@ class SignatureVerifier:
         self._last_by_link.move_to_end(link_id)
         if len(self._last_by_link) > LINK_IDS_HELD:
             self._last_by_link.popitem(last=False)  # evicted: "not seen since boot" again
-        if estimate is None or stamp > estimate:
-            self._best_timestamp, self._best_at_s = stamp, now_s
+        if estimate is None or stamp > estimate:  # the frame keeps its own timestamp above; the estimate a bounded step
+            step = int(ESTIMATE_STEP_S * _TICKS_PER_S)
+            self._best_timestamp = stamp if estimate is None else min(stamp, estimate + step)
+            self._best_at_s = now_s
         if stamp > self.mark:
             self.mark = min(stamp + int(MARK_AHEAD_S * _TICKS_PER_S), TIMESTAMP_MAX)
             if self.persist is not None:

@@ -107,8 +107,10 @@ sign_result_t signing_check_time(const frame_t *f, uint64_t link_now_us) {
     entry->last_stamp = stamp;
     entry->used = ++g_lru_clock;
     if (!g_have_estimate || stamp > estimate(link_now_us)) {
+        /* a bounded step (SPEC s. 12 step 5): a clock ahead cannot ratchet the estimate a minute per frame */
+        uint64_t bound = g_have_estimate ? estimate(link_now_us) + SIGNING_ESTIMATE_STEP_TICKS : stamp;
+        g_best_stamp = stamp < bound ? stamp : bound;
         g_have_estimate = true;
-        g_best_stamp = stamp;
         g_best_at_us = link_now_us;
     }
     persist_mark(stamp);

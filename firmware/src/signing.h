@@ -11,6 +11,7 @@
 #define SIGNING_LINK_IDS 16u                 /* per-link_id table; the least recently used is evicted */
 #define SIGNING_TICKS_PER_S 100000u          /* timestamp unit: 10 us */
 #define SIGNING_WINDOW_TICKS (60u * SIGNING_TICKS_PER_S)  /* too old (new link id) / too new bound */
+#define SIGNING_ESTIMATE_STEP_TICKS (10u * SIGNING_TICKS_PER_S)  /* one frame moves the estimate at most this */
 #define SIGNING_MARK_AHEAD_TICKS (10u * SIGNING_TICKS_PER_S)  /* persisted mark = accepted + 10 s */
 
 typedef enum {

@@ -142,12 +142,17 @@ class BackfillPlanner:
     def saw_log_window(self, first_sample: int, next_sample: int) -> None:
         """The agent's claim (HEARTBEAT, LOG_RANGE), believed only as far as the samples seen make possible: its log
         ends at most MAX_LOG_SAMPLES past the highest sample received, and begins at or below its end."""
-        if self.held.end is not None:
-            next_sample = min(next_sample, self.held.end + MAX_LOG_SAMPLES)
+        next_sample = self.believed_end(next_sample)
         self.log_first = min(first_sample, next_sample)
         self.known_end = max(self.known_end, next_sample)
         if self.end_limit is not None:
             self.known_end = min(self.known_end, self.end_limit)
+
+    def believed_end(self, next_sample: int) -> int:
+        """The end of the agent's log it claims, as far as the samples seen make it possible (at most MAX_LOG_SAMPLES
+        past the highest received). The run's end (end_limit) does not cut it: that limits what is wanted, not what
+        the agent may send, and a SAMPLE after the run's end is a true one (recorded raw)."""
+        return next_sample if self.held.end is None else min(next_sample, self.held.end + MAX_LOG_SAMPLES)
 
     def finish_at(self) -> int:
         """The run is over: want nothing from the index the agent has reached now on; returns that index."""

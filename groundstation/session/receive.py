@@ -166,9 +166,10 @@ class ReceiveLoop(SessionCore):
         elif isinstance(msg, m.Heartbeat):
             self.last_heartbeat = msg
             self.backfill.saw_log_window(msg.log_first_sample, msg.log_next_sample)
-            # what the planner believed of the claim, not the claim: a next index near 2^32 must not make every
-            # index below it possible
-            self.sample_check.heartbeat(min(msg.log_next_sample, self.backfill.known_end), msg.uptime_ms)
+            # what the planner believes of the claim, not the claim: a next index near 2^32 must not make every
+            # index below it possible. Not known_end: the run's end caps that, and the true SAMPLEs the agent sends
+            # after it would be refused as impossible, unrecorded though their seq gaps were counted
+            self.sample_check.heartbeat(self.backfill.believed_end(msg.log_next_sample), msg.uptime_ms)
         elif isinstance(msg, m.Timesync):
             self._on_timesync(msg, host_ns)
         elif isinstance(msg, m.Text) and msg.text == LINK_TAKEN_TEXT and not backfilled:

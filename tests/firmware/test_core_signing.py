@@ -134,3 +134,20 @@ def test_a_ground_hello_empties_the_ack_memory(keyed: KeyedAgent) -> None:
                            node_id=7, boot_id=1)
     keyed.send(ground.encode(hello).wire)
     assert results(keyed.send(wire)) == [AckResult.UNAUTHORIZED]  # memory emptied: the timestamp is a replay
+
+
+def test_a_clock_ahead_moves_the_estimate_a_bounded_step(keyed: KeyedAgent) -> None:
+    """Issue 25 L5: one accepted frame moves the estimate at most 10 s (SPEC s. 12, step 5); a clock 59 s ahead can
+    no longer ratchet it a minute per frame until a new ground with the right time is refused as too old."""
+    clock = Clock()
+    honest = FrameEncoder(600, signer=Signer(KEY, 10, clock))
+    assert results(keyed.send(honest.encode(messages.ParamGet(index=0), ACK).wire)) == [AckResult.ACCEPTED]
+    fast = Clock()
+    fast.ns = clock.ns + 59 * 10**9
+    ahead = FrameEncoder(700, signer=Signer(KEY, 11, fast))
+    assert results(keyed.send(ahead.encode(messages.ParamGet(index=0), ACK).wire)) == [AckResult.ACCEPTED]
+    fast.ns += 59 * 10**9  # 118 s ahead of the honest clock: the estimate moved 10 s, so this is too new
+    assert results(keyed.send(ahead.encode(messages.ParamGet(index=0), ACK).wire)) == [AckResult.UNAUTHORIZED]
+    clock.ns += 10**9
+    fresh = FrameEncoder(800, signer=Signer(KEY, 12, clock))  # a new link id with the right time
+    assert results(keyed.send(fresh.encode(messages.ParamGet(index=0), ACK).wire)) == [AckResult.ACCEPTED]

@@ -84,9 +84,11 @@ def visible_losses(run: FaultRun) -> int:
     received = _unwrap(run.connections[0], origin)
     hello_at = {received[i] for i in run.hellos}
     total = 0
-    for start, end, (_, *lost) in zip(starts, ends, out["lost_by_connection"], strict=True):
+    for start, base, end, (_, *lost) in zip(starts, bases, ends, out["lost_by_connection"], strict=True):
         mine = sorted(p for p in received if start <= p < end)
-        for p in _unwrap(lost, origin):
+        # from the connection's own first seq: unwrapped from the run's first one, a lost seq more than 32 768 past
+        # it read as negative, and a long run's later connections lost their counts (780 seen, 507 counted)
+        for p in (start + distance for distance in _unwrap(lost, base)):
             index = bisect_right(mine, p)
             if 0 < index < len(mine) and mine[index] not in hello_at:
                 total += 1

@@ -54,7 +54,8 @@ def test_the_decoder_never_raises_and_its_memory_and_counts_stay_sane(items: lis
 @settings(max_examples=120, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(items=st.lists(st.tuples(COMMANDS, st.sampled_from(["signed", "unsigned", "wrong key"]), MUTATIONS,
                                 st.booleans()), min_size=1, max_size=10))
-def test_the_signing_agent_answers_every_command_once_and_runs_only_signed_ones_or_a_surface(items: list[object]) -> None:
+def test_the_signing_agent_answers_every_command_once_and_runs_only_signed_ones_or_a_surface(
+        items: list[object]) -> None:
     link, program, out = in_process_agent(KEY)
     encoders = {"signed": FrameEncoder(signer=Signer(KEY, 2)), "unsigned": FrameEncoder(100),
                 "wrong key": FrameEncoder(200, signer=Signer(bytes(32), 2))}
