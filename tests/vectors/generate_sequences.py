@@ -50,14 +50,14 @@ class Recorder:
         start = 0
         for frame in self._decoder.feed(wire):
             end = wire.index(b"\x00", start) + 1
-            self.frames.append(_entry("a", frame.message, wire[start:end]))
+            self.frames.append(entry("a", frame.message, wire[start:end]))
             start = end
 
     def send(self, message: Message, *, seq: int | None = None, flush: bool = False) -> int:
         encoded = (FrameEncoder(first_seq=seq) if seq is not None else self.ground).encode(
             message, ACK if message.MSG_ID >= 0x80 else 0)
         wire = (b"\x00" if flush else b"") + encoded.wire
-        self.frames.append(_entry("g", message, wire))
+        self.frames.append(entry("g", message, wire))
         self.agent.receive(wire)
         return encoded.seq
 
@@ -76,11 +76,11 @@ class Recorder:
         return self.agent.program.mode
 
 
-def _entry(direction: str, message: Message, wire: bytes) -> dict[str, Any]:
+def entry(direction: str, message: Message, wire: bytes) -> dict[str, Any]:
     return {"dir": direction, "msg": message.DEFINITION.name, "wire_hex": wire.hex(), "fields": message.to_dict()}
 
 
-def _elide(frames: list[dict[str, Any]]) -> list[dict[str, Any]]:
+def elide(frames: list[dict[str, Any]]) -> list[dict[str, Any]]:
     """Runs of LEARNING SAMPLEs cut to their first and last KEEP_SAMPLES, the middle as {"elided": N}."""
     out: list[dict[str, Any]] = []
     run: list[dict[str, Any]] = []
@@ -136,7 +136,7 @@ def sequences() -> list[dict[str, Any]]:
     r.steps(3)
     r.send(messages.Stop())
     r.steps(1)
-    episode = _elide(list(r.frames))
+    episode = elide(list(r.frames))
     return [
         {"name": "a session's start (SPEC.md 4, sessions)", "frames": session},
         {"name": "a reconnect: ACK memory emptied, the missed SAMPLEs replayed (SPEC.md 4, 5, 7)",
