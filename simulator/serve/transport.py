@@ -24,6 +24,25 @@ UNSENT_BYTES = 4 * 1024
 SEND_BUFFER_BYTES = 4 * 1024  # where TCP_NOTSENT_LOWAT does not exist: the send buffer itself, as small
 
 
+def tell_replaced(old: socket.socket, notice: bytes) -> None:
+    """Send the old client the replaced notice, then end our side with a FIN, not a reset: a socket closed with
+    unread bytes in it resets the connection, and a reset makes Linux drop what the peer has not read yet."""
+    def drain() -> None:
+        with contextlib.suppress(OSError):
+            while old.recv(READ_BYTES):
+                pass
+
+    drain()
+    with contextlib.suppress(OSError):
+        # Waiting up to a second for room: a full send buffer (a slow reader) would otherwise swallow the notice,
+        # and the old ground, seeing only the close, would reconnect and take the link back.
+        old.settimeout(REPLACED_NOTICE_WAIT_S)
+        old.sendall(b"\x00" + notice)  # 0x00 first: ends a partial frame sent before it
+        old.shutdown(socket.SHUT_WR)
+    old.setblocking(False)
+    drain()
+
+
 class TransportError(SimulatorError, OSError):
     """The port cannot be opened (address in use, no pty available)."""
 
@@ -154,22 +173,7 @@ class TcpTransport(Transport):
         self.on_connect()
 
     def _tell_replaced(self, old: socket.socket) -> None:
-        """Send the old client the replaced notice, then end our side with a FIN, not a reset: a socket closed with
-        unread bytes in it resets the connection, and a reset makes Linux drop what the peer has not read yet."""
-        def drain() -> None:
-            with contextlib.suppress(OSError):
-                while old.recv(READ_BYTES):
-                    pass
-
-        drain()
-        with contextlib.suppress(OSError):
-            # Waiting up to a second for room: a full send buffer (a slow reader) would otherwise swallow the notice,
-            # and the old ground, seeing only the close, would reconnect and take the link back.
-            old.settimeout(REPLACED_NOTICE_WAIT_S)
-            old.sendall(b"\x00" + self.on_replaced())  # 0x00 first: ends a partial frame sent before it
-            old.shutdown(socket.SHUT_WR)
-        old.setblocking(False)
-        drain()
+        tell_replaced(old, self.on_replaced())
 
     def _ready(self, mask: int) -> None:
         if mask & selectors.EVENT_READ:
@@ -247,22 +251,7 @@ class PtyTransport(Transport):
             self.on_connect()
 
     def _tell_replaced(self, old: socket.socket) -> None:
-        """Send the old client the replaced notice, then end our side with a FIN, not a reset: a socket closed with
-        unread bytes in it resets the connection, and a reset makes Linux drop what the peer has not read yet."""
-        def drain() -> None:
-            with contextlib.suppress(OSError):
-                while old.recv(READ_BYTES):
-                    pass
-
-        drain()
-        with contextlib.suppress(OSError):
-            # Waiting up to a second for room: a full send buffer (a slow reader) would otherwise swallow the notice,
-            # and the old ground, seeing only the close, would reconnect and take the link back.
-            old.settimeout(REPLACED_NOTICE_WAIT_S)
-            old.sendall(b"\x00" + self.on_replaced())  # 0x00 first: ends a partial frame sent before it
-            old.shutdown(socket.SHUT_WR)
-        old.setblocking(False)
-        drain()
+        tell_replaced(old, self.on_replaced())
 
     def _ready(self, mask: int) -> None:
         if mask & selectors.EVENT_READ:
