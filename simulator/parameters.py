@@ -127,8 +127,7 @@ def with_overrides(params: PlantParams, overrides: dict[str, Any]) -> PlantParam
     return validate(replace(params, **clean))
 
 
-def read_param_table(path: Path, key: str = "field") -> dict[str, Any]:
-    """The flat table of a TOML or JSON parameter file; `key` names its keys in the error (field, name)."""
+def _read_table(path: Path, key: str) -> dict[str, Any]:
     try:
         text = path.read_bytes()
         data = json.loads(text) if path.suffix.lower() == ".json" else tomllib.loads(text.decode())
@@ -136,10 +135,27 @@ def read_param_table(path: Path, key: str = "field") -> dict[str, Any]:
         raise ParamsError(f"cannot read parameter file {path}: {e}") from e
     if not isinstance(data, dict):
         raise ParamsError(f"parameter file {path} must hold a table of {key} = value")
+    return data
+
+
+def read_param_table(path: Path, key: str = "field") -> dict[str, Any]:
+    """The flat table of a TOML or JSON parameter file; `key` names its keys in the error (field, name)."""
+    data = _read_table(path, key)
     plant = data.get("plant")
-    if isinstance(plant, dict):  # a fitted plant (`dive fit`) keeps its figures in [plant]: `dive run` skips tables
+    # a fitted plant (`dive fit`) keeps its figures in [plant] (`dive run` hands that table to its simulator: --plant)
+    if isinstance(plant, dict):
         data = {**{k: v for k, v in data.items() if k != "plant"}, **plant}
     return data
+
+
+def read_plant_table(path: Path) -> dict[str, Any]:
+    """A plant file's figures: its [plant] table (as `dive fit` writes it), or the whole file if it has none.
+
+    What `dive run --params FILE` hands a simulator: the file's agent parameters go to the agent over the link.
+    """
+    data = _read_table(path, "field")
+    plant = data.get("plant")
+    return plant if isinstance(plant, dict) else data
 
 
 def load_params(path: Path, base: PlantParams) -> PlantParams:

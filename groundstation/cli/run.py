@@ -75,6 +75,8 @@ def run_command(
     check_presets(preset, learner)
     url = _with_sim_options(url, speed=speed, seed=seed, preset=preset, learner=learner)
     values: dict[str, str] = load_params_file(params) if params else {}
+    if params is not None:
+        url = _with_plant_table(url, params)
     for name, value in (("target_depth_m", target_depth), ("z_tol_m", z_tol), ("zdot_tol_mps", zdot_tol),
                         ("success_time_s", success_time)):
         if value is not None:
@@ -130,4 +132,25 @@ def _with_sim_options(url: str | None, **sim_options: object) -> str:
     if not url.startswith("sim://"):
         flags = ", ".join(f"--{k}" for k in options)
         raise UsageError(f"{flags} apply to the built-in virtual agent (sim://) only")
+    return _with_query(url, options)
+
+
+def _with_query(url: str, options: dict[str, str]) -> str:
     return url + ("&" if "?" in url else "?") + urlencode(options)
+
+
+def _with_plant_table(url: str, params: Path) -> str:
+    """A parameter file's [plant] table (`dive fit`'s figures) goes to the simulator a sim:// URL starts.
+
+    A real agent has its plant in the water: the table cannot apply, which one line says; the file's agent
+    parameters are set all the same (what a user wants after `dive fit` wrote both kinds into one file).
+    """
+    from groundstation.session.paramfile import has_plant_table
+
+    if not has_plant_table(params):
+        return url
+    if url.startswith("sim://"):
+        return _with_query(url, {"plant": str(params.resolve())})
+    err.print(f"{params}: its [plant] table is for a simulator (sim://) and cannot apply to {url}; its agent "
+              "parameters are set", style="yellow")
+    return url

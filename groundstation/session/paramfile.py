@@ -15,9 +15,34 @@ from pathlib import Path
 from groundstation.errors import ParameterError
 from groundstation.session.params import ParamTable
 
+PLANT_TABLE = "plant"  # a plant file's figures (`dive fit`): the simulator's, not the agent's
+
 
 def read_params(path: Path) -> dict[str, str]:
     """name -> value text (booleans as true/false), for Session.set_param."""
+    data = _read_table(path)
+    table = data.get("params")
+    if isinstance(table, dict):
+        data = table
+    values = {}
+    for name, value in data.items():
+        if isinstance(value, bool):
+            values[str(name)] = "true" if value else "false"
+        elif isinstance(value, int | float):
+            values[str(name)] = repr(value)
+        elif isinstance(value, dict):
+            continue  # another table (the simulator's plant settings, ...)
+        else:
+            raise ParameterError(f"{path}: {name} = {value!r} is not a number or true/false")
+    return values
+
+
+def has_plant_table(path: Path) -> bool:
+    """Whether the file holds a [plant] table, which only a simulator can take (`dive run` hands it over)."""
+    return isinstance(_read_table(path).get(PLANT_TABLE), dict)
+
+
+def _read_table(path: Path) -> dict[str, object]:
     try:
         text = path.read_text()
     except OSError as e:
@@ -32,21 +57,9 @@ def read_params(path: Path) -> dict[str, str]:
             data = tomllib.loads(text)
         except tomllib.TOMLDecodeError as e:
             raise ParameterError(f"{path}: not valid TOML ({e}); write `name = value` lines") from e
-    if isinstance(data.get("params"), dict):
-        data = data["params"]
     if not isinstance(data, dict):
         raise ParameterError(f"{path}: expected `name = value` lines")
-    values = {}
-    for name, value in data.items():
-        if isinstance(value, bool):
-            values[str(name)] = "true" if value else "false"
-        elif isinstance(value, int | float):
-            values[str(name)] = repr(value)
-        elif isinstance(value, dict):
-            continue  # another table (the simulator's plant settings, ...)
-        else:
-            raise ParameterError(f"{path}: {name} = {value!r} is not a number or true/false")
-    return values
+    return data
 
 
 def format_params(table: ParamTable) -> str:

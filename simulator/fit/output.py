@@ -8,7 +8,7 @@ from typing import Any
 
 from simulator.fit.estimate import NEUTRAL, Estimate, FitResult
 
-PLANT_TABLE = "plant"  # `dive run --params` skips tables (they are not agent parameters); the simulator reads it
+PLANT_TABLE = "plant"  # not agent parameters: `dive run --params` hands this table to the simulator it starts
 _UNITS = {"added_mass_kg": "kg", "drag_kgpm": "kg/m", "trim_error_fraction": "of V0", "compressibility_m3pm": "m^3/m",
           "alpha_rate_dps": "deg/s", "pressure_noise_pa": "Pa", NEUTRAL: "deg"}
 
@@ -33,8 +33,8 @@ def plant_toml(result: FitResult, base_label: str, base_fields: dict[str, Any]) 
         lines.append("# Not identified by these recordings (the base's value stays):")
         lines.extend(f"#   {e.name}: {e.needs}" for e in missing)
     lines += [
-        "# Read by `dive sim --params`, `dive study --params` and `dive run --params` (which leaves this table to the",
-        "# simulator: these are not agent parameters).",
+        "# Read by `dive sim --params`, `dive study --params` and `dive run --params` (which hands this table to the",
+        "# simulator of a sim:// run: these are not agent parameters).",
         f"[{PLANT_TABLE}]",
     ]
     fitted = {e.name for e in result.estimates if e.identified}

@@ -19,9 +19,9 @@ from simulator.agent.mission import MissionConfig
 from simulator.agent.params_table import Scope, binding, check_value
 from simulator.agent.signing_mark import mark_path
 from simulator.errors import ParamsError, SimulatorError, say_error
-from simulator.parameters import PlantParams, preset, read_param_table, with_overrides
+from simulator.parameters import PlantParams, preset, read_param_table, read_plant_table, with_overrides
 from simulator.serve.faults import FaultConfig
-from simulator.serve.firmware_qemu import QemuConfig, serve_qemu
+from simulator.serve.firmware_qemu import PLANT_FIELDS, QemuConfig, serve_qemu
 from simulator.serve.loop import FIRMWARES, AgentServer, ServeConfig
 
 EXIT_BAD_ARGUMENT = 2
@@ -49,17 +49,41 @@ def parse_speed(text: str) -> float | None:
     return speed
 
 
-def _refuse_for_firmware(learner: str, params: Path | None) -> None:
+def _refuse_for_firmware(learner: str, params: Path | None, firmware: str = "c") -> None:
     """The C firmware starts from the real agent's parameter defaults: learner presets and agent parameters in a
     parameter file would be silently ignored, so they are refused (a ground sets them with PARAM_SET)."""
     if learner != "paper":
-        raise ParamsError("--learner does not apply to --firmware c: set the agent's parameters with PARAM_SET "
-                          "(dive run --param NAME=VALUE)")
+        raise ParamsError(f"--learner does not apply to --firmware {firmware}: set the agent's parameters with "
+                          "PARAM_SET (dive run --param NAME=VALUE)")
     if params is not None:
         agent_names = sorted(set(read_param_table(params, "name")) & set(BY_NAME))
         if agent_names:
-            raise ParamsError(f"{params}: agent parameters ({', '.join(agent_names)}) do not apply to --firmware c; "
-                              "set them with PARAM_SET (dive run --param NAME=VALUE)")
+            raise ParamsError(f"{params}: agent parameters ({', '.join(agent_names)}) do not apply to --firmware "
+                              f"{firmware}; set them with PARAM_SET (dive run --param NAME=VALUE)")
+
+
+def with_plant_file(plant: PlantParams, path: Path | None) -> PlantParams:
+    """plant with a plant file's figures (`--plant`: its [plant] table only)."""
+    return plant if path is None else with_overrides(plant, read_plant_table(path))
+
+
+def qemu_plant(params: Path | None, plant_file: Path | None) -> PlantParams | None:
+    """The plant the QEMU board is given: the hardware preset (its built-in one) with the files' figures, or None.
+
+    Only the figures the C plant and sensor have (PLANT_FIELDS) can reach it; any other is refused, not ignored.
+    """
+    if params is None and plant_file is None:
+        return None
+    _refuse_for_firmware("paper", params, "qemu")
+    figures = read_param_table(params) if params is not None else {}
+    if plant_file is not None:
+        figures |= read_plant_table(plant_file)
+    plant = with_overrides(preset("hardware"), figures)  # unknown names and figures that cannot work, first
+    foreign = sorted(set(figures) - set(PLANT_FIELDS))
+    if foreign:
+        raise ParamsError(f"the QEMU board's C plant takes hull, actuator and pressure-sensor figures only: "
+                          f"{', '.join(foreign)} do not apply to --firmware qemu")
+    return plant
 
 
 def parse_firmware(text: str) -> str:
@@ -110,14 +134,15 @@ def apply_param_file(
 
 
 def serve_on_qemu(tcp: str, pty: bool, speed: str, seed: int | None, key_file: Path | None,
-                  refused: list[str]) -> None:
+                  refused: list[str], params: Path | None, plant_file: Path | None) -> None:
     """`serve --firmware qemu`: the whole firmware on QEMU, its own C plant; QEMU serves the link."""
     try:
         if refused:
             raise ParamsError(f"--firmware qemu runs its own C plant: {', '.join(refused)} do not apply")
         host, port = parse_tcp(tcp)
         config = QemuConfig(host=host, port=port, pty=pty, speed=parse_speed(speed), seed=seed,
-                            key=read_key_file(key_file) if key_file is not None else None)
+                            key=read_key_file(key_file) if key_file is not None else None,
+                            plant=qemu_plant(params, plant_file))
     except SimulatorError as e:
         say_error(str(e))
         raise typer.Exit(EXIT_BAD_ARGUMENT) from None
@@ -138,6 +163,9 @@ def serve(
         "the loop: much harder)."))] = "paper",
     learner: Annotated[str, typer.Option(help=f"Learner preset: {', '.join(learner_names())}.")] = "paper",
     params: Annotated[Path | None, typer.Option(help="TOML/JSON table of agent parameters and plant figures.")] = None,
+    plant_file: Annotated[Path | None, typer.Option("--plant", help=(
+        "A plant file (`dive fit --out`): only its [plant] table, applied after --params. `dive run --params FILE` "
+        "hands its file's [plant] table over this way."))] = None,
     drop: Annotated[float, typer.Option(help="Probability of losing a whole frame, each direction.")] = 0.0,
     corrupt: Annotated[float, typer.Option(help="Probability that one byte of a frame is changed.")] = 0.0,
     delay: Annotated[float, typer.Option(help="Latency added each direction, ms of wall time.")] = 0.0,
@@ -156,8 +184,8 @@ def serve(
     firmware: Annotated[str, typer.Option(help=(
         "The on-board program: python (the reference in simulator/) or c (the C firmware of firmware/, its host "
         "build, made on demand; it starts from the real agent's parameter defaults) or qemu (the whole firmware "
-        "with a C port of the hardware plant on an emulated Cortex-M4; only --tcp, --pty, --speed, --seed and "
-        "--key-file apply)."))] = "python",
+        "with a C port of the hardware plant on an emulated Cortex-M4; only --tcp, --pty, --speed, --seed, "
+        "--key-file and the plant's figures of --params and --plant apply)."))] = "python",
     report: Annotated[
         Path | None, typer.Option(help="At exit, write what the faults did and the samples produced (JSON).")
     ] = None,
@@ -167,11 +195,12 @@ def serve(
 ) -> None:
     """Serve a virtual diving agent over TCP or a pseudo-terminal; prints what to connect to first."""
     if firmware == "qemu":
-        refused = {"--preset": preset_name != "paper", "--learner": learner != "paper", "--params": params is not None,
+        refused = {"--preset": preset_name != "paper", "--learner": learner != "paper",
                    "--report": report is not None, "--baud": baud is not None,
                    "fault options": bool(drop or corrupt or delay or disconnect_every)
                    or blackout_below is not None}
-        serve_on_qemu(tcp, pty, speed, seed, key_file, [name for name, given in refused.items() if given])
+        serve_on_qemu(tcp, pty, speed, seed, key_file, [name for name, given in refused.items() if given],
+                      params, plant_file)
         return
     try:
         if firmware == "c":
@@ -184,6 +213,7 @@ def serve(
         mission = MissionConfig()
         if params is not None:
             plant, learner_config, mission = apply_param_file(params, plant, learner_config, mission)
+        plant = with_plant_file(plant, plant_file)
         config = ServeConfig(
             plant=plant, learner=learner_config, mission=mission,
             faults=FaultConfig(drop, corrupt, delay, disconnect_every, blackout_below),

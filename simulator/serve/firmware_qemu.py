@@ -7,8 +7,9 @@ the board about each new client on UART2. With --pty, QEMU's own pseudo-terminal
 Agent time is the emulated plant's time: at speed "max" the agent runs as fast as the emulated CPU
 goes; a speed factor paces it against QEMU's real clock.
 
-Boot arguments (speed, seed, node id, bench mode) reach the firmware through QEMU's generic loader,
-written into a RAM block the linker script reserves (firmware/boards/qemu/bootargs.h).
+Boot arguments (speed, seed, node id, bench mode, the plant's figures) reach the firmware through QEMU's
+generic loader, written into a RAM block the linker script reserves (firmware/boards/qemu/bootargs.h): a plant
+file reaches the C plant and sensor without a rebuild.
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ import re
 import shutil
 import signal
 import socket
+import struct
 import subprocess
 import threading
 import time
@@ -26,15 +28,26 @@ from pathlib import Path
 from types import TracebackType
 
 from simulator.errors import SimulatorError
+from simulator.parameters import PlantParams
 from simulator.serve.qemu_relay import LinkRelay
 
 FIRMWARE_DIR = Path(__file__).resolve().parents[2] / "firmware"
 ELF_ENV = "DIVE_FIRMWARE_ELF"  # a prebuilt QEMU ELF to run instead of building one
 QEMU_ENV = "DIVE_QEMU"  # the qemu-system-arm to run
 MACHINE = "mps2-an386"
-BOOTARGS_ADDR = 0x20000000 + 4 * 1024 * 1024 - 256  # RAM end - 256 (mps2_an386.ld)
+BOOTARGS_ADDR = 0x20000000 + 4 * 1024 * 1024 - 512  # RAM end - BOOTARGS_BYTES (mps2_an386.ld, bootargs.h)
 BOOTARGS_MAGIC = 0x41524753
 KEY_BYTES = 32
+HAS_PLANT_OFFSET, PLANT_OFFSET = 60, 64  # bootargs_raw_t: after the key, then one double per figure
+# Every figure the C plant and sensor take, in bootargs.h's BOOTARGS_PLANT order (a test compares the two).
+PLANT_FIELDS = (
+    "mass_kg", "added_mass_kg", "water_density_kgpm3", "gravity_mps2", "trim_error_fraction",
+    "compressibility_m3pm", "drag_kgpm", "floor_depth_m", "stroke_volume_m3", "alpha_max_deg",
+    "alpha_rate_dps", "substep_s", "backlash_deg", "dead_band_deg", "control_jitter_s",
+    "surface_pressure_pa", "pressure_noise_pa", "pressure_lsb_pa", "pressure_min_pa", "pressure_max_pa",
+    "pressure_bias_pa", "pressure_drift_pa_per_s", "pressure_lag_s", "pressure_noise_corr_s",
+    "depth_scale_error",
+)
 LOOPBACK = "127.0.0.1"  # QEMU's own UART sockets, behind the relay
 START_TIMEOUT_S = 20.0  # QEMU up and its port listening
 _PTY_LINE = re.compile(r"char device redirected to (\S+) \(label serial0\)")
@@ -58,6 +71,7 @@ class QemuConfig:
     bench: bool = False  # print instruction counts on UART1 (with icount)
     icount: bool = False  # -icount shift=0: virtual time counts instructions (1 ns each)
     diag_path: Path | None = None  # where UART1 (the board's diagnostics) goes; None = discarded
+    plant: PlantParams | None = None  # its PLANT_FIELDS go to the C plant and sensor; None: the built-in preset
 
 
 def qemu_binary() -> str:
@@ -114,6 +128,12 @@ def _bootargs(config: QemuConfig) -> list[str]:
     args: list[str] = []
     for i, word in enumerate(words):
         args += ["-device", f"loader,addr={BOOTARGS_ADDR + 4 * i:#x},data={word:#x},data-len=4"]
+    if config.plant is not None:
+        args += ["-device", f"loader,addr={BOOTARGS_ADDR + HAS_PLANT_OFFSET:#x},data=0x1,data-len=4"]
+        for i, name in enumerate(PLANT_FIELDS):
+            # the double's bytes as a little-endian 64-bit word: the loader writes them as they are
+            bits = struct.unpack("<Q", struct.pack("<d", float(getattr(config.plant, name))))[0]
+            args += ["-device", f"loader,addr={BOOTARGS_ADDR + PLANT_OFFSET + 8 * i:#x},data={bits:#x},data-len=8"]
     return args
 
 

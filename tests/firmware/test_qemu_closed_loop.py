@@ -9,17 +9,16 @@ from __future__ import annotations
 import json
 import os
 import shutil
-import socket
 import subprocess
 import sys
-import time
 from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 
-from protocol import Mode, StreamDecoder, messages
+from protocol import Mode, messages
 from simulator.serve.firmware_qemu import ELF_ENV, QemuAgent, QemuConfig, build_elf
+from tests.firmware.qemu_link import read_frames
 from tests.reliability.recordings import assert_complete, dive, read
 
 pytestmark = pytest.mark.slow
@@ -37,25 +36,6 @@ def elf(tmp_path_factory: pytest.TempPathFactory) -> Path:
 def agent(elf: Path, tmp_path: Path) -> Iterator[QemuAgent]:
     with QemuAgent(QemuConfig(seed=11, node_id=0x0BADCAFE, diag_path=tmp_path / "uart1.txt"), elf) as running:
         yield running
-
-
-def read_frames(address: str, seconds: float, until: type | None = None) -> list[object]:
-    host, port = address.removeprefix("tcp://").rsplit(":", 1)
-    decoder = StreamDecoder()
-    found: list[object] = []
-    with socket.create_connection((host, int(port)), timeout=2.0) as s:
-        s.settimeout(0.2)
-        deadline = time.monotonic() + seconds
-        while time.monotonic() < deadline:
-            try:
-                data = s.recv(4096)
-            except TimeoutError:
-                continue
-            found += [f.message for f in decoder.feed(data)]
-            if until is not None and any(isinstance(m, until) for m in found):
-                break
-    assert decoder.stats.crc_errors == 0 and decoder.stats.cobs_errors == 0
-    return found
 
 
 def test_emulated_agent_says_hello(agent: QemuAgent) -> None:

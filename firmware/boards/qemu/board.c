@@ -30,6 +30,7 @@ static struct {
     double alpha_cmd_deg;
     sensor_params_t sensor;
     rng_t sensor_rng;
+    rng_t jitter_rng;  /* its own stream: a plant without jitter draws exactly what it drew before */
     rng_t entropy;
     uint64_t t_us;
     double charge_fraction;
@@ -149,24 +150,31 @@ bool hal_sim_place(float depth_m)
 static void board_init(void)
 {
     const bootargs_t *args = bootargs();
-    plant_hardware_params(&board.plant);
-    sensor_hardware_params(&board.sensor);
+    bootargs_plant(&board.plant, &board.sensor);  /* the hardware preset, or the plant file QEMU was given */
     /* At the surface, gear at mid-stroke (the firmware's assumed neutral), as simulator/onboard_hw.py. */
     plant_place(&board.x, 0.0, 0.0, board.plant.alpha_max_deg / 2.0);
     board.alpha_cmd_deg = board.x.alpha_deg;
     rng_seed(&board.sensor_rng, args->seed ^ 0x5EED5EED5EED5EEDull);
+    rng_seed(&board.jitter_rng, args->seed ^ 0x717E717E717E717Eull);
     rng_seed(&board.entropy, args->seed);
     board.charge_fraction = 1.0;
     board.t_us = 0u;
 }
 
-static void advance(uint32_t dt_us)
+/* Advance the plant and the agent's clock by one step of nominal dt_us; returns how long it really lasted.
+
+   With control_jitter_s the step lasts dt_us +/- up to it, as a Teensy's step does when planning slices and
+   link interrupts stretch it: the plant and the agent's clock both see the real length. */
+static uint32_t advance(uint32_t dt_us)
 {
-    double dt_s = (double)dt_us * 1e-6;
+    double dt_s = plant_jittered_period_s(&board.plant, &board.jitter_rng, (double)dt_us * 1e-6);
+    dt_us = (uint32_t)(dt_s * 1e6 + 0.5);
+    dt_s = (double)dt_us * 1e-6;
     plant_step(&board.x, &board.plant, board.alpha_cmd_deg, dt_s);
     board.charge_fraction -= dt_s / ENDURANCE_S;
     board.charge_fraction = board.charge_fraction > 0.0 ? board.charge_fraction : 0.0;
     board.t_us += dt_us;
+    return dt_us;
 }
 
 int main(void)
@@ -200,7 +208,7 @@ int main(void)
         if (args->bench != 0u) {
             bench_record(mode, planning, timer_raw() - start, dt_us);
         }
-        advance(dt_us);
+        dt_us = advance(dt_us);
         if (args->speed_milli != 0u) {
             due_real_us += (uint64_t)dt_us * 1000u / args->speed_milli;
         }
