@@ -42,7 +42,9 @@ def run_command(
     success_time: Annotated[float | None, typer.Option(
         help="time in the region that counts as success \\[s]")] = None,
     param: Annotated[list[str] | None, typer.Option(help="NAME=VALUE, any agent parameter (repeatable)")] = None,
-    params: Annotated[Path | None, typer.Option(help="file of parameters: JSON or `name = value` lines")] = None,
+    params: Annotated[Path | None, typer.Option(
+        help="file of parameters: JSON or `name = value` lines; its \\[plant] table (dive fit) goes to a sim:// "
+             "agent's simulator")] = None,
     out_path: Annotated[Path | None, typer.Option("--out", help="recording directory, or a .mcap file name")] = None,
     split_mb: Annotated[float, typer.Option(
         min=0, help="start a new file (NAME-part002.mcap, ...) after this many MB on disk (0 = never)")] = 0.0,
