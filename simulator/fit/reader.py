@@ -45,7 +45,11 @@ class Samples:
 
 
 def recording_paths(paths: Iterable[str | Path]) -> list[Path]:
-    """The .mcap files named; a folder stands for the .mcap files in it, in name order."""
+    """The .mcap files named; a folder stands for the .mcap files in it, in name order.
+
+    groundstation/recording/tables.py expands folders the same way. Kept twice on purpose: the simulator may not
+    import groundstation, and the only packages both may import (protocol, learning) do no file I/O.
+    """
     files: list[Path] = []
     for raw in paths:
         path = Path(raw)

@@ -164,8 +164,8 @@ def serve(
     learner: Annotated[str, typer.Option(help=f"Learner preset: {', '.join(learner_names())}.")] = "paper",
     params: Annotated[Path | None, typer.Option(help="TOML/JSON table of agent parameters and plant figures.")] = None,
     plant_file: Annotated[Path | None, typer.Option("--plant", help=(
-        "A plant file (`dive fit --out`): only its [plant] table, applied after --params. `dive run --params FILE` "
-        "hands its file's [plant] table over this way."))] = None,
+        "A plant file (`dive fit --out`): only its \\[plant] table, applied after --params. `dive run --params FILE` "
+        "hands its file's \\[plant] table over this way."))] = None,
     drop: Annotated[float, typer.Option(help="Probability of losing a whole frame, each direction.")] = 0.0,
     corrupt: Annotated[float, typer.Option(help="Probability that one byte of a frame is changed.")] = 0.0,
     delay: Annotated[float, typer.Option(help="Latency added each direction, ms of wall time.")] = 0.0,
