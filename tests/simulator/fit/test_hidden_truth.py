@@ -3,7 +3,6 @@ recovers it from the recording."""
 
 from __future__ import annotations
 
-import json
 import math
 import shutil
 import subprocess
@@ -67,29 +66,25 @@ def test_each_figure_lies_within_its_interval_and_the_goal(
 
 
 def test_the_c_firmware_on_qemu_flies_its_own_drawn_plant_and_the_fit_recovers_it(tmp_path: Path) -> None:
-    """The QEMU board takes the plant file at boot (firmware_qemu.py's boot block): its own draw, the manoeuvre
-    flown by the emulated MCU against the C plant, `dive fit` from the hardware preset's figures; then the fitted
-    plant predicts a second manoeuvre's depth."""
+    """The QEMU board takes the plant file at boot (firmware_qemu.py's boot block): its own draw, the manoeuvre of
+    `dive fit --excite` flown by the emulated MCU against the C plant, fitted from the hardware preset's figures;
+    then the fitted plant predicts a second manoeuvre's depth. (The CLI's path is test_excite.py's and the test
+    below's: here in-process, two interpreter starts cheaper.)"""
     for tool in ("arm-none-eabi-gcc", "qemu-system-arm"):
         if shutil.which(tool) is None:
             pytest.skip(f"{tool} not found: the QEMU tests need it")
     figures = draw_truth(QEMU_SEED)
     plant = write_plant(tmp_path / "truth.toml", figures)
     # 25x real time, not max: at max the emulated agent runs ahead of a loaded ground station by minutes of agent time
-    # (the link buffers them) and its own max_dive_s ends the manoeuvre; paced, the 94 s take about 4 s.
+    # (the link buffers them) and its own max_dive_s ends the manoeuvre; paced, the 95 s take about 4 s.
     url = f"sim://?firmware=qemu&speed=25&seed=4&plant={quote(str(plant))}"
-    fitted = tmp_path / "fitted.toml"
-    done = subprocess.run([sys.executable, "-m", "groundstation.cli.app", "fit", "--excite", url, "--hold", "20",
-                           "--json", "--out", str(fitted)], capture_output=True, text=True, timeout=280, cwd=tmp_path)
-    assert done.returncode == 0, done.stderr
-    found = json.loads(done.stdout)["estimates"]
-    estimates = {name: Estimate(name, e["value"], e["half_width_95"] or math.inf, e["identified"], e["needs"] or "")
-                 for name, e in found.items()}
-    assert_recovered(estimates, figures, plant)
+    recorded = excite(ExciteConfig(url=url, hold_s=20.0, recorder=RecorderConfig(directory=tmp_path / "fit")))
+    fit = fit_recordings(recorded, preset("hardware"))
+    assert_recovered({e.name: e for e in fit.estimates}, figures, plant)
     # Held out: another manoeuvre (other depths, another seed) on the same board and plant, predicted by the fit.
     held_out = excite(ExciteConfig(url=url.replace("seed=4", "seed=5"), depths_m=(0.5, 0.25, 0.7), hold_s=20.0,
                                    recorder=RecorderConfig(directory=tmp_path / "held_out")))
-    windows, rms = predict_recordings(held_out, load_params(fitted, preset("hardware")), window_s=30.0)
+    windows, rms = predict_recordings(held_out, fit.params, window_s=30.0)
     noise_m = figures["pressure_noise_pa"] / (1000.0 * 9.81)
     assert windows.seconds >= 40.0, f"too little held-out data to judge: {windows.seconds:.0f} s"
     assert float(rms.max()) <= 2.0 * noise_m, f"worst window {rms.max() * 1000:.3f} mm, noise {noise_m * 1000:.3f}"
