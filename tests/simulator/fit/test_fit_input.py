@@ -9,8 +9,10 @@ from pathlib import Path
 
 import numpy as np
 from mcap.writer import Writer
+from typer.testing import CliRunner
 
 from protocol import Mode
+from simulator.cli import app
 from simulator.fit.estimate import fit_recordings, fit_samples
 from simulator.fit.model import simulate
 from simulator.fit.reader import Samples
@@ -19,8 +21,16 @@ from simulator.parameters import neutral_alpha_deg, preset
 
 
 def _fit_cli(*args: str) -> subprocess.CompletedProcess[str]:
+    """`python -m simulator fit ARGS` in a process of its own, as `dive fit` runs it."""
     return subprocess.run([sys.executable, "-m", "simulator", "fit", *args], capture_output=True, text=True,
                           timeout=120)
+
+
+def _fit_here(*args: str) -> subprocess.CompletedProcess[str]:
+    """The same command in this process (its exit code and stderr alike): an interpreter start cheaper."""
+    done = CliRunner().invoke(app, ["fit", *args])
+    assert done.exception is None or isinstance(done.exception, SystemExit), done.exception  # no traceback
+    return subprocess.CompletedProcess(["fit", *args], done.exit_code, done.stdout, done.stderr)
 
 
 def _one_line_failure(done: subprocess.CompletedProcess[str], words: str) -> None:
@@ -30,13 +40,13 @@ def _one_line_failure(done: subprocess.CompletedProcess[str], words: str) -> Non
 
 
 def test_a_missing_recording_is_one_line(tmp_path: Path) -> None:
-    _one_line_failure(_fit_cli(str(tmp_path / "absent.mcap")), "no such recording")
+    _one_line_failure(_fit_cli(str(tmp_path / "absent.mcap")), "no such recording")  # a real process, once
 
 
 def test_a_file_that_is_not_mcap_is_one_line(tmp_path: Path) -> None:
     bad = tmp_path / "noise.mcap"
     bad.write_bytes(np.random.default_rng(1).bytes(5000))
-    _one_line_failure(_fit_cli(str(bad)), "no SAMPLE messages")
+    _one_line_failure(_fit_here(str(bad)), "no SAMPLE messages")
 
 
 def test_a_recording_without_diving_says_there_is_nothing_to_fit(tmp_path: Path) -> None:
@@ -50,11 +60,11 @@ def test_a_recording_without_diving_says_there_is_nothing_to_fit(tmp_path: Path)
                     f'"actuator_cmd_deg":65.0,"mode":0}}')
             writer.add_message(channel, i * 1_000_000_000, body.encode(), i * 1_000_000_000)
         writer.finish()
-    _one_line_failure(_fit_cli(str(path)), "nothing to fit")
+    _one_line_failure(_fit_here(str(path)), "nothing to fit")
 
 
 def test_a_bad_window_is_refused_before_reading(tmp_path: Path) -> None:
-    _one_line_failure(_fit_cli(str(tmp_path), "--window", "0"), "--window must be positive")
+    _one_line_failure(_fit_here(str(tmp_path), "--window", "0"), "--window must be positive")
 
 
 def _hover_samples(step_deg: float) -> Samples:
@@ -106,5 +116,5 @@ def test_a_recording_cut_short_is_fitted_up_to_the_cut(tmp_path: Path) -> None:
     assert any("read up to damage" in note for note in result.notes)
     assert 0.5 * 60.0 < result.windows.seconds < 0.8 * 60.0  # the part before the cut, nothing after
     assert result.estimate("added_mass_kg").identified
-    done = _fit_cli(str(cut))
+    done = _fit_here(str(cut))
     assert done.returncode == 0 and "note:" in done.stderr and "Traceback" not in done.stderr
