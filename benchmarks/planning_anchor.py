@@ -3,7 +3,9 @@ anchor a benchmark measures in the same run as today's."""
 
 from __future__ import annotations
 
+import atexit
 import importlib
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -23,8 +25,9 @@ def _git_show(commit: str, path: str) -> str:
 
 def anchor_kernels(commit: str) -> tuple[ModuleType, Path]:
     """Today's simulator/study/kernel.py, its planning calls bound to the commit's planning modules; and the
-    folder that holds the copies (a fresh one: numba's cache never mixes them with today's kernels)."""
+    folder that holds the copies (a fresh one, removed at exit: numba's cache never mixes them with today's)."""
     folder = Path(tempfile.mkdtemp(prefix=f"study-anchor-{commit}-"))
+    atexit.register(shutil.rmtree, folder, ignore_errors=True)
     tag = f"_anchor_{commit}"
     (folder / f"{tag}_planning.py").write_text(_git_show(commit, "learning/planning.py"))
     shared = _git_show(commit, "learning/shared.py").replace("from learning.planning import",
