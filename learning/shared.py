@@ -48,6 +48,7 @@ from learning.spec import KernelSpec
 DZ_MAX, DV_MAX, DB_MAX = 2, 8, 1  # offsets a code can hold; beyond them a successor is FAR (terminal)
 _DV_SPAN, _DB_SPAN = 2 * DV_MAX + 1, 2 * DB_MAX + 1
 FAR = 255
+_FAR_DZ = 1 << 30  # a decoded FAR code's depth offset: off every grid
 _TYPE_HEADER_BYTES = 4  # uint16 total + uint16 evictions
 _SLOT_BYTES = 3  # uint8 offset code + uint16 count
 _VALUE_BYTES = 4  # float32 per state
@@ -246,11 +247,38 @@ def shared_dense_counts(model: ModelArrays, spec: KernelSpec) -> NDArray[np.uint
 
 
 @njit(cache=True, error_model="numpy")
+def _decoded_slots(model: ModelArrays) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """Each type's used slots in slot order: (how many [T], (slot, dz, dv, db) of each [T, slots, 4]); a FAR
+    code gets a depth offset no grid has, so shifting by it is always terminal, as _shift makes it."""
+    codes, counts = model.codes, model.type_counts
+    n_type, n_slots = counts.shape
+    used = np.zeros(n_type, dtype=np.int64)
+    slots = np.zeros((n_type, n_slots, 4), dtype=np.int64)
+    for t in range(n_type):
+        for k in range(n_slots):
+            if counts[t, k] > 0:
+                code = int(codes[t, k])
+                i = used[t]
+                slots[t, i, 0] = k
+                slots[t, i, 1] = _FAR_DZ if code == FAR else code // (_DB_SPAN * _DV_SPAN) - DZ_MAX
+                slots[t, i, 2] = (code // _DB_SPAN) % _DV_SPAN - DV_MAX
+                slots[t, i, 3] = code % _DB_SPAN - DB_MAX
+                used[t] = i + 1
+    return used, slots
+
+
+@njit(cache=True, error_model="numpy")
 def compile_shared_rows(model: ModelArrays, spec: KernelSpec) -> Rows:
-    """Every (s, a) row of P (shifted type histogram, blended with local counts) and its mean reward."""
-    codes, counts, totals = model.codes, model.type_counts, model.totals
+    """Every (s, a) row of P (shifted type histogram, blended with local counts) and its mean reward.
+
+    The codes are decoded once per type and the cell rewards once per state (both what _shift and
+    cell_reward give), so the rows are those the plain loops over slots give, bit for bit, at ~5x less CPU.
+    """
+    counts, totals = model.type_counts, model.totals
     succ_idx, succ_cnt = model.succ_idx, model.succ_cnt
-    n_states = spec.z_cells * spec.zdot_cells * spec.actuator_bins + 1
+    z_cells, v_cells, bins = spec.z_cells, spec.zdot_cells, spec.actuator_bins
+    n_states = z_cells * v_cells * bins + 1
+    terminal = n_states - 1
     blend = spec.dirichlet_weight > 0.0 and succ_cnt.shape[0] == n_states
     n_slots = counts.shape[1]
     local_slots = succ_cnt.shape[2] if blend else 0
@@ -260,15 +288,19 @@ def compile_shared_rows(model: ModelArrays, spec: KernelSpec) -> Rows:
     prob = np.empty(n_rows * (n_slots + local_slots))
     mean_reward = np.zeros(n_rows)
     known = np.zeros(n_rows, dtype=np.bool_)
+    reward_of = np.empty(n_states)
+    for s in range(n_states):
+        reward_of[s] = cell_reward(s, spec)
+    used, slots = _decoded_slots(model)
     j = 0
     w = spec.dirichlet_weight
-    for s in range(n_states):
+    for s in range(terminal):
+        iv0 = s % v_cells
+        iz0 = (s // v_cells) % z_cells
+        ib0 = s // (v_cells * z_cells)
         for a in range(N_ACTIONS):
             row = s * N_ACTIONS + a
-            if s == n_states - 1:
-                row_start[row + 1] = j
-                continue
-            t = type_of(s, a, spec)
+            t = (ib0 * v_cells + iv0) * N_ACTIONS + a  # type_of(s, a)
             shared_total = float(totals[t])
             local_total = 0.0
             for k in range(local_slots):
@@ -281,13 +313,20 @@ def compile_shared_rows(model: ModelArrays, spec: KernelSpec) -> Rows:
             else:
                 w_local, w_shared = 0.0, (1.0 / shared_total if shared_total > 0.0 else 0.0)
             r = 0.0
-            for k in range(n_slots):
-                c = counts[t, k]
-                if c > 0 and w_shared > 0.0:
-                    nxt = _shift(s, int(codes[t, k]), spec)
+            if w_shared > 0.0:
+                for i in range(used[t]):
+                    k = slots[t, i, 0]
+                    # _shift(s, code): off the grid in depth (or velocity, unless clipped) is terminal.
+                    iz, iv = iz0 + slots[t, i, 1], iv0 + slots[t, i, 2]
+                    if spec.depth_only_terminal:
+                        iv = min(max(iv, 0), v_cells - 1)
+                    if iz < 0 or iz >= z_cells or iv < 0 or iv >= v_cells:
+                        nxt = terminal
+                    else:
+                        nxt = (min(max(ib0 + slots[t, i, 3], 0), bins - 1) * z_cells + iz) * v_cells + iv
                     succ[j] = nxt
-                    prob[j] = c * w_shared
-                    r += prob[j] * cell_reward(nxt, spec)
+                    prob[j] = counts[t, k] * w_shared
+                    r += prob[j] * reward_of[nxt]
                     j += 1
             for k in range(local_slots):
                 c = succ_cnt[s, a, k]
@@ -295,7 +334,7 @@ def compile_shared_rows(model: ModelArrays, spec: KernelSpec) -> Rows:
                     nxt = int(succ_idx[s, a, k])
                     succ[j] = nxt
                     prob[j] = c * w_local
-                    r += prob[j] * cell_reward(nxt, spec)
+                    r += prob[j] * reward_of[nxt]
                     j += 1
             n = shared_total + local_total
             known[row] = n >= spec.known_count
@@ -303,6 +342,7 @@ def compile_shared_rows(model: ModelArrays, spec: KernelSpec) -> Rows:
                 r += spec.count_bonus / np.sqrt(n)
             mean_reward[row] = r
             row_start[row + 1] = j
+    row_start[terminal * N_ACTIONS + 1:] = j
     return row_start, succ[:j], prob[:j], mean_reward, known
 
 
