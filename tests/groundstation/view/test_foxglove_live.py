@@ -1,0 +1,130 @@
+"""Foxglove live with controls (issue 27 item 6): a real `dive run --foxglove` on the virtual agent, and a client
+speaking Foxglove's WebSocket protocol as the Foxglove app does: channels, parameters and services."""
+
+from __future__ import annotations
+
+import json
+import re
+import signal
+import socket
+import subprocess
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+import pytest
+
+from groundstation.mcap_io import read_recording
+from groundstation.recording.recorder import message_schema
+from groundstation.view.options import with_flag_value
+from protocol import messages as m
+from protocol.parameters import PARAM_COUNT
+from tests.groundstation.foxglove_client import SUBPROTOCOL, FoxgloveClient
+from tests.groundstation.hub_helpers import DIVE, dive_env, one_line_failure
+
+FAST_SIM = "sim://?speed=max&seed=4"
+
+
+@contextmanager
+def foxglove_run(tmp_path: Path) -> Iterator[tuple[subprocess.Popen[str], FoxgloveClient]]:
+    """`dive run --foxglove 0` and a client connected to the port it printed, until SIGINT."""
+    proc = subprocess.Popen([*DIVE, "run", FAST_SIM, "--out", str(tmp_path / "rec"), "--foxglove", "0"],
+                            env=dive_env(tmp_path / "runtime"), stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True)
+    try:
+        assert proc.stderr is not None
+        first = proc.stderr.readline()  # the address, before the virtual agent is started
+        found = re.search(r"Foxglove: ws://127\.0\.0\.1:(\d+)", first)
+        assert found is not None, first + proc.stderr.read()
+        with FoxgloveClient.connected(int(found.group(1))) as client:
+            yield proc, client
+    finally:
+        proc.send_signal(signal.SIGINT)
+        try:
+            proc.wait(30)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+
+
+@pytest.mark.slow
+def test_foxglove_watches_sets_and_commands_a_running_run(tmp_path: Path) -> None:
+    with foxglove_run(tmp_path) as (proc, fox):
+        assert fox.ws.subprotocol == SUBPROTOCOL
+        # the server advertises its channels once the run's agent is up (a first start compiles the simulator)
+        assert fox.pump(lambda: "/agent/SAMPLE" in fox.channels and "surface" in fox.services, 120), fox.channels
+        assert {"parameters", "services"} <= set(fox.server_info["capabilities"])
+        sample = fox.channels["/agent/SAMPLE"]  # the recording's topic, schema name and JSON schema
+        assert (sample["encoding"], sample["schemaName"], sample["schemaEncoding"]) == \
+            ("json", "diving_agent.SAMPLE", "jsonschema")
+        assert json.loads(sample["schema"]) == message_schema(m.Sample)
+        samples = fox.subscribe("/agent/SAMPLE")
+        assert fox.pump(lambda: "/agent/HEARTBEAT" in fox.channels, 5)
+        beats = fox.subscribe("/agent/HEARTBEAT")
+        assert fox.pump(lambda: len(fox.messages.get(samples, [])) >= 5, 10)
+        assert {"depth_m", "mode", "_seq"} <= set(json.loads(fox.messages[samples][0]))
+        assert set(fox.services) == {"surface", "hover", "start", "stop", "pause", "resume", "target", "mark", "dump"}
+
+        # the Parameters panel: the agent's table; the value it already has changes nothing
+        table = {p["name"]: p["value"] for p in fox.get_parameters([])}
+        assert len(table) == PARAM_COUNT and table["gamma"] == 0.99 and table["target_depth_m"] == 0.4
+        assert fox.set_parameters({"gamma": 0.99}) == [{"name": "gamma", "type": "float64", "value": 0.99}]
+        # a learner parameter while learning: refused by the ground, naming it and the mode, as `dive params set`
+        assert fox.set_parameters({"gamma": 0.9})[0]["value"] == 0.99
+        assert fox.pump(lambda: any("not allowed while the agent is" in s["message"] and "gamma" in s["message"]
+                                    for s in fox.statuses), 3), fox.statuses
+
+        # the controls: the agent's ACK and the mode it ends in, a refusal with what to do instead
+        paused = fox.call("pause")
+        assert (paused["accepted"], paused["result"], paused["mode"]) == (True, "ACCEPTED", "PAUSED"), paused
+        resumed = fox.call("resume")
+        assert resumed["accepted"] and resumed["mode"] in ("LEARNING", "RECOVERING"), resumed
+        hover = fox.call("hover", {"depth_m": 0.3})
+        assert (hover["accepted"], hover["result"]) == (False, "NOT_ALLOWED_IN_MODE"), hover
+        assert "surface first: dive surface" in hover["message"]
+        assert "depth_m" in fox.call("target", {"depth_m": "deep"})["failure"]  # a bad request: a failed call
+        policy = fox.subscribe("/policy/image")
+        dumped = fox.call("dump", {"kind": "policy"})
+        assert dumped["accepted"] and "policy of episode" in dumped["message"], dumped
+        assert fox.pump(lambda: bool(fox.messages.get(policy)), 5)  # drawn as a foxglove.RawImage
+        assert fox.channels["/policy/image"]["schemaName"] == "foxglove.RawImage"
+        assert fox.call("mark", {"text": "from foxglove"})["accepted"]
+        surfaced = fox.call("surface")
+        assert surfaced["accepted"] and surfaced["mode"] in ("SURFACING", "IDLE"), surfaced
+
+        # at the surface a learner restart is allowed, once confirmed by setting the same value again
+        assert fox.pump(lambda: bool(fox.messages.get(beats)) and json.loads(fox.messages[beats][-1])["mode"] == 0,
+                        30)  # IDLE
+        assert fox.set_parameters({"gamma": 0.9})[0]["value"] == 0.99
+        assert fox.pump(lambda: any("set the same value again" in s["message"] for s in fox.statuses), 3)
+        assert fox.set_parameters({"gamma": 0.9})[0]["value"] == pytest.approx(0.9)
+    _, err = proc.communicate()
+    assert proc.returncode == 130, err
+    assert "the operator paused learning" in err and "took over (CMD_SURFACE" in err, err
+    [recording] = sorted((tmp_path / "rec").glob("*.mcap"))
+    sent = read_recording(recording, {"/ground/PARAM_SET", "/ground/CMD_PAUSE", "/marker"}).messages
+    gamma_sets = [msg.json()["value"] for msg in sent
+                  if msg.topic == "/ground/PARAM_SET" and msg.json()["name"] == "gamma"]
+    assert gamma_sets == [pytest.approx(0.9)]  # the equal value, the refused and the unconfirmed sets: never sent
+    assert [msg.json()["text"] for msg in sent if msg.topic == "/marker"] == ["from foxglove"]
+    assert sum(msg.topic == "/ground/CMD_PAUSE" for msg in sent) == 1
+
+
+def test_a_foxglove_port_in_use_is_one_line_before_the_agent_is_started(tmp_path: Path) -> None:
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        began = time.monotonic()
+        done = subprocess.run([*DIVE, "run", FAST_SIM, "--out", str(tmp_path / "rec"), "--foxglove", str(port)],
+                              env=dive_env(tmp_path / "runtime"), capture_output=True, text=True, timeout=60)
+    one_line_failure(done, f"port {port} is in use by another process: choose another with --foxglove PORT", code=2)
+    assert "virtual agent" not in done.stderr and time.monotonic() - began < 20
+    assert not (tmp_path / "rec").exists()
+
+
+def test_foxglove_without_a_port_takes_the_default() -> None:
+    assert with_flag_value(["run", "--foxglove"]) == ["run", "--foxglove", "8765"]
+    assert with_flag_value(["view", "--foxglove", "hub://1"]) == ["view", "--foxglove", "8765", "hub://1"]
+    assert with_flag_value(["run", "--foxglove", "0", "sim://"]) == ["run", "--foxglove", "0", "sim://"]
