@@ -280,12 +280,13 @@ def view(
     with _one_line_errors():
         from groundstation.links import make_link
         from groundstation.links.runs import attach_url
-        from groundstation.session.agent_session import Session, SessionConfig
-        from groundstation.view.rerun_sink import RerunView, ViewConfig
 
         if foxglove is not None:
             _view_in_foxglove(attach_url(url), foxglove, viewer, rrd, web_port, grpc_port, key_file)
             return
+        from groundstation.session.agent_session import Session, SessionConfig
+        from groundstation.view.rerun_sink import RerunView, ViewConfig
+
         link = make_link(attach_url(url))
         chosen = default_viewer(viewer, rrd)
         web_port, grpc_port = viewer_ports(chosen, web_port, grpc_port)
@@ -315,9 +316,7 @@ def _view_in_foxglove(url: str, port: int, viewer: Viewer | None, rrd: Path | No
                       key_file: Path | None) -> None:
     """`dive view --foxglove`: the server bound first, then attached to the agent (a run's hub by default); the
     Rerun view too, on the same session, when --viewer or --rrd asks for it. Until Ctrl-C or SIGTERM."""
-    from contextlib import nullcontext
-
-    from groundstation.view.rerun_sink import RerunView, ViewConfig
+    from contextlib import AbstractContextManager, nullcontext
 
     rerun = viewer is not None or rrd is not None
     if rerun:
@@ -326,8 +325,13 @@ def _view_in_foxglove(url: str, port: int, viewer: Viewer | None, rrd: Path | No
     fox = open_foxglove(port, name=f"dive view {url}")
     with closing_foxglove(fox):
         session = fox.attach(url, resolve_key(key_file))
-        with RerunView.open(ViewConfig(viewer=chosen, rrd=rrd, web_port=web_port, grpc_port=grpc_port),
-                            name=session.link.url) if rerun else nullcontext() as live:
+        opened: AbstractContextManager[RerunView | None] = nullcontext()
+        if rerun:  # Rerun (a second or so to import) only when asked for
+            from groundstation.view.rerun_sink import RerunView, ViewConfig
+
+            opened = RerunView.open(ViewConfig(viewer=chosen, rrd=rrd, web_port=web_port, grpc_port=grpc_port),
+                                    name=session.link.url)
+        with opened as live:
             if live is not None:
                 if live.address:
                     typer.echo(f"Rerun web viewer: {live.address}")

@@ -26,19 +26,22 @@ from tests.groundstation.hub_helpers import DIVE, dive_env, one_line_failure
 FAST_SIM = "sim://?speed=max&seed=4"
 
 
+def start_dive(tmp_path: Path, *args: str) -> subprocess.Popen[str]:
+    """`dive ARGS --foxglove 0`: it binds and prints its address first."""
+    return subprocess.Popen([*DIVE, *args, "--foxglove", "0"], env=dive_env(tmp_path / "runtime"),
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
 @contextmanager
-def foxglove_run(tmp_path: Path) -> Iterator[tuple[subprocess.Popen[str], FoxgloveClient]]:
-    """`dive run --foxglove 0` and a client connected to the port it printed, until SIGINT."""
-    proc = subprocess.Popen([*DIVE, "run", FAST_SIM, "--out", str(tmp_path / "rec"), "--foxglove", "0"],
-                            env=dive_env(tmp_path / "runtime"), stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True)
+def foxglove_client(proc: subprocess.Popen[str]) -> Iterator[FoxgloveClient]:
+    """A client connected to the port `proc` printed; SIGINT to `proc` when the block ends."""
     try:
         assert proc.stderr is not None
         first = proc.stderr.readline()  # the address, before the virtual agent is started
         found = re.search(r"Foxglove: ws://127\.0\.0\.1:(\d+)", first)
         assert found is not None, first + proc.stderr.read()
         with FoxgloveClient.connected(int(found.group(1))) as client:
-            yield proc, client
+            yield client
     finally:
         proc.send_signal(signal.SIGINT)
         try:
@@ -50,7 +53,8 @@ def foxglove_run(tmp_path: Path) -> Iterator[tuple[subprocess.Popen[str], Foxglo
 
 @pytest.mark.slow
 def test_foxglove_watches_sets_and_commands_a_running_run(tmp_path: Path) -> None:
-    with foxglove_run(tmp_path) as (proc, fox):
+    proc = start_dive(tmp_path, "run", FAST_SIM, "--out", str(tmp_path / "rec"))
+    with foxglove_client(proc) as fox:
         assert fox.ws.subprotocol == SUBPROTOCOL
         # the server advertises its channels once the run's agent is up (a first start compiles the simulator)
         assert fox.pump(lambda: "/agent/SAMPLE" in fox.channels and "surface" in fox.services, 120), fox.channels
@@ -65,6 +69,7 @@ def test_foxglove_watches_sets_and_commands_a_running_run(tmp_path: Path) -> Non
         assert fox.pump(lambda: len(fox.messages.get(samples, [])) >= 5, 10)
         assert {"depth_m", "mode", "_seq"} <= set(json.loads(fox.messages[samples][0]))
         assert set(fox.services) == {"surface", "hover", "start", "stop", "pause", "resume", "target", "mark", "dump"}
+        view = start_dive(tmp_path, "view")  # attaches to the run's hub: started now, looked at below
 
         # the Parameters panel: the agent's table; the value it already has changes nothing
         table = {p["name"]: p["value"] for p in fox.get_parameters([])}
@@ -99,6 +104,12 @@ def test_foxglove_watches_sets_and_commands_a_running_run(tmp_path: Path) -> Non
         assert fox.set_parameters({"gamma": 0.9})[0]["value"] == 0.99
         assert fox.pump(lambda: any("set the same value again" in s["message"] for s in fox.statuses), 3)
         assert fox.set_parameters({"gamma": 0.9})[0]["value"] == pytest.approx(0.9)
+
+        # the view's own server, on the run's hub: the same channels and the agent's parameters
+        with foxglove_client(view) as beside:
+            assert beside.pump(lambda: "/agent/SAMPLE" in beside.channels and "pause" in beside.services, 20)
+            assert {p["name"]: p["value"] for p in beside.get_parameters(["gamma"])} == {"gamma": pytest.approx(0.9)}
+        assert view.wait(10) == 130
     _, err = proc.communicate()
     assert proc.returncode == 130, err
     assert "the operator paused learning" in err and "took over (CMD_SURFACE" in err, err
