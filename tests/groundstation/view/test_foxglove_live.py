@@ -17,9 +17,12 @@ import pytest
 
 from groundstation.mcap_io import read_recording
 from groundstation.recording.recorder import message_schema
+from groundstation.view.foxglove_images import POLICY_TOPIC, VALUE_TOPIC
+from groundstation.view.foxglove_services import REQUESTS
 from groundstation.view.options import with_flag_value
 from protocol import messages as m
 from protocol.parameters import PARAM_COUNT
+from protocol.registry import message_classes
 from tests.groundstation.foxglove_client import SUBPROTOCOL, FoxgloveClient
 from tests.groundstation.hub_helpers import DIVE, dive_env, one_line_failure
 
@@ -139,3 +142,25 @@ def test_foxglove_without_a_port_takes_the_default() -> None:
     assert with_flag_value(["run", "--foxglove"]) == ["run", "--foxglove", "8765"]
     assert with_flag_value(["view", "--foxglove", "hub://1"]) == ["view", "--foxglove", "8765", "hub://1"]
     assert with_flag_value(["run", "--foxglove", "0", "sim://"]) == ["run", "--foxglove", "0", "sim://"]
+
+
+def test_the_live_layout_is_current_and_shows_what_the_server_offers() -> None:
+    from scripts.foxglove_layout import BOUNDS_TOPIC, LIVE_OUT, live_layout
+
+    shipped = json.loads(LIVE_OUT.read_text())
+    assert shipped == live_layout(), "docs/foxglove/live-layout.json is stale: run python scripts/foxglove_layout.py"
+    panels = shipped["configById"]
+    buttons = {config["serviceName"] for name, config in panels.items() if name.startswith("CallService!")}
+    assert buttons == {"surface", "start", "stop", "pause", "resume"} and buttons <= set(REQUESTS)
+    assert {config["imageMode"]["imageTopic"] for name, config in panels.items() if name.startswith("Image!")} == \
+        {VALUE_TOPIC, POLICY_TOPIC}
+    assert any(name.startswith("Parameters!") for name in panels)
+    messages = {cls.DEFINITION.name: cls for cls in message_classes().values()}
+    paths = [path["value"] for config in panels.values() for path in config.get("paths", [])]
+    paths.append(panels["Indicator!mode"]["path"])
+    for path in paths:  # every field plotted is in the schema of the channel the server publishes
+        topic, field = path.rsplit(".", 1)
+        if topic == BOUNDS_TOPIC:
+            continue  # the layout's own user script
+        name = topic.removeprefix("/agent/")
+        assert field in message_schema(messages[name])["properties"], path
