@@ -31,6 +31,7 @@ class DumpImages:
         self._policy = RawImageChannel(POLICY_TOPIC, context=context)
         self._grid = dict(DEFAULT_GRID)  # the agent's values replace the defaults as its PARAM_VALUEs arrive
         self._untried: NDArray[np.bool_] | None = None  # from the latest POLICY dump: cells the agent never left
+        self._values: Dump | None = None  # the latest VALUES dump, drawn again when its episode's POLICY comes
         self.published = 0
 
     def saw_parameter(self, name: str, value: float) -> None:
@@ -45,16 +46,24 @@ class DumpImages:
                          int(g["zdot_cells"]))
         if grid is None:
             return  # not one row of cells: nothing to draw
-        if dump.kind == DumpKind.POLICY:
-            actions = np.asarray(dump.values(), np.uint8)
-            self._untried = untried_cells(actions)
-            image, channel = policy_image(actions, grid.zdot_cells), self._policy
-        else:
-            image = value_image(np.asarray(dump.values(), np.float32), grid.zdot_cells, self._untried)
-            channel = self._value
-        pixels = scaled(image)
+        if dump.kind == DumpKind.VALUES:
+            self._values = dump
+            self._log(self._value, value_image(np.asarray(dump.values(), np.float32), grid.zdot_cells, self._untried),
+                      dump.episode, host_ns)
+            return
+        actions = np.asarray(dump.values(), np.uint8)
+        self._untried = untried_cells(actions)
+        self._log(self._policy, policy_image(actions, grid.zdot_cells), dump.episode, host_ns)
+        values = self._values
+        if values is not None and values.episode == dump.episode and len(values.values()) == len(actions):
+            # the agent sends VALUES, then POLICY: the value image again, its untried cells grey from this policy
+            self._log(self._value, value_image(np.asarray(values.values(), np.float32), grid.zdot_cells,
+                                               self._untried), values.episode, host_ns)
+
+    def _log(self, channel: RawImageChannel, cells: NDArray[np.uint8], episode: int, host_ns: int) -> None:
+        pixels = scaled(cells)
         height, width = pixels.shape[:2]
         stamp = Timestamp(sec=host_ns // 1_000_000_000, nsec=host_ns % 1_000_000_000)
-        channel.log(RawImage(timestamp=stamp, frame_id=f"episode {dump.episode}", width=width, height=height,
+        channel.log(RawImage(timestamp=stamp, frame_id=f"episode {episode}", width=width, height=height,
                              encoding="rgb8", step=3 * width, data=pixels.tobytes()), log_time=host_ns)
         self.published += 1

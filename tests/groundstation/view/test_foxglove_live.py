@@ -7,6 +7,7 @@ import json
 import re
 import signal
 import socket
+import struct
 import subprocess
 import time
 from collections.abc import Iterator
@@ -164,3 +165,30 @@ def test_the_live_layout_is_current_and_shows_what_the_server_offers() -> None:
             continue  # the layout's own user script
         name = topic.removeprefix("/agent/")
         assert field in message_schema(messages[name])["properties"], path
+
+
+def test_a_policy_redraws_its_episodes_values_with_the_untried_cells_grey() -> None:
+    """The agent sends VALUES, then POLICY: the value image is drawn again once the policy says which cells were
+    never left (in a real server, read by the protocol client)."""
+    import foxglove
+
+    from groundstation.session.dumps import Dump
+    from groundstation.view.foxglove_images import DumpImages
+    from protocol import DumpKind
+
+    context = foxglove.Context()
+    images = DumpImages(context)
+    server = foxglove.start_server(port=0, context=context)
+    try:
+        with FoxgloveClient.connected(server.port) as fox:
+            assert fox.pump(lambda: {VALUE_TOPIC, POLICY_TOPIC} <= set(fox.channels), 5)
+            values, policy = fox.subscribe(VALUE_TOPIC), fox.subscribe(POLICY_TOPIC)
+            time.sleep(0.2)  # the subscriptions reach the server
+            states = 10 * 10 + 1  # the default grid and the terminal state
+            images.publish(Dump(1, DumpKind.VALUES, 7, struct.pack(f"<{states}f", *range(states))), time.time_ns())
+            images.publish(Dump(2, DumpKind.POLICY, 7, bytes([0, 1, 255] * 33 + [0, 0])), time.time_ns())
+            assert fox.pump(lambda: len(fox.messages.get(values, [])) == 2 and len(fox.messages.get(policy, [])) == 1)
+            assert fox.channels[VALUE_TOPIC]["schemaName"] == "foxglove.RawImage"
+            assert len(fox.messages[values][1]) > 320 * 320 * 3  # rgb8, one 32-pixel block per cell of the 10 x 10
+    finally:
+        server.stop()
