@@ -12,7 +12,7 @@ import threading
 from typing import Any
 
 import foxglove
-from foxglove.websocket import Capability, ChannelView, Client, ServerListener
+from foxglove.websocket import Capability, Client, ServerListener
 
 from groundstation.errors import GroundStationError
 from groundstation.links import make_link
@@ -35,7 +35,7 @@ class FoxglovePortError(ViewError):
 
 
 class _Listener(ServerListener):
-    """The server's callbacks: parameters through the bridge; the rest as the SDK's protocol defaults."""
+    """The server's callbacks: parameters through the bridge; the rest are ServerListener's (which do nothing)."""
 
     def __init__(self, live: FoxgloveLive) -> None:
         self._live = live
@@ -47,12 +47,6 @@ class _Listener(ServerListener):
     def on_set_parameters(self, client: Client, parameters: list[foxglove.Parameter],
                           request_id: str | None = None) -> list[foxglove.Parameter]:
         return self._live.parameters.set(parameters)
-
-    def on_subscribe(self, client: Client, channel: ChannelView) -> None:
-        return None
-
-    def on_unsubscribe(self, client: Client, channel: ChannelView) -> None:
-        return None
 
 
 class FoxgloveLive:

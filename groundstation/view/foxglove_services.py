@@ -20,6 +20,7 @@ from groundstation.session.agent_session import Session
 from groundstation.view.foxglove_channels import FoxgloveChannels
 from protocol import DumpKind
 from protocol import messages as m
+from protocol.errors import ProtocolError
 
 MARK_WAIT_S = 3.0  # the run's hub confirms a marker once it is in the recording
 
@@ -96,7 +97,7 @@ class Controls:
                 if s is None:
                     raise ServiceError("not attached to the agent yet")
                 answer: dict[str, Any] = act(s, body)
-            except GroundStationError as e:
+            except (GroundStationError, ProtocolError) as e:  # ProtocolError: a request that cannot be framed
                 self._warn(f"{name}: {e}")
                 raise ServiceError(str(e)) from None
             if answer.get("accepted") is False:

@@ -99,6 +99,7 @@ def test_foxglove_watches_sets_and_commands_a_running_run(tmp_path: Path) -> Non
         assert fox.pump(lambda: bool(fox.messages.get(policy)), 5)  # drawn as a foxglove.RawImage
         assert fox.channels["/policy/image"]["schemaName"] == "foxglove.RawImage"
         assert fox.call("mark", {"text": "from foxglove"})["accepted"]
+        assert "exceeds" in fox.call("mark", {"text": "x" * 100_000})["failure"]  # longer than a frame holds
         surfaced = fox.call("surface")
         assert surfaced["accepted"] and surfaced["mode"] in ("SURFACING", "IDLE"), surfaced
 
