@@ -11,6 +11,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Any
 
+from websockets.exceptions import ConnectionClosed
 from websockets.sync.client import ClientConnection, connect
 
 SUBPROTOCOL = "foxglove.sdk.v1"
@@ -52,6 +53,8 @@ class FoxgloveClient:
                 frame = self.ws.recv(timeout=min(left, 0.2))
             except TimeoutError:
                 continue
+            except ConnectionClosed:  # the server went away (its run ended): nothing more will come
+                return until()
             self._take(frame)
         return True
 
