@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import json
 import re
-import signal
 import socket
 import struct
 import subprocess
@@ -25,7 +24,7 @@ from protocol import messages as m
 from protocol.parameters import PARAM_COUNT
 from protocol.registry import message_classes
 from tests.groundstation.foxglove_client import SUBPROTOCOL, FoxgloveClient
-from tests.groundstation.hub_helpers import DIVE, dive_env, one_line_failure
+from tests.groundstation.hub_helpers import DIVE, dive_env, interrupt, one_line_failure
 
 FAST_SIM = "sim://?speed=max&seed=4"
 
@@ -47,12 +46,7 @@ def foxglove_client(proc: subprocess.Popen[str]) -> Iterator[FoxgloveClient]:
         with FoxgloveClient.connected(int(found.group(1))) as client:
             yield client
     finally:
-        proc.send_signal(signal.SIGINT)
-        try:
-            proc.wait(30)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
+        interrupt(proc)
 
 
 @pytest.mark.slow
