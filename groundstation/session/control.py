@@ -102,9 +102,10 @@ def _result_name(result: int | None) -> str:
         f"result {result}"
 
 
-def control(s: Session, message: Message, then: str = "", accepted_line: str = "") -> Answer:
-    """Send one control command. A NACK is an Answer too (its line says why and what to do); no ACK at all
-    (CommandTimeout, LinkError) raises. `accepted_line` replaces the standard line ("{mode}" is the mode)."""
+def control(s: Session, message: Message, then: str = "", accepted_line: str = "", hints: bool = True) -> Answer:
+    """Send one control command. A NACK is an Answer too (its line says why and what to do, or with `hints` off
+    the agent's own words and reason); no ACK at all (CommandTimeout, LinkError) raises. `accepted_line` replaces
+    the standard line ("{mode}" is the mode)."""
     name = message.DEFINITION.name
     try:
         ack = s.command(message)
@@ -112,7 +113,7 @@ def control(s: Session, message: Message, then: str = "", accepted_line: str = "
         if e.result is None:
             raise  # no ACK came: nothing to answer with
         mode = known_mode(s)
-        return Answer(name, _result_name(e.result), "", mode, str(refused(name, e, mode)))
+        return Answer(name, _result_name(e.result), "", mode, str(refused(name, e, mode) if hints else e))
     mode = wait_for_mode(s)
     reason = f" ({ack.reason})" if ack.reason else ""
     line = accepted_line.replace("{mode}", mode) if accepted_line else \
@@ -160,7 +161,7 @@ def reset_model(s: Session) -> Answer:
 def surface(s: Session) -> Answer:
     """Emergency surface: accepted in every mode (a NACK here is an error, not a hint)."""
     answer = control(s, messages.Surface(), accepted_line=f"surfacing ({s.link.url}): the agent is " "{mode}; "
-                                                          "dive start starts learning again")
+                     "dive start starts learning again", hints=False)  # no hint helps: say what the agent said
     return answer.raise_if_refused()
 
 
