@@ -81,6 +81,8 @@ def test_foxglove_watches_sets_and_commands_a_running_run(tmp_path: Path) -> Non
         # the controls: the agent's ACK and the mode it ends in, a refusal with what to do instead
         paused = fox.call("pause")
         assert (paused["accepted"], paused["result"], paused["mode"]) == (True, "ACCEPTED", "PAUSED"), paused
+        moved = fox.call("target", {"depth_m": 0.5})  # another depth while paused
+        assert (moved["accepted"], moved["command"], moved["mode"]) == (True, "CMD_SET_TARGET", "PAUSED"), moved
         resumed = fox.call("resume")
         assert resumed["accepted"] and resumed["mode"] in ("LEARNING", "RECOVERING"), resumed
         hover = fox.call("hover", {"depth_m": 0.3})
@@ -103,6 +105,8 @@ def test_foxglove_watches_sets_and_commands_a_running_run(tmp_path: Path) -> Non
         assert fox.set_parameters({"gamma": 0.9})[0]["value"] == 0.99
         assert fox.pump(lambda: any("set the same value again" in s["message"] for s in fox.statuses), 3)
         assert fox.set_parameters({"gamma": 0.9})[0]["value"] == pytest.approx(0.9)
+        started = fox.call("start")  # handed back to the run, which learns on
+        assert started["accepted"] and started["mode"] in ("LEARNING", "RECOVERING"), started
 
         # the view's own server, on the run's hub: the same channels and the agent's parameters
         with foxglove_client(view) as beside:
@@ -112,13 +116,17 @@ def test_foxglove_watches_sets_and_commands_a_running_run(tmp_path: Path) -> Non
     _, err = proc.communicate()
     assert proc.returncode == 130, err
     assert "the operator paused learning" in err and "took over (CMD_SURFACE" in err, err
+    assert err.count("handed the agent back") == 2, err  # the resume and the start
     [recording] = sorted((tmp_path / "rec").glob("*.mcap"))
-    sent = read_recording(recording, {"/ground/PARAM_SET", "/ground/CMD_PAUSE", "/marker"}).messages
+    sent = read_recording(recording, {"/ground/PARAM_SET", "/ground/CMD_PAUSE", "/ground/CMD_SET_TARGET",
+                                      "/marker"}).messages
     gamma_sets = [msg.json()["value"] for msg in sent
                   if msg.topic == "/ground/PARAM_SET" and msg.json()["name"] == "gamma"]
     assert gamma_sets == [pytest.approx(0.9)]  # the equal value, the refused and the unconfirmed sets: never sent
     assert [msg.json()["text"] for msg in sent if msg.topic == "/marker"] == ["from foxglove"]
     assert sum(msg.topic == "/ground/CMD_PAUSE" for msg in sent) == 1
+    assert [msg.json()["target_depth_m"] for msg in sent if msg.topic == "/ground/CMD_SET_TARGET"] == \
+        [pytest.approx(0.5)]
 
 
 def test_a_foxglove_port_in_use_is_one_line_before_the_agent_is_started(tmp_path: Path) -> None:
