@@ -109,7 +109,9 @@ def run_command(
     with stop_on_signals(stop, signalled), view_cli.closing_foxglove(fox), view_cli.closing_view(view, signalled), \
             RunDisplay(err, episodes, f"connecting to {url}", virtual=url.startswith("sim://")) as display:
         show = display.show if fox is None else _attaching(display.show, fox, key)
-        result = run(config, show, stop=stop, listeners=[view] if view is not None else [])
+        # Foxglove publishes from the run's own session: the frames, commands and alarms the recording gets
+        result = run(config, show, stop=stop, listeners=[*([view] if view is not None else []),
+                                                         *([fox.channels] if fox is not None else [])])
         for path in result.paths:  # before a served web viewer waits: the path is printed however the run ends
             typer.echo(printable(path))
     if result.paths:
@@ -131,8 +133,9 @@ def run_command(
 
 def _attaching(show: Callable[[RunStatus], None], fox: FoxgloveLive,
                key: bytes | None) -> Callable[[RunStatus], None]:
-    """The progress callback, which also attaches Foxglove to the run's hub once it is up (in the background: the
-    run does not wait), as a tool: what Foxglove commands is the operator's, which the run does not undo."""
+    """The progress callback, which also attaches Foxglove's parameters and services to the run's hub once it is up
+    (in the background: the run does not wait), as a tool: what Foxglove commands is the operator's, which the run
+    does not undo."""
     attached: list[str] = []
 
     def progress(status: RunStatus) -> None:

@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
+import functools
 import json
 import threading
 from collections.abc import Callable
-from typing import Any
+from typing import Any, TypeVar
 
 import foxglove
 
@@ -19,13 +20,55 @@ from protocol import messages as m
 from protocol.cobs import cobs_decode
 
 
+class MarkerWatch:
+    """A session listener on a run's hub that notes its confirmation of a marker (`mark` service)."""
+
+    def __init__(self) -> None:
+        self.confirmed = threading.Event()
+
+    def on_received(self, received: Received) -> None:
+        msg = received.frame.message
+        if isinstance(msg, m.Text) and msg.text == MARKER_CONFIRMATION:
+            self.confirmed.set()
+
+    def on_sent(self, sent: Sent) -> None:
+        pass
+
+    def on_event(self, event: LinkEvent) -> None:
+        pass
+
+
+_Method = TypeVar("_Method", bound=Callable[..., None])
+
+
+def _publishing(method: _Method) -> _Method:
+    """Publishing skipped after it failed once: on a run's own session a listener that raises stops the run (its
+    recorder must never stop silently); Foxglove failing must not. The failure is said once, in Foxglove and on
+    the run's terminal (`on_failure`)."""
+
+    @functools.wraps(method)
+    def guarded(self: FoxgloveChannels, *args: Any) -> None:
+        if self.failure is not None:
+            return
+        try:
+            method(self, *args)
+        except Exception as e:  # noqa: BLE001 whatever the SDK raises: the run goes on, unpublished
+            self.failure = f"Foxglove stopped publishing: {type(e).__name__}: {e}"
+            if self._on_failure is not None:
+                self._on_failure(self.failure)
+
+    return guarded  # type: ignore[return-value]
+
+
 class FoxgloveChannels:
     """A session listener: each frame, command and event published on the channel the recording would write it to
     (`/agent/SAMPLE`, `/ground/CMD_PAUSE`, `/link`, `/event`, `/marker`, `/dump/VALUES`), and each completed value
-    or policy dump also drawn as an image. A channel is encoded only while a client subscribes to it."""
+    or policy dump also drawn as an image. A channel is encoded only while a client subscribes to it. On `dive run`
+    it listens to the run's own session: the very frames, commands and events (alarms) the recorder writes."""
 
     def __init__(self, context: foxglove.Context,
-                 on_parameter: Callable[[m.ParamValue], None] | None = None) -> None:
+                 on_parameter: Callable[[m.ParamValue], None] | None = None,
+                 on_failure: Callable[[str], None] | None = None) -> None:
         self._context = context
         self._lock = threading.Lock()  # channels are made from the session's reader thread and from services
         self._channels: dict[str, foxglove.Channel] = {}
@@ -34,7 +77,8 @@ class FoxgloveChannels:
         self._dumps = DumpAssembler()
         self.images = DumpImages(context)
         self._on_parameter = on_parameter
-        self.marker_confirmed = threading.Event()  # the run's hub said "marker recorded" (a mark service call)
+        self._on_failure = on_failure
+        self.failure: str | None = None
 
     def channel(self, topic: str, schema_name: str, schema: dict[str, Any]) -> foxglove.Channel:
         """The channel of `topic`, advertised to clients the first time it is asked for."""
@@ -52,6 +96,7 @@ class FoxgloveChannels:
             return sorted(self._channels)
 
     # ------------------------------------------------------------------ the session's side (its reader thread)
+    @_publishing
     def on_received(self, received: Received) -> None:
         frame, host_ns, _agent_ns, backfilled, _after_end = received
         msg = frame.message
@@ -70,13 +115,12 @@ class FoxgloveChannels:
             dump = self._dumps.feed(msg)
             if dump is not None:
                 self.publish_dump(dump, host_ns)
-        elif isinstance(msg, m.Text) and msg.text == MARKER_CONFIRMATION:
-            self.marker_confirmed.set()
 
     def publish_dump(self, dump: Dump, host_ns: int) -> None:
         self.channel(*dump_topic(dump.kind)).log(body_json(dump.as_dict()), log_time=host_ns)
         self.images.publish(dump, host_ns)
 
+    @_publishing
     def on_sent(self, sent: Sent) -> None:
         cls = sent.message.__class__
         channel = self._tx.get(cls)
@@ -86,6 +130,7 @@ class FoxgloveChannels:
             flags = cobs_decode(sent.wire[:-1])[1]  # as the recorder takes them: the frame's flags byte
             channel.log(message_json(sent.message, sent.seq, flags, False), log_time=sent.host_time_ns)
 
+    @_publishing
     def on_event(self, event: LinkEvent) -> None:
         topic, schema_name, schema, body = event_topic(event)
         self.channel(topic, schema_name, schema).log(body_json(body), log_time=event.host_time_ns)

@@ -2,14 +2,15 @@
 
 It binds 127.0.0.1 only and answers every local user of this machine: Foxglove's protocol has no login, so whoever
 can open ws://127.0.0.1:PORT here watches the agent, sets its parameters and commands it (signed with the run's key
-on a keyed run). Its session is a tool's like `dive view`'s: attached to the run's hub (hub://RUN), so a surface or
-a pause from Foxglove is the operator's, which the run does not undo (run/hub.py).
+on a keyed run). The session its parameters and services use is a tool's like `dive view`'s: attached to the run's
+hub (hub://RUN), so a surface or a pause from Foxglove is the operator's, which the run does not undo (run/hub.py).
+On `dive run` the channels are published from the run's own session (FoxgloveChannels is one of its listeners).
 """
 
 from __future__ import annotations
 
 import threading
-from typing import Any
+from collections.abc import Callable
 
 import foxglove
 from foxglove.websocket import Capability, Client, ServerListener
@@ -17,8 +18,10 @@ from foxglove.websocket import Capability, Client, ServerListener
 from groundstation.errors import GroundStationError
 from groundstation.links import make_link
 from groundstation.session.agent_session import Session, SessionConfig
+from groundstation.session.events import SessionListener
+from groundstation.session.params import Parameter
 from groundstation.view.errors import ViewError
-from groundstation.view.foxglove_channels import FoxgloveChannels
+from groundstation.view.foxglove_channels import FoxgloveChannels, MarkerWatch
 from groundstation.view.foxglove_params import ParameterBridge, to_foxglove
 from groundstation.view.foxglove_services import Controls
 from groundstation.view.options import FOXGLOVE_DEFAULT_PORT
@@ -57,9 +60,11 @@ class FoxgloveLive:
         self.context = foxglove.Context()
         self.session: Session | None = None
         self._attached = threading.Event()
-        self.channels = FoxgloveChannels(self.context, self._parameter_changed)
+        self.failures: list[str] = []  # what went wrong after the start, for the run's terminal (attach_in_background)
+        self.channels = FoxgloveChannels(self.context, self._parameter_changed, self._failed)
+        self.markers = MarkerWatch()
         self.parameters = ParameterBridge(self.attached_session, self.warn)
-        self.controls = Controls(self.attached_session, self.channels, self.warn)
+        self.controls = Controls(self.attached_session, self.markers, self.warn)
         try:
             self.server = foxglove.start_server(
                 name=name, host=HOST, port=port, context=self.context, server_listener=_Listener(self),
@@ -70,16 +75,20 @@ class FoxgloveLive:
             raise FoxglovePortError(f"port {port} {why}: choose another with --foxglove PORT") from None
         self.port = self.server.port
         self._closed = threading.Event()
+        self._say: Callable[[str], None] | None = None
 
     @property
     def address(self) -> str:
         return f"ws://{HOST}:{self.port}"
 
-    def attach(self, url: str, key: bytes | None) -> Session:
-        """Connect a session to `url` (hub://RUN for a run) and publish what it receives; raises as a tool's
-        connect does (one line). Through a hub the run backfills for every tool: no LOG_REQUESTs of our own."""
+    def attach(self, url: str, key: bytes | None, publish: bool = True) -> Session:
+        """Connect the session the parameters and services use to `url` (hub://RUN for a run's hub); raises as a
+        tool's connect does (one line). `publish`: what it receives goes to the channels (`dive view`); a run
+        publishes from its own session instead (self.channels is one of its listeners). Through a hub the run
+        backfills for every tool: no LOG_REQUESTs of our own."""
+        listeners: list[SessionListener] = [self.markers, *([self.channels] if publish else [])]
         session = Session(make_link(url), SessionConfig(key=key, backfill=not url.startswith("hub://")),
-                          listeners=[self.channels])
+                          listeners=listeners)
         session.connect()
         if self._closed.is_set():
             session.close()
@@ -90,13 +99,16 @@ class FoxgloveLive:
         self.server.remove_status([_STATUS_ID])
         return session
 
-    def attach_in_background(self, url: str, key: bytes | None, failed: Any) -> threading.Thread:
-        """attach() in a thread (a run must not wait for it); `failed(line)` is called with the reason if it fails."""
+    def attach_in_background(self, url: str, key: bytes | None, say: Callable[[str], None]) -> threading.Thread:
+        """attach(publish=False) in a thread (a run must not wait for it); `say(line)` tells the run's terminal
+        why it failed, and later why publishing stopped, if it does."""
+        self._say = say
+
         def attach() -> None:
             try:
-                self.attach(url, key)
+                self.attach(url, key, publish=False)
             except GroundStationError as e:
-                failed(f"Foxglove could not attach to {url}: {e}")
+                say(f"Foxglove could not attach to {url}: {e}")
                 self.warn(f"not attached to the agent: {e}")
 
         thread = threading.Thread(target=attach, name="dive-foxglove-attach", daemon=True)
@@ -116,9 +128,13 @@ class FoxgloveLive:
 
     def _parameter_changed(self, value: m.ParamValue) -> None:
         """Any PARAM_VALUE (this server's set, another tool's, the run's) updates the panels that show it."""
-        session = self.session
-        if session is not None and value.name in session.params:
-            self.server.publish_parameter_values([to_foxglove(session.params.get(value.name))])
+        if self._attached.is_set():  # attach() publishes the whole table once
+            self.server.publish_parameter_values([to_foxglove(Parameter.from_message(value))])
+
+    def _failed(self, line: str) -> None:
+        self.warn(line)
+        if self._say is not None:
+            self._say(line)
 
     def close(self) -> None:
         self._closed.set()

@@ -17,7 +17,7 @@ from foxglove import MessageSchema, Schema, Service, ServiceRequest, ServiceSche
 from groundstation.errors import GroundStationError
 from groundstation.session import control
 from groundstation.session.agent_session import Session
-from groundstation.view.foxglove_channels import FoxgloveChannels
+from groundstation.view.foxglove_channels import MarkerWatch
 from protocol import DumpKind
 from protocol import messages as m
 from protocol.errors import ProtocolError
@@ -76,10 +76,10 @@ def _number(body: dict[str, Any], key: str, service: str) -> float:
 class Controls:
     """The services' handlers, each on the session the server is attached to (None until it is)."""
 
-    def __init__(self, session: Callable[[], Session | None], channels: FoxgloveChannels,
+    def __init__(self, session: Callable[[], Session | None], markers: MarkerWatch,
                  warn: Callable[[str], None]) -> None:
         self._session = session
-        self._channels = channels
+        self._markers = markers
         self._warn = warn
 
     def services(self) -> list[Service]:
@@ -138,7 +138,7 @@ class Controls:
             raise ServiceError('mark: give the text, e.g. {"text": "tapped the tank"}')
         if not s.link.url.startswith("hub://"):
             raise ServiceError("mark: nothing records this link; attach to a run (dive view hub://RUN --foxglove)")
-        confirmed = self._channels.marker_confirmed
+        confirmed = self._markers.confirmed
         confirmed.clear()
         s.send(m.Text(t_us=time.time_ns() // 1000, severity=1, text=text), wait=False)
         if not confirmed.wait(MARK_WAIT_S):

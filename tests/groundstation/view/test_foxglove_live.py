@@ -95,6 +95,8 @@ def test_foxglove_watches_sets_and_commands_a_running_run(tmp_path: Path) -> Non
         assert fox.pump(lambda: bool(fox.messages.get(policy)), 5)  # drawn as a foxglove.RawImage
         assert fox.channels["/policy/image"]["schemaName"] == "foxglove.RawImage"
         assert fox.call("mark", {"text": "from foxglove"})["accepted"]
+        # the run's own session publishes: its marker event (the hub marks the run's session, not Foxglove's)
+        assert fox.pump(lambda: "/marker" in fox.channels, 3), sorted(fox.channels)
         assert "exceeds" in fox.call("mark", {"text": "x" * 100_000})["failure"]  # longer than a frame holds
         surfaced = fox.call("surface")
         assert surfaced["accepted"] and surfaced["mode"] in ("SURFACING", "IDLE"), surfaced
@@ -216,3 +218,22 @@ def test_the_default_port_taken_moves_to_a_free_one_and_says_so(monkeypatch: pyt
             assert f"Foxglove: ws://127.0.0.1:{live.port}" in said
         finally:
             live.close()
+
+
+def test_publishing_that_fails_stops_publishing_not_the_run() -> None:
+    """On a run's own session a listener that raises stops the run; Foxglove's publisher says so once instead."""
+    import foxglove
+
+    from groundstation.session.events import EventKind, LinkEvent
+    from groundstation.view.foxglove_channels import FoxgloveChannels
+
+    said: list[str] = []
+    channels = FoxgloveChannels(foxglove.Context(), on_failure=said.append)
+
+    def broken(*args: object) -> foxglove.Channel:
+        raise RuntimeError("the SDK gave up")
+
+    channels.channel = broken  # type: ignore[method-assign]
+    for _ in range(3):
+        channels.on_event(LinkEvent(EventKind.MARKER, time.time_ns(), "x", {"text": "x"}))  # raises nothing
+    assert said == ["Foxglove stopped publishing: RuntimeError: the SDK gave up"]
