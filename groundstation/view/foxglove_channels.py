@@ -98,7 +98,9 @@ class FoxgloveChannels:
     # ------------------------------------------------------------------ the session's side (its reader thread)
     @_publishing
     def on_received(self, received: Received) -> None:
-        frame, host_ns, _agent_ns, backfilled, _after_end = received
+        frame, host_ns, _agent_ns, backfilled, after_end = received
+        if after_end:
+            return  # from after the run's end: not in the decoded recording either (Session.request_backfill)
         msg = frame.message
         cls = msg.__class__
         channel = self._rx.get(cls)
