@@ -1,9 +1,11 @@
-"""Writes docs/foxglove/diving-agent-layout.json: the Foxglove layout for `dive` recordings.
+"""Writes docs/foxglove/diving-agent-layout.json and live-layout.json: the Foxglove layouts for `dive` recordings
+and for `dive run/view --foxglove` (live, with the Parameters panel and buttons for the controls).
 
-    python scripts/foxglove_layout.py      # rewrites the file; tests/groundstation/test_foxglove_layout.py
-                                           # checks that every topic and field it plots is recorded
+    python scripts/foxglove_layout.py      # rewrites both; tests check that every topic and field the recording
+                                           # layout plots is recorded, and that the live one calls only services
+                                           # and shows only topics the server offers
 
-Import it in Foxglove (Layouts > Import from file) and open any recording.
+Import one in Foxglove (Layouts > Import from file) and open a recording, or the connection ws://127.0.0.1:PORT.
 """
 
 from __future__ import annotations
@@ -13,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 OUT = Path(__file__).resolve().parent.parent / "docs" / "foxglove" / "diving-agent-layout.json"
+LIVE_OUT = OUT.with_name("live-layout.json")
 BOUNDS_TOPIC = "/studio_script/depth_bounds"
 # A Foxglove user script: the learning region's edges from each EPISODE_START (z positive down).
 BOUNDS_SCRIPT = f"""// Learning-region bounds for the depth plot, from each episode's start message.
@@ -95,10 +98,70 @@ def layout() -> dict[str, Any]:
     }
 
 
+# The modes as the Indicator panel names them (protocol/enums.py's Mode), the ones to watch in warm colours.
+MODE_COLOURS = {"IDLE": "#7f7f7f", "LEARNING": "#2ca02c", "RECOVERING": "#bcbd22", "HOVER": "#1f77b4",
+                "SURFACING": "#d62728", "PAUSED": "#ff7f0e"}
+# The buttons: (service, label, colour); the services are groundstation/view/foxglove_services.py's.
+BUTTONS = (("surface", "SURFACE (emergency)", "#d62728"), ("start", "start learning", "#2ca02c"),
+           ("pause", "pause", "#ff7f0e"), ("resume", "resume", "#2ca02c"), ("stop", "stop (surfaces)", "#7f7f7f"))
+VALUE_IMAGE, POLICY_IMAGE = "/value_function/image", "/policy/image"  # groundstation/view/foxglove_images.py
+
+
+def _button(service: str, label: str, colour: str) -> dict[str, Any]:
+    return {"serviceName": service, "requestPayload": "{}", "layout": "vertical", "buttonText": label,
+            "buttonTooltip": f"call the {service} service: the agent's ACK and mode come back",
+            "buttonColor": colour}
+
+
+def live_layout() -> dict[str, Any]:
+    from protocol import Mode
+
+    panels: dict[str, Any] = {
+        "Plot!depth": _plot("Depth [m] (down is deeper) with the learning region", [
+            ("/agent/SAMPLE.depth_m", "depth"),
+            (f"{BOUNDS_TOPIC}.target_m", "target"),
+            (f"{BOUNDS_TOPIC}.shallow_edge_m", "shallow edge"),
+            (f"{BOUNDS_TOPIC}.deep_edge_m", "deep edge"),
+        ]),
+        "Plot!battery": _plot("Battery [mV]", [("/agent/HEARTBEAT.battery_mv", "battery")]),
+        "Indicator!mode": {"path": "/agent/HEARTBEAT.mode", "style": "background", "fallbackColor": "#333333",
+                           "fallbackLabel": "no heartbeat yet",
+                           "rules": [{"operator": "=", "rawValue": str(int(mode)), "color": MODE_COLOURS[mode.name],
+                                      "label": mode.name} for mode in Mode]},
+        "Plot!curve": _plot("Learning curve: time held per episode [s]", [
+            ("/agent/EPISODE_END.duration_s", "duration")], x_axis="index"),
+        "Image!value": {"imageMode": {"imageTopic": VALUE_IMAGE}},
+        "Image!policy": {"imageMode": {"imageTopic": POLICY_IMAGE}},
+        "Parameters!agent": {"title": "The agent's parameters (a learner restart: set it twice to confirm)"},
+        "RawMessages!events": {"topicPath": "/event", "diffEnabled": False, "diffMethod": "custom",
+                               "diffTopicPath": "", "showFullMessageForDiff": False},
+    }
+    buttons = [f"CallService!{service}" for service, _, _ in BUTTONS]
+    for (service, label, colour), panel in zip(BUTTONS, buttons, strict=True):
+        panels[panel] = _button(service, label, colour)
+    button_row: Node = buttons[-1]
+    for panel in reversed(buttons[:-1]):  # equal widths: each splits off its share of what is left
+        button_row = row(panel, button_row, round(100 / (len(buttons) - buttons.index(panel))))
+    return {
+        "configById": panels,
+        "globalVariables": {},
+        "userNodes": {"depth-bounds": {"name": "depth bounds", "sourceCode": BOUNDS_SCRIPT}},
+        "playbackConfig": {"speed": 1},
+        "layout": column(
+            button_row,
+            row(column("Plot!depth", row("Plot!battery", "Indicator!mode", 60), 65),
+                column(row("Image!value", "Image!policy", 50), row("Plot!curve", column(
+                    "Parameters!agent", "RawMessages!events", 70), 40), 55), 55),
+            10,
+        ),
+    }
+
+
 def main() -> None:
     OUT.parent.mkdir(parents=True, exist_ok=True)
     OUT.write_text(json.dumps(layout(), indent=2) + "\n")
-    print(OUT)
+    LIVE_OUT.write_text(json.dumps(live_layout(), indent=2) + "\n")
+    print(OUT, LIVE_OUT)
 
 
 if __name__ == "__main__":

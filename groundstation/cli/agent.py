@@ -109,32 +109,16 @@ def params_command(
 def _set_all(s: Session, values: dict[str, str], reset_model: bool) -> None:
     """Set what differs from the agent's values, after every check: names, values, the agent's mode, and a
     confirmed learner restart. Nothing is sent when one check fails."""
-    from groundstation.cli.control import confirm_reset, refused
-    from groundstation.errors import CommandError
-    from groundstation.session.param_plan import mode_refusal, plan
+    from groundstation.cli.control import confirm_reset
+    from groundstation.session.param_plan import apply, checked_plan
 
-    change = plan(s.params, values)
-    if change.changes and s.last_heartbeat is None:
-        from groundstation.cli.control import wait_for_mode
-
-        wait_for_mode(s, 1.5)  # the mode decides what the agent refuses
-    mode = s.last_heartbeat.mode if s.last_heartbeat is not None else None
-    refused_now = change.refused_in(mode)
-    if refused_now and mode is not None:
-        raise mode_refusal(refused_now, mode)
+    change = checked_plan(s, values)
     warning = change.restart_warning()
     if warning:
         confirm_reset(warning, reset_model, "--reset-model")
     for p in change.unchanged:
         out.print(f"{p.name} = {p.display_value} (unchanged, not sent)")
-    for p, value in change.changes:
-        try:
-            done = s.set_param(p.name, value)
-        except CommandError as e:
-            from groundstation.cli.control import known_mode
-
-            raise refused("PARAM_SET", e, known_mode(s), p.name) from None
-        out.print(f"{done.name} = {done.display_value}")
+    apply(s, change, lambda done: out.print(f"{done.name} = {done.display_value}"))
 
 
 class DumpChoice(StrEnum):

@@ -91,6 +91,9 @@ def main() -> None:
     """Exit codes (README): 0 done, 1 failed, 2 bad usage, 130 interrupted. A bug is one line too, not a traceback
     (DIVE_DEBUG=1 shows it)."""
     load_typer_help()
+    from groundstation.view.options import with_flag_value
+
+    sys.argv[1:] = with_flag_value(sys.argv[1:])
     try:
         app()
     except KeyboardInterrupt:

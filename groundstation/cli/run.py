@@ -3,8 +3,9 @@
 from __future__ import annotations
 
 import threading
+from collections.abc import Callable
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 from urllib.parse import urlencode
 
 import typer
@@ -17,6 +18,10 @@ from groundstation.run.alarm_limits import DEPTH_LIMIT_M, LINK_LOST_S
 from groundstation.safe_output import printable
 from groundstation.session.keys import KeyFileOption, resolve_key
 from groundstation.view.options import Viewer
+
+if TYPE_CHECKING:
+    from groundstation.run.job import RunStatus
+    from groundstation.view.foxglove_live import FoxgloveLive
 
 
 @one_line_errors
@@ -63,6 +68,7 @@ def run_command(
         min=0, help="alarm when the agent has sent nothing, or the link has been lost, for this long \\[s]")]
         = LINK_LOST_S,
     key_file: KeyFileOption = None,
+    foxglove: view_cli.FoxgloveOption = None,
 ) -> None:
     """Connect, set parameters, start learning and record everything to MCAP until N episodes or Ctrl-C."""
     from groundstation.cli.progress import RunDisplay
@@ -93,17 +99,23 @@ def run_command(
     else:
         recorder = RecorderConfig(directory=out_path or Path("recordings"))
     recorder = RecorderConfig(recorder.directory, recorder.path, int(split_mb * 1e6), split_minutes * 60.0)
+    key = resolve_key(key_file)
+    # Bound before the agent is started: a port in use is one line, not a virtual agent started for nothing.
+    fox = view_cli.open_foxglove(foxglove, name=f"dive run {url}") if foxglove is not None else None
     view = view_cli.open_live_view(viewer, rrd, web_port, name=url, headless_default=Viewer.NONE,
                                    grpc_port=grpc_port)
     config = RunConfig(url=url, episodes=episodes, params=values, recorder=recorder,
-                       session=SessionConfig(reconnect=reconnect, key=resolve_key(key_file)),
+                       session=SessionConfig(reconnect=reconnect, key=key),
                        dumps_each_episode=dumps,
                        history=HistoryConfig(window_s=history_minutes * 60.0),
                        alarms=AlarmConfig(link_lost_s=alarm_link_lost, silent_s=alarm_link_lost, depth_m=alarm_depth))
     stop, signalled = threading.Event(), list[str]()
-    with stop_on_signals(stop, signalled), view_cli.closing_view(view, signalled), \
+    with stop_on_signals(stop, signalled), view_cli.closing_foxglove(fox), view_cli.closing_view(view, signalled), \
             RunDisplay(err, episodes, f"connecting to {url}", virtual=url.startswith("sim://")) as display:
-        result = run(config, display.show, stop=stop, listeners=[view] if view is not None else [])
+        show = display.show if fox is None else _attaching(display.show, fox, key)
+        # Foxglove publishes from the run's own session: the frames, commands and alarms the recording gets
+        result = run(config, show, stop=stop, listeners=[*([view] if view is not None else []),
+                                                         *([fox.channels] if fox is not None else [])])
         for path in result.paths:  # before a served web viewer waits: the path is printed however the run ends
             typer.echo(printable(path))
     if result.paths:
@@ -121,6 +133,22 @@ def run_command(
     if result.interrupted or signalled:
         err.print(f"stopped by {signalled[0] if signalled else 'Ctrl-C'}; the recording is complete", style="dim")
         raise typer.Exit(130)  # the one convention: interrupted = 130, whatever was saved
+
+
+def _attaching(show: Callable[[RunStatus], None], fox: FoxgloveLive,
+               key: bytes | None) -> Callable[[RunStatus], None]:
+    """The progress callback, which also attaches Foxglove's parameters and services to the run's hub once it is up
+    (in the background: the run does not wait), as a tool: what Foxglove commands is the operator's, which the run
+    does not undo."""
+    attached: list[str] = []
+
+    def progress(status: RunStatus) -> None:
+        if status.hub and not attached:
+            attached.append(status.hub)
+            fox.attach_in_background(status.hub, key, status.messages.append)
+        show(status)
+
+    return progress
 
 
 def _with_sim_options(url: str | None, **sim_options: object) -> str:

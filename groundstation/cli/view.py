@@ -18,16 +18,24 @@ from groundstation.errors import GroundStationError
 from groundstation.safe_output import in_markup, one_line
 from groundstation.session.keys import KeyFileOption, resolve_key
 from groundstation.view.errors import ViewError
-from groundstation.view.options import GrpcPortOption, RunViewerOption, Viewer, ViewerOption, WebPortOption
+from groundstation.view.options import (
+    FoxgloveOption,
+    GrpcPortOption,
+    RunViewerOption,
+    Viewer,
+    ViewerOption,
+    WebPortOption,
+)
 
-if TYPE_CHECKING:  # Rerun, mcap and the replay code are imported by the commands that use them
+if TYPE_CHECKING:  # Rerun, mcap, foxglove and the replay code are imported by the commands that use them
     from rich.progress import Progress
 
     from groundstation.view import replay as rp
+    from groundstation.view.foxglove_live import FoxgloveLive
     from groundstation.view.rerun_sink import RerunView
 
-__all__ = ["GrpcPortOption", "RunViewerOption", "ViewerOption", "WebPortOption", "closing_view", "open_live_view",
-           "replay", "view"]
+__all__ = ["FoxgloveOption", "GrpcPortOption", "RunViewerOption", "ViewerOption", "WebPortOption", "closing_foxglove",
+           "closing_view", "open_foxglove", "open_live_view", "replay", "view"]
 
 
 def _fail(message: str, code: int = 1) -> typer.Exit:
@@ -105,6 +113,35 @@ def closing_view(live: RerunView | None, signalled: list[str] | None = None) -> 
         if live is not None:
             if live.address and not signalled:
                 wait_for_interrupt(f"the run is over; the web viewer stays at {live.address}")
+            live.close()
+
+
+LIVE_LAYOUT = "docs/foxglove/live-layout.json"
+
+
+def open_foxglove(port: int, name: str) -> FoxgloveLive:
+    """The Foxglove server, bound now (before any agent is started): a port given that is in use is one line and
+    exit 2; the default one in use (a second `dive view --foxglove` beside a run's) moves to a free port."""
+    from groundstation.view.foxglove_live import DEFAULT_PORT, FoxgloveLive, FoxglovePortError
+
+    try:
+        live = FoxgloveLive(port, name)
+    except FoxglovePortError as e:
+        if port != DEFAULT_PORT:
+            raise UsageError(str(e)) from None
+        live = FoxgloveLive(0, name)
+        typer.echo(f"the default --foxglove port {DEFAULT_PORT} is in use: using {live.port}", err=True)
+    typer.echo(f"Foxglove: {live.address} (Foxglove app: Open connection, Foxglove WebSocket, this URL; layout: "
+               f"{LIVE_LAYOUT}); local users only", err=True)
+    return live
+
+
+@contextmanager
+def closing_foxglove(live: FoxgloveLive | None) -> Iterator[None]:
+    try:
+        yield
+    finally:
+        if live is not None:
             live.close()
 
 
@@ -234,13 +271,19 @@ def view(
     web_port: WebPortOption = 9090,
     grpc_port: GrpcPortOption = 9876,
     key_file: KeyFileOption = None,
+    foxglove: FoxgloveOption = None,
 ) -> None:
-    """Watch the agent live in the Rerun view, without commanding it."""
+    """Watch the agent live in the Rerun view, without commanding it; or in Foxglove (--foxglove), with the
+    parameters and the controls (Rerun too only if --viewer or --rrd is given)."""
     signal.signal(signal.SIGTERM, _interrupt)
     stopped = False
     with _one_line_errors():
         from groundstation.links import make_link
         from groundstation.links.runs import attach_url
+
+        if foxglove is not None:
+            _view_in_foxglove(attach_url(url), foxglove, viewer, rrd, web_port, grpc_port, key_file)
+            return
         from groundstation.session.agent_session import Session, SessionConfig
         from groundstation.view.rerun_sink import RerunView, ViewConfig
 
@@ -267,3 +310,34 @@ def view(
                 stopped = True
     if stopped:
         raise typer.Exit(130)  # ended by Ctrl-C, after a clean shutdown: the one convention (README)
+
+
+def _view_in_foxglove(url: str, port: int, viewer: Viewer | None, rrd: Path | None, web_port: int, grpc_port: int,
+                      key_file: Path | None) -> None:
+    """`dive view --foxglove`: the server bound first, then attached to the agent (a run's hub by default); the
+    Rerun view too, on the same session, when --viewer or --rrd asks for it. Until Ctrl-C or SIGTERM."""
+    from contextlib import AbstractContextManager, nullcontext
+
+    rerun = viewer is not None or rrd is not None
+    if rerun:
+        chosen = default_viewer(viewer, rrd)
+        web_port, grpc_port = viewer_ports(chosen, web_port, grpc_port)
+    fox = open_foxglove(port, name=f"dive view {url}")
+    with closing_foxglove(fox):
+        session = fox.attach(url, resolve_key(key_file))
+        opened: AbstractContextManager[RerunView | None] = nullcontext()
+        if rerun:  # Rerun (a second or so to import) only when asked for
+            from groundstation.view.rerun_sink import RerunView, ViewConfig
+
+            opened = RerunView.open(ViewConfig(viewer=chosen, rrd=rrd, web_port=web_port, grpc_port=grpc_port),
+                                    name=session.link.url)
+        with opened as live:
+            if live is not None:
+                if live.address:
+                    typer.echo(f"Rerun web viewer: {live.address}")
+                session.add_listener(live)
+            hello = session.agent_hello
+            typer.echo(f"serving {one_line(hello.name) if hello else 'the agent'} at {one_line(session.link.url)} "
+                       f"to Foxglove on {fox.address}")
+            wait_for_interrupt("serving Foxglove")
+    raise typer.Exit(130)  # ended by Ctrl-C, after a clean shutdown: the one convention (README)

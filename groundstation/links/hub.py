@@ -15,6 +15,7 @@ from groundstation.links.tcp import TcpLink, parse_host_port
 # one command in five (the size of Linux's delayed ACK: a window that small seems to reopen only with one); 16 KiB:
 # p50 7.7 ms, p95 15.0 ms, max 17.3 ms against 10.6, 62.7 and 63.9 (benchmarks/link_latency_bench.py, load ~1).
 HUB_RECEIVE_BUFFER_BYTES = 16 * 1024
+MARKER_CONFIRMATION = "marker recorded"  # the TEXT a hub answers a tool's marker (TEXT) with, once it is recorded
 
 
 class HubLink(TcpLink):

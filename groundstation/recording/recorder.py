@@ -23,7 +23,7 @@ from groundstation.recording.safe_files import unused_name
 from groundstation.session.dumps import DumpAssembler
 from groundstation.session.events import EventKind, LinkEvent, Received, Sent
 from groundstation.session.hello import tool_version
-from protocol import Message, messages
+from protocol import DumpKind, Message, messages
 from protocol.cobs import cobs_decode
 from protocol.jsonschema import message_json_schema
 from protocol.registry import message_classes
@@ -53,9 +53,35 @@ def message_schema(message_type: type[Message]) -> dict[str, Any]:
     return schema
 
 
+def message_topic(prefix: str, message_type: type[Message]) -> tuple[str, str, dict[str, Any]]:
+    """A message's channel: topic (prefix /agent for received, /ground for sent), schema name and JSON schema."""
+    name = message_type.DEFINITION.name
+    return f"{prefix}/{name}", f"diving_agent.{name}", message_schema(message_type)
+
+
+def dump_topic(kind: DumpKind) -> tuple[str, str, dict[str, Any]]:
+    """A reassembled dump's channel: topic, schema name and JSON schema."""
+    return f"/dump/{kind.name}", "diving_agent.dump", DUMP_SCHEMA
+
+
+def event_topic(event: LinkEvent) -> tuple[str, str, dict[str, Any], Any]:
+    """An event's channel (link statistics, a marker, any other event): topic, schema name, schema, and body."""
+    if event.kind == EventKind.STATS:
+        return "/link", "diving_agent.link", LINK_SCHEMA, event.data
+    if event.kind == EventKind.MARKER:
+        return "/marker", "diving_agent.marker", MARKER_SCHEMA, {"text": event.detail}
+    return "/event", "diving_agent.event", EVENT_SCHEMA, {"kind": str(event.kind), "detail": event.detail,
+                                                          "data": event.data}
+
+
 # One encoder each: json.dumps with any option builds a new JSONEncoder per call, more than a SAMPLE's encoding costs.
 _compact_json = json.JSONEncoder(separators=(",", ":")).encode
 _compact_json_any = json.JSONEncoder(separators=(",", ":"), default=str).encode
+
+
+def body_json(body: Any) -> bytes:
+    """An event's or a dump's body as the recording writes it: compact JSON, anything else as its text."""
+    return _compact_json_any(body).encode()
 
 
 def message_json(message: Message, seq: int, flags: int, backfilled: bool) -> bytes:
@@ -321,9 +347,9 @@ class Recorder:
         elif isinstance(msg, messages.DumpChunk):
             dump = self._dumps.feed(msg)
             if dump is not None:
-                topic = f"/dump/{dump.kind.name}"
                 body = _compact_json(dump.as_dict()).encode()
-                w.write(w.channel(topic, "json", "diving_agent.dump", DUMP_SCHEMA), body, host_ns)
+                topic, schema_name, schema = dump_topic(dump.kind)
+                w.write(w.channel(topic, "json", schema_name, schema), body, host_ns)
         elif isinstance(msg, messages.Hello):  # after a reboot the next part's header names the new boot
             self._hello = msg.to_dict()
 
@@ -340,20 +366,12 @@ class Recorder:
 
     @staticmethod
     def _message_channel(w: McapFileWriter, prefix: str, cls: type[Message]) -> int:
-        name = cls.DEFINITION.name
-        return w.channel(f"{prefix}/{name}", "json", f"diving_agent.{name}", message_schema(cls))
+        topic, schema_name, schema = message_topic(prefix, cls)
+        return w.channel(topic, "json", schema_name, schema)
 
     def _write_event(self, event: LinkEvent) -> None:
         w = self._writer
         assert w is not None
-        if event.kind == EventKind.STATS:
-            channel = w.channel("/link", "json", "diving_agent.link", LINK_SCHEMA)
-            body: dict[str, Any] = event.data
-        elif event.kind == EventKind.MARKER:
-            channel = w.channel("/marker", "json", "diving_agent.marker", MARKER_SCHEMA)
-            body = {"text": event.detail}
-        else:
-            channel = w.channel("/event", "json", "diving_agent.event", EVENT_SCHEMA)
-            body = {"kind": str(event.kind), "detail": event.detail, "data": event.data}
-        w.write(channel, _compact_json_any(body).encode(), event.host_time_ns)
+        topic, schema_name, schema, body = event_topic(event)
+        w.write(w.channel(topic, "json", schema_name, schema), body_json(body), event.host_time_ns)
 

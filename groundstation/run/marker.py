@@ -7,6 +7,7 @@ import socket
 import time
 
 from groundstation.errors import LinkError, LinkTimeout
+from groundstation.links.hub import MARKER_CONFIRMATION
 from groundstation.links.hub_auth import tool_side
 from groundstation.links.runs import RunInfo
 from groundstation.links.tcp import parse_host_port
@@ -14,7 +15,7 @@ from groundstation.session.hello import ground_hello
 from protocol import FrameEncoder, StreamDecoder
 from protocol import messages as m
 
-CONFIRMATION = "marker recorded"  # what the hub answers (groundstation/run/hub.py)
+CONFIRMATION = MARKER_CONFIRMATION  # what the hub answers (groundstation/run/hub.py)
 
 
 def send_marker(run: RunInfo, text: str, timeout_s: float = 3.0) -> None:

@@ -7,12 +7,18 @@ them change the state grid) and in which modes the agent refuses them.
 from __future__ import annotations
 
 import struct
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
-from groundstation.errors import ParameterError
+from groundstation.errors import CommandError, ParameterError
+from groundstation.session.control import known_mode, refused, wait_for_mode
 from groundstation.session.params import Parameter, ParamTable, ParamType, parse_value
 from protocol import Mode
 from protocol.parameters import BY_NAME, ParamDef
+
+if TYPE_CHECKING:
+    from groundstation.session.agent_session import Session
 
 GRID = ("target_depth_m", "z_tol_m", "zdot_tol_mps", "z_cells", "zdot_cells", "act_bins")  # the state grid
 
@@ -82,6 +88,33 @@ def mode_refusal(names: list[str], mode: int) -> ParameterError:
     mode_text = known.name if known is not None else f"mode {mode}"
     return ParameterError(f"not allowed while the agent is {mode_text}: {', '.join(names)}"
                           + (f"; {what}" if what else ""))
+
+
+def checked_plan(s: Session, values: dict[str, str]) -> ParamPlan:
+    """What a set or load would do, after every check that needs no confirmation: names, values and the agent's
+    mode (a refusal names each parameter it would refuse). Nothing is sent."""
+    change = plan(s.params, values)
+    if change.changes and s.last_heartbeat is None:
+        wait_for_mode(s, 1.5)  # the mode decides what the agent refuses
+    mode = s.last_heartbeat.mode if s.last_heartbeat is not None else None
+    refused_now = change.refused_in(mode)
+    if refused_now and mode is not None:
+        raise mode_refusal(refused_now, mode)
+    return change
+
+
+def apply(s: Session, change: ParamPlan, on_done: Callable[[Parameter], None] | None = None) -> list[Parameter]:
+    """Send the changes (never the unchanged values); the values the agent applied, in order, each also given to
+    `on_done` as it is applied (a refusal of a later one leaves the earlier ones said)."""
+    done = []
+    for p, value in change.changes:
+        try:
+            done.append(s.set_param(p.name, value))
+        except CommandError as e:
+            raise refused("PARAM_SET", e, known_mode(s), p.name) from None
+        if on_done is not None:
+            on_done(done[-1])
+    return done
 
 
 def describe(param: Parameter) -> str:

@@ -28,3 +28,21 @@ RunViewerOption = Annotated[  # `dive run`'s main job needs no viewer: headless,
 WebPortOption = Annotated[int, typer.Option("--web-port", min=1, max=65535,
                                             help="Port of the web viewer (--viewer web).")]
 GrpcPortOption = Annotated[int, typer.Option("--grpc-port", min=1, max=65535, help="Port of the Rerun data stream.")]
+
+FOXGLOVE_DEFAULT_PORT = 8765  # Foxglove's own default for a WebSocket connection
+FOXGLOVE_FLAG = "--foxglove"
+FoxgloveOption = Annotated[int | None, typer.Option(
+    FOXGLOVE_FLAG, min=0, max=65535, metavar="[PORT]", show_default=False,
+    help=f"Serve the agent live to the Foxglove app on ws://127.0.0.1:PORT (default {FOXGLOVE_DEFAULT_PORT}, "
+         "0: any free port): every channel, the parameters, and services for the controls. Loopback only, and "
+         "every local user of this machine can watch and command through it (Foxglove has no login).")]
+
+
+def with_flag_value(args: list[str], flag: str = FOXGLOVE_FLAG, value: str = str(FOXGLOVE_DEFAULT_PORT)) -> list[str]:
+    """`--foxglove` given without a port gets the default (Typer has no option with an optional value)."""
+    out = []
+    for i, word in enumerate(args):
+        out.append(word)
+        if word == flag and (i + 1 == len(args) or not args[i + 1].isdigit()):
+            out.append(value)
+    return out

@@ -48,13 +48,18 @@ def running(runtime: Path, url: str, out: Path, *options: str,
         assert proc.poll() is None, proc.communicate()
         yield proc
     finally:
-        if proc.poll() is None:
-            proc.send_signal(signal.SIGINT)
-        try:
-            proc.wait(30)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
+        interrupt(proc)
+
+
+def interrupt(proc: subprocess.Popen[str]) -> None:
+    """Ctrl-C (SIGINT) to a `dive` child still running, as a user ends it; killed if it has not ended in 30 s."""
+    if proc.poll() is None:
+        proc.send_signal(signal.SIGINT)
+    try:
+        proc.wait(30)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.wait()
 
 
 # The virtual agent the control tests drive: fast enough for episodes in seconds, slow enough to command.

@@ -1,0 +1,138 @@
+"""Every channel of the recording live on a Foxglove server: the recorder's topics, JSON schemas and message bodies."""
+
+from __future__ import annotations
+
+import functools
+import json
+import threading
+from collections.abc import Callable
+from typing import Any, TypeVar
+
+import foxglove
+
+from groundstation.links.hub import MARKER_CONFIRMATION
+from groundstation.recording.recorder import body_json, dump_topic, event_topic, message_json, message_topic
+from groundstation.session.dumps import Dump, DumpAssembler
+from groundstation.session.events import LinkEvent, Received, Sent
+from groundstation.view.foxglove_images import DumpImages
+from protocol import Message
+from protocol import messages as m
+from protocol.cobs import cobs_decode
+
+
+class MarkerWatch:
+    """A session listener on a run's hub that notes its confirmation of a marker (`mark` service)."""
+
+    def __init__(self) -> None:
+        self.confirmed = threading.Event()
+
+    def on_received(self, received: Received) -> None:
+        msg = received.frame.message
+        if isinstance(msg, m.Text) and msg.text == MARKER_CONFIRMATION:
+            self.confirmed.set()
+
+    def on_sent(self, sent: Sent) -> None:
+        pass
+
+    def on_event(self, event: LinkEvent) -> None:
+        pass
+
+
+_Method = TypeVar("_Method", bound=Callable[..., None])
+
+
+def _publishing(method: _Method) -> _Method:
+    """Publishing skipped after it failed once: on a run's own session a listener that raises stops the run (its
+    recorder must never stop silently); Foxglove failing must not. The failure is said once, in Foxglove and on
+    the run's terminal (`on_failure`)."""
+
+    @functools.wraps(method)
+    def guarded(self: FoxgloveChannels, *args: Any) -> None:
+        if self.failure is not None:
+            return
+        try:
+            method(self, *args)
+        except Exception as e:  # noqa: BLE001 whatever the SDK raises: the run goes on, unpublished
+            self.failure = f"Foxglove stopped publishing: {type(e).__name__}: {e}"
+            if self._on_failure is not None:
+                self._on_failure(self.failure)
+
+    return guarded  # type: ignore[return-value]
+
+
+class FoxgloveChannels:
+    """A session listener: each frame, command and event published on the channel the recording would write it to
+    (`/agent/SAMPLE`, `/ground/CMD_PAUSE`, `/link`, `/event`, `/marker`, `/dump/VALUES`), and each completed value
+    or policy dump also drawn as an image. A channel is encoded only while a client subscribes to it. On `dive run`
+    it listens to the run's own session: the very frames, commands and events (alarms) the recorder writes."""
+
+    def __init__(self, context: foxglove.Context,
+                 on_parameter: Callable[[m.ParamValue], None] | None = None,
+                 on_failure: Callable[[str], None] | None = None) -> None:
+        self._context = context
+        self._lock = threading.Lock()  # channels are made from the session's reader thread and from services
+        self._channels: dict[str, foxglove.Channel] = {}
+        self._rx: dict[type[Message], foxglove.Channel] = {}
+        self._tx: dict[type[Message], foxglove.Channel] = {}
+        self._dumps = DumpAssembler()
+        self.images = DumpImages(context)
+        self._on_parameter = on_parameter
+        self._on_failure = on_failure
+        self.failure: str | None = None
+
+    def channel(self, topic: str, schema_name: str, schema: dict[str, Any]) -> foxglove.Channel:
+        """The channel of `topic`, advertised to clients the first time it is asked for."""
+        with self._lock:
+            found = self._channels.get(topic)
+            if found is None:
+                data = json.dumps(schema).encode()
+                found = foxglove.Channel(topic, message_encoding="json", context=self._context,
+                                         schema=foxglove.Schema(name=schema_name, encoding="jsonschema", data=data))
+                self._channels[topic] = found
+            return found
+
+    def topics(self) -> list[str]:
+        with self._lock:
+            return sorted(self._channels)
+
+    # ------------------------------------------------------------------ the session's side (its reader thread)
+    @_publishing
+    def on_received(self, received: Received) -> None:
+        frame, host_ns, _agent_ns, backfilled, after_end = received
+        if after_end:
+            return  # from after the run's end: not in the decoded recording either (Session.request_backfill)
+        msg = frame.message
+        cls = msg.__class__
+        channel = self._rx.get(cls)
+        if channel is None:
+            channel = self._rx[cls] = self.channel(*message_topic("/agent", cls))
+        if channel.has_sinks():  # at --speed max thousands of SAMPLEs a second: encoded only for a subscriber
+            channel.log(message_json(msg, frame.seq, frame.flags, backfilled), log_time=host_ns)
+        if isinstance(msg, m.ParamValue):
+            self._dumps.saw_parameter(msg.name, msg.value)
+            self.images.saw_parameter(msg.name, msg.value)
+            if self._on_parameter is not None:
+                self._on_parameter(msg)
+        elif isinstance(msg, m.DumpChunk):
+            dump = self._dumps.feed(msg)
+            if dump is not None:
+                self.publish_dump(dump, host_ns)
+
+    def publish_dump(self, dump: Dump, host_ns: int) -> None:
+        self.channel(*dump_topic(dump.kind)).log(body_json(dump.as_dict()), log_time=host_ns)
+        self.images.publish(dump, host_ns)
+
+    @_publishing
+    def on_sent(self, sent: Sent) -> None:
+        cls = sent.message.__class__
+        channel = self._tx.get(cls)
+        if channel is None:
+            channel = self._tx[cls] = self.channel(*message_topic("/ground", cls))
+        if channel.has_sinks():
+            flags = cobs_decode(sent.wire[:-1])[1]  # as the recorder takes them: the frame's flags byte
+            channel.log(message_json(sent.message, sent.seq, flags, False), log_time=sent.host_time_ns)
+
+    @_publishing
+    def on_event(self, event: LinkEvent) -> None:
+        topic, schema_name, schema, body = event_topic(event)
+        self.channel(topic, schema_name, schema).log(body_json(body), log_time=event.host_time_ns)

@@ -1,0 +1,239 @@
+"""Foxglove live with controls (issue 27 item 6): a real `dive run --foxglove` on the virtual agent, and a client
+speaking Foxglove's WebSocket protocol as the Foxglove app does: channels, parameters and services."""
+
+from __future__ import annotations
+
+import json
+import re
+import socket
+import struct
+import subprocess
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+import pytest
+
+from groundstation.mcap_io import read_recording
+from groundstation.recording.recorder import message_schema
+from groundstation.view.foxglove_images import POLICY_TOPIC, VALUE_TOPIC
+from groundstation.view.foxglove_services import REQUESTS
+from groundstation.view.options import with_flag_value
+from protocol import messages as m
+from protocol.parameters import PARAM_COUNT
+from protocol.registry import message_classes
+from tests.groundstation.foxglove_client import SUBPROTOCOL, FoxgloveClient
+from tests.groundstation.hub_helpers import DIVE, dive_env, interrupt, one_line_failure
+
+FAST_SIM = "sim://?speed=max&seed=4"
+
+
+def start_dive(tmp_path: Path, *args: str) -> subprocess.Popen[str]:
+    """`dive ARGS --foxglove 0`: it binds and prints its address first."""
+    return subprocess.Popen([*DIVE, *args, "--foxglove", "0"], env=dive_env(tmp_path / "runtime"),
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+@contextmanager
+def foxglove_client(proc: subprocess.Popen[str]) -> Iterator[FoxgloveClient]:
+    """A client connected to the port `proc` printed; SIGINT to `proc` when the block ends."""
+    try:
+        assert proc.stderr is not None
+        first = proc.stderr.readline()  # the address, before the virtual agent is started
+        found = re.search(r"Foxglove: ws://127\.0\.0\.1:(\d+)", first)
+        assert found is not None, first + proc.stderr.read()
+        with FoxgloveClient.connected(int(found.group(1))) as client:
+            yield client
+    finally:
+        interrupt(proc)
+
+
+@pytest.mark.slow
+def test_foxglove_watches_sets_and_commands_a_running_run(tmp_path: Path) -> None:
+    proc = start_dive(tmp_path, "run", FAST_SIM, "--out", str(tmp_path / "rec"))
+    with foxglove_client(proc) as fox:
+        assert fox.ws.subprotocol == SUBPROTOCOL
+        # the server advertises its channels once the run's agent is up (a first start compiles the simulator)
+        assert fox.pump(lambda: "/agent/SAMPLE" in fox.channels and "surface" in fox.services, 120), fox.channels
+        assert {"parameters", "services"} <= set(fox.server_info["capabilities"])
+        sample = fox.channels["/agent/SAMPLE"]  # the recording's topic, schema name and JSON schema
+        assert (sample["encoding"], sample["schemaName"], sample["schemaEncoding"]) == \
+            ("json", "diving_agent.SAMPLE", "jsonschema")
+        assert json.loads(sample["schema"]) == message_schema(m.Sample)
+        samples = fox.subscribe("/agent/SAMPLE")
+        assert fox.pump(lambda: "/agent/HEARTBEAT" in fox.channels, 5)
+        beats = fox.subscribe("/agent/HEARTBEAT")
+        assert fox.pump(lambda: len(fox.messages.get(samples, [])) >= 5, 10)
+        assert {"depth_m", "mode", "_seq"} <= set(json.loads(fox.messages[samples][0]))
+        assert set(fox.services) == {"surface", "hover", "start", "stop", "pause", "resume", "target", "mark", "dump"}
+        view = start_dive(tmp_path, "view")  # attaches to the run's hub: started now, looked at below
+
+        # the Parameters panel: the agent's table; the value it already has changes nothing
+        table = {p["name"]: p["value"] for p in fox.get_parameters([])}
+        assert len(table) == PARAM_COUNT and table["gamma"] == 0.99 and table["target_depth_m"] == 0.4
+        assert fox.set_parameters({"gamma": 0.99}) == [{"name": "gamma", "type": "float64", "value": 0.99}]
+        # a learner parameter while learning: refused by the ground, naming it and the mode, as `dive params set`
+        assert fox.set_parameters({"gamma": 0.9})[0]["value"] == 0.99
+        assert fox.pump(lambda: any("not allowed while the agent is" in s["message"] and "gamma" in s["message"]
+                                    for s in fox.statuses), 3), fox.statuses
+
+        # the controls: the agent's ACK and the mode it ends in, a refusal with what to do instead
+        paused = fox.call("pause")
+        assert (paused["accepted"], paused["result"], paused["mode"]) == (True, "ACCEPTED", "PAUSED"), paused
+        moved = fox.call("target", {"depth_m": 0.5})  # another depth while paused
+        assert (moved["accepted"], moved["command"], moved["mode"]) == (True, "CMD_SET_TARGET", "PAUSED"), moved
+        resumed = fox.call("resume")
+        assert resumed["accepted"] and resumed["mode"] in ("LEARNING", "RECOVERING"), resumed
+        hover = fox.call("hover", {"depth_m": 0.3})
+        assert (hover["accepted"], hover["result"]) == (False, "NOT_ALLOWED_IN_MODE"), hover
+        assert "surface first: dive surface" in hover["message"]
+        assert "depth_m" in fox.call("target", {"depth_m": "deep"})["failure"]  # a bad request: a failed call
+        policy = fox.subscribe("/policy/image")
+        dumped = fox.call("dump", {"kind": "policy"})
+        assert dumped["accepted"] and "policy of episode" in dumped["message"], dumped
+        assert fox.pump(lambda: bool(fox.messages.get(policy)), 5)  # drawn as a foxglove.RawImage
+        assert fox.channels["/policy/image"]["schemaName"] == "foxglove.RawImage"
+        assert fox.call("mark", {"text": "from foxglove"})["accepted"]
+        # the run's own session publishes: its marker event (the hub marks the run's session, not Foxglove's)
+        assert fox.pump(lambda: "/marker" in fox.channels, 3), sorted(fox.channels)
+        assert "exceeds" in fox.call("mark", {"text": "x" * 100_000})["failure"]  # longer than a frame holds
+        surfaced = fox.call("surface")
+        assert surfaced["accepted"] and surfaced["mode"] in ("SURFACING", "IDLE"), surfaced
+
+        # at the surface a learner restart is allowed, once confirmed by setting the same value again
+        assert fox.pump(lambda: bool(fox.messages.get(beats)) and json.loads(fox.messages[beats][-1])["mode"] == 0,
+                        30)  # IDLE
+        assert fox.set_parameters({"gamma": 0.9})[0]["value"] == 0.99
+        assert fox.pump(lambda: any("set the same value again" in s["message"] for s in fox.statuses), 3)
+        assert fox.set_parameters({"gamma": 0.9})[0]["value"] == pytest.approx(0.9)
+        started = fox.call("start")  # handed back to the run, which learns on
+        assert started["accepted"] and started["mode"] in ("LEARNING", "RECOVERING"), started
+
+        # the view's own server, on the run's hub: the same channels and the agent's parameters
+        with foxglove_client(view) as beside:
+            assert beside.pump(lambda: "/agent/SAMPLE" in beside.channels and "pause" in beside.services, 20)
+            assert {p["name"]: p["value"] for p in beside.get_parameters(["gamma"])} == {"gamma": pytest.approx(0.9)}
+        assert view.wait(10) == 130
+    _, err = proc.communicate()
+    assert proc.returncode == 130, err
+    assert "the operator paused learning" in err and "took over (CMD_SURFACE" in err, err
+    assert err.count("handed the agent back") == 2, err  # the resume and the start
+    [recording] = sorted((tmp_path / "rec").glob("*.mcap"))
+    sent = read_recording(recording, {"/ground/PARAM_SET", "/ground/CMD_PAUSE", "/ground/CMD_SET_TARGET",
+                                      "/marker"}).messages
+    gamma_sets = [msg.json()["value"] for msg in sent
+                  if msg.topic == "/ground/PARAM_SET" and msg.json()["name"] == "gamma"]
+    assert gamma_sets == [pytest.approx(0.9)]  # the equal value, the refused and the unconfirmed sets: never sent
+    assert [msg.json()["text"] for msg in sent if msg.topic == "/marker"] == ["from foxglove"]
+    assert sum(msg.topic == "/ground/CMD_PAUSE" for msg in sent) == 1
+    assert [msg.json()["target_depth_m"] for msg in sent if msg.topic == "/ground/CMD_SET_TARGET"] == \
+        [pytest.approx(0.5)]
+
+
+def test_a_foxglove_port_in_use_is_one_line_before_the_agent_is_started(tmp_path: Path) -> None:
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        began = time.monotonic()
+        done = subprocess.run([*DIVE, "run", FAST_SIM, "--out", str(tmp_path / "rec"), "--foxglove", str(port)],
+                              env=dive_env(tmp_path / "runtime"), capture_output=True, text=True, timeout=60)
+    one_line_failure(done, f"port {port} is in use by another process: choose another with --foxglove PORT", code=2)
+    assert "virtual agent" not in done.stderr and time.monotonic() - began < 20
+    assert not (tmp_path / "rec").exists()
+
+
+def test_foxglove_without_a_port_takes_the_default() -> None:
+    assert with_flag_value(["run", "--foxglove"]) == ["run", "--foxglove", "8765"]
+    assert with_flag_value(["view", "--foxglove", "hub://1"]) == ["view", "--foxglove", "8765", "hub://1"]
+    assert with_flag_value(["run", "--foxglove", "0", "sim://"]) == ["run", "--foxglove", "0", "sim://"]
+
+
+def test_the_live_layout_is_current_and_shows_what_the_server_offers() -> None:
+    from scripts.foxglove_layout import BOUNDS_TOPIC, LIVE_OUT, live_layout
+
+    shipped = json.loads(LIVE_OUT.read_text())
+    assert shipped == live_layout(), "docs/foxglove/live-layout.json is stale: run python scripts/foxglove_layout.py"
+    panels = shipped["configById"]
+    buttons = {config["serviceName"] for name, config in panels.items() if name.startswith("CallService!")}
+    assert buttons == {"surface", "start", "stop", "pause", "resume"} and buttons <= set(REQUESTS)
+    assert {config["imageMode"]["imageTopic"] for name, config in panels.items() if name.startswith("Image!")} == \
+        {VALUE_TOPIC, POLICY_TOPIC}
+    assert any(name.startswith("Parameters!") for name in panels)
+    messages = {cls.DEFINITION.name: cls for cls in message_classes().values()}
+    paths = [path["value"] for config in panels.values() for path in config.get("paths", [])]
+    paths.append(panels["Indicator!mode"]["path"])
+    for path in paths:  # every field plotted is in the schema of the channel the server publishes
+        topic, field = path.rsplit(".", 1)
+        if topic == BOUNDS_TOPIC:
+            continue  # the layout's own user script
+        name = topic.removeprefix("/agent/")
+        assert field in message_schema(messages[name])["properties"], path
+
+
+def test_a_policy_redraws_its_episodes_values_with_the_untried_cells_grey() -> None:
+    """The agent sends VALUES, then POLICY: the value image is drawn again once the policy says which cells were
+    never left (in a real server, read by the protocol client)."""
+    import foxglove
+
+    from groundstation.session.dumps import Dump
+    from groundstation.view.foxglove_images import DumpImages
+    from protocol import DumpKind
+
+    context = foxglove.Context()
+    images = DumpImages(context)
+    server = foxglove.start_server(port=0, context=context)
+    try:
+        with FoxgloveClient.connected(server.port) as fox:
+            assert fox.pump(lambda: {VALUE_TOPIC, POLICY_TOPIC} <= set(fox.channels), 5)
+            values, policy = fox.subscribe(VALUE_TOPIC), fox.subscribe(POLICY_TOPIC)
+            time.sleep(0.2)  # the subscriptions reach the server
+            states = 10 * 10 + 1  # the default grid and the terminal state
+            images.publish(Dump(1, DumpKind.VALUES, 7, struct.pack(f"<{states}f", *range(states))), time.time_ns())
+            images.publish(Dump(2, DumpKind.POLICY, 7, bytes([0, 1, 255] * 33 + [0, 0])), time.time_ns())
+            assert fox.pump(lambda: len(fox.messages.get(values, [])) == 2 and len(fox.messages.get(policy, [])) == 1)
+            assert fox.channels[VALUE_TOPIC]["schemaName"] == "foxglove.RawImage"
+            assert len(fox.messages[values][1]) > 320 * 320 * 3  # rgb8, one 32-pixel block per cell of the 10 x 10
+    finally:
+        server.stop()
+
+
+def test_the_default_port_taken_moves_to_a_free_one_and_says_so(monkeypatch: pytest.MonkeyPatch,
+                                                                 capsys: pytest.CaptureFixture[str]) -> None:
+    """A second `dive view --foxglove` beside a run's server on the default port gets a port of its own."""
+    from groundstation.cli.view import open_foxglove
+    from groundstation.view import foxglove_live
+
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        default = taken.getsockname()[1]
+        monkeypatch.setattr(foxglove_live, "DEFAULT_PORT", default)  # the test's own port, never a fixed one
+        live = open_foxglove(default, "test")
+        try:
+            assert live.port not in (default, 0)
+            said = capsys.readouterr().err
+            assert f"the default --foxglove port {default} is in use: using {live.port}" in said
+            assert f"Foxglove: ws://127.0.0.1:{live.port}" in said
+        finally:
+            live.close()
+
+
+def test_publishing_that_fails_stops_publishing_not_the_run() -> None:
+    """On a run's own session a listener that raises stops the run; Foxglove's publisher says so once instead."""
+    import foxglove
+
+    from groundstation.session.events import EventKind, LinkEvent
+    from groundstation.view.foxglove_channels import FoxgloveChannels
+
+    said: list[str] = []
+    channels = FoxgloveChannels(foxglove.Context(), on_failure=said.append)
+
+    def broken(*args: object) -> foxglove.Channel:
+        raise RuntimeError("the SDK gave up")
+
+    channels.channel = broken  # type: ignore[method-assign]
+    for _ in range(3):
+        channels.on_event(LinkEvent(EventKind.MARKER, time.time_ns(), "x", {"text": "x"}))  # raises nothing
+    assert said == ["Foxglove stopped publishing: RuntimeError: the SDK gave up"]
