@@ -31,18 +31,23 @@ def _agent(preset_name: str, firmware: str, seed: int, write: list[bytes]) -> On
 
 
 def record_onboard(path: Path, preset_name: str, firmware: str = "python", seed: int = 1, episodes: int = 3,
-                   max_steps: int = 200_000) -> Path:
-    """Record the agent learning until `episodes` episodes ended (or `max_steps` steps) into `path`."""
+                   max_steps: int = 200_000, until_bytes: int = 0, split_bytes: int = 0, dumps: bool = False
+                   ) -> list[Path]:
+    """Record the agent learning until `episodes` episodes ended (or `max_steps` steps, or `until_bytes` on disk)
+    into `path` (its parts with `split_bytes`: the recorder's split option); with `dumps`, a VALUES and POLICY dump
+    after each episode, as `dive run` asks for. The files written."""
     wire: list[bytes] = []
     agent = _agent(preset_name, firmware, seed, wire)
     agent.link_up()
     ground = FrameEncoder()
     agent.receive(ground.encode(ground_hello(0x600D, 1)).wire)
     agent.receive(ground.encode(m.ParamListRequest()).wire)
+    if dumps:
+        agent.receive(ground.encode(m.ParamSet(index=-1, value=1.0, name="dump_each_episode")).wire)
     agent.receive(ground.encode(m.StartLearning(max_episodes=0)).wire)
     options = {"sim_preset": preset_name, "sim_firmware": firmware, "sim_seed": str(seed), "sim_speed": "max"}
     url = f"sim://?preset={preset_name}&firmware={firmware}&seed={seed}"
-    recorder = Recorder(RecorderConfig(path=path), session_info={"url": url, **options})
+    recorder = Recorder(RecorderConfig(path=path, split_bytes=split_bytes), session_info={"url": url, **options})
     decoder = StreamDecoder()
     parameters: dict[str, float] = {}
     ended = steps = 0
@@ -51,6 +56,8 @@ def record_onboard(path: Path, preset_name: str, firmware: str = "python", seed:
         while ended < episodes and steps < max_steps:
             agent.step()
             steps += 1
+            if until_bytes and steps % 4096 == 0 and sum(p.stat().st_size for p in recorder.paths) >= until_bytes:
+                break
             data, wire[:] = b"".join(wire), []
             for frame in decoder.feed(data):
                 message = frame.message
@@ -63,4 +70,4 @@ def record_onboard(path: Path, preset_name: str, firmware: str = "python", seed:
                 recorder.on_received(Received(frame, host_ns, host_ns, False))
     finally:
         recorder.close()
-    return path
+    return recorder.paths
