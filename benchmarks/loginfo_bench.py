@@ -73,7 +73,7 @@ def make_folder(folder: Path, total_mb: float) -> list[Path]:
     for name, preset_name, program, seed, parts in FOLDER_PLAN:
         began = time.perf_counter()
         made += record_onboard(folder / f"{name}.mcap", preset_name, program, seed, episodes=10**9,
-                               max_steps=10**9, until_bytes=part_bytes * parts,
+                               max_steps=10**9, until_bytes=int(part_bytes * (parts - 0.1)),
                                split_bytes=part_bytes if parts > 1 else 0, dumps=True)
         print(f"recorded {name} ({preset_name} plant, {program} program, {parts} part(s)) in "
               f"{time.perf_counter() - began:.1f} s", flush=True)
