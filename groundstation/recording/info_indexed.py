@@ -278,13 +278,22 @@ def _beats(chunk: IndexedChunk, offsets: NDArray[np.int64], totals: IndexedTotal
     decoded = _bodies(chunk, offsets) if len(offsets) > 1 else None
     if decoded is None:
         decoded = [json_fields(_message(chunk, at, HEARTBEAT_TOPIC)) for at in offsets.tolist()]
+    try:  # every one well formed (the rule): columns at C speed
+        next_samples = [body["log_next_sample"] for body in decoded]
+        uptimes_ms = [body["uptime_ms"] for body in decoded]
+        if set(map(type, next_samples)) | set(map(type, uptimes_ms)) <= {int}:  # not bool, float or None
+            nexts, uptimes = np.array(next_samples, dtype=np.int64), np.array(uptimes_ms, dtype=np.int64)
+            if not len(offsets) or max(np.abs(nexts).max(), np.abs(uptimes).max()) < 2**53:  # no overflow below
+                return offsets, nexts, uptimes * 1000
+    except (TypeError, KeyError, IndexError, OverflowError):
+        pass
     kept_at, kept_next, kept_us = [], [], []
     for at, body in zip(offsets.tolist(), decoded, strict=True):
         try:
             next_sample, uptime_ms = body["log_next_sample"], body["uptime_ms"]
         except (TypeError, KeyError, IndexError):  # not an object, or without the fields (json_fields' checks)
             next_sample = uptime_ms = None
-        if type(next_sample) is int and type(uptime_ms) is int:  # not bool, float or None
+        if type(next_sample) is int and type(uptime_ms) is int and max(abs(next_sample), abs(uptime_ms)) < 2**53:
             kept_at.append(at)
             kept_next.append(next_sample)
             kept_us.append(uptime_ms * 1000)
