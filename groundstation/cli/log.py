@@ -47,7 +47,9 @@ def log_info(files: Annotated[list[Path], typer.Argument(help="recordings, or fo
         rows = [{**json_summary(s.as_dict()), "being_recorded_by": w} for s, w in summaries]
         for row, residual in zip(rows, residuals, strict=False):
             row["plant_residual"] = residual
-        out.print_json(json.dumps(rows[0] if len(rows) == 1 else rows))
+        # Plain json.dumps, not rich's print_json: rich re-parses and highlights the text line by line, 3 of the 4 s
+        # CPU a 16-file folder's 260 KB took (benchmarks/loginfo_bench.py --folder). JSON escapes control characters.
+        typer.echo(json.dumps(rows[0] if len(rows) == 1 else rows, indent=2))
         return
     for i, (summary, writer) in enumerate(summaries):
         text = format_summary(summary)

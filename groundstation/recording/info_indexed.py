@@ -11,6 +11,7 @@ as ranges.
 
 from __future__ import annotations
 
+import json
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -36,7 +37,8 @@ from protocol.frame import MIN_INNER
 
 SAMPLE_TOPIC, RAW_RX_TOPIC = "/agent/SAMPLE", "/raw/rx"
 # The few topics decoded one message at a time (about 1 in 30 messages of a run); the rest are only counted.
-CONTROL_TOPICS = ("/agent/HEARTBEAT", "/agent/EPISODE_END", "/agent/HELLO", "/event", "/link")
+HEARTBEAT_TOPIC = "/agent/HEARTBEAT"
+CONTROL_TOPICS = (HEARTBEAT_TOPIC, "/agent/EPISODE_END", "/agent/HELLO", "/event", "/link")
 _SAMPLE = record_dtype(m.Sample.DEFINITION)
 _SAMPLE_INNER = MIN_INNER + _SAMPLE.itemsize
 _FIELD_AT = {name: 5 + int(spec[1]) for name, spec in (_SAMPLE.fields or {}).items()}  # in the inner frame
@@ -132,11 +134,7 @@ class _State:
         """One decoded message of CONTROL_TOPICS, as info.summarize_stream takes it."""
         t = self.totals
         body: dict[str, Any] | None = {}
-        if topic == "/agent/HEARTBEAT":
-            body = json_fields(msg, integers=("log_next_sample", "uptime_ms"))
-            if body is not None:
-                self.heartbeat = (body["log_next_sample"], body["uptime_ms"] * 1000)
-        elif topic == "/agent/EPISODE_END":
+        if topic == "/agent/EPISODE_END":
             body = json_fields(msg, integers=("episode", "reason", "steps"), numbers=("duration_s", "episode_return"))
             if body is not None:
                 t.episodes.append(body)
@@ -170,14 +168,17 @@ def summarize_indexed(file: IndexedFile, progress: Callable[[int], None] | None 
     by_topic = {info.topic: cid for cid, info in file.channels.items()}
     sample_id, raw_id = by_topic.get(SAMPLE_TOPIC), by_topic.get(RAW_RX_TOPIC, -1)
     control_ids = {by_topic[topic]: topic for topic in CONTROL_TOPICS if topic in by_topic}
+    beat_id = by_topic.get(HEARTBEAT_TOPIC, -1)
+    control_ids.pop(beat_id, None)  # a HEARTBEAT a second of agent time: taken in columns (_beats), not one by one
     damaged = [0]
     done = 0
     for chunk in iter_indexed_chunks(file, damaged):
         _count_messages(chunk, file, totals)
-        controls = sorted((int(offset), cid, int(log_time)) for cid in control_ids if cid in chunk.index
-                          for log_time, offset in chunk.index[cid])
+        controls = sorted((int(offset), cid) for cid in control_ids if cid in chunk.index
+                          for _, offset in chunk.index[cid])
+        beats = _beats(chunk, np.sort(chunk.index[beat_id][:, 1]) if beat_id in chunk.index else _NO_OFFSETS, totals)
         samples = chunk_samples(chunk, sample_id, raw_id, totals) if sample_id in chunk.index else None
-        _walk(chunk, file, state, controls, control_ids, samples)
+        _walk(chunk, state, controls, control_ids, beats, samples)
         done += chunk.compressed_size
         if progress is not None:
             progress(done)
@@ -254,27 +255,91 @@ def _message(chunk: IndexedChunk, offset: int, topic: str) -> RecordedMessage:
                            "json", "")
 
 
-def _walk(chunk: IndexedChunk, file: IndexedFile, state: _State, controls: list[tuple[int, int, int]],
-          control_ids: dict[int, str], samples: _Samples | None) -> None:
-    """The control messages one by one in file order, noting the state after each; then the SAMPLEs at once, each
-    taken in the state (boot, latest heartbeat) of the control message before it."""
+def _bodies(chunk: IndexedChunk, offsets: NDArray[np.int64]) -> list[Any] | None:
+    """The JSON of the messages at `offsets`, decoded in one call (a recording holds a HEARTBEAT a second of agent
+    time: decoding them one by one was most of a summary's time); None when they are not that many JSON values
+    (a malformed one: then each is decoded on its own, and counted as malformed as it is)."""
+    data = chunk.data
+    parts = [data[at + MESSAGE_DATA_AT: at + 9 + int.from_bytes(data[at + 1: at + 9], "little")]
+             for at in offsets.tolist()]
+    try:
+        decoded = json.loads(b"[" + b",".join(parts) + b"]")
+    except (ValueError, UnicodeDecodeError):
+        return None
+    return decoded if isinstance(decoded, list) and len(decoded) == len(parts) else None
+
+
+_Beats = tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int64]]  # file offset, log_next_sample, at us
+_NO_OFFSETS = np.zeros((0,), dtype=np.int64)
+
+
+def _beats(chunk: IndexedChunk, offsets: NDArray[np.int64], totals: IndexedTotals) -> _Beats:
+    """The chunk's well-formed HEARTBEATs in file order, as columns; the malformed ones counted, then left out."""
+    decoded = _bodies(chunk, offsets) if len(offsets) > 1 else None
+    if decoded is None:
+        decoded = [json_fields(_message(chunk, at, HEARTBEAT_TOPIC)) for at in offsets.tolist()]
+    try:  # every one well formed (the rule): columns at C speed
+        next_samples = [body["log_next_sample"] for body in decoded]
+        uptimes_ms = [body["uptime_ms"] for body in decoded]
+        if set(map(type, next_samples)) | set(map(type, uptimes_ms)) <= {int}:  # not bool, float or None
+            nexts, uptimes = np.array(next_samples, dtype=np.int64), np.array(uptimes_ms, dtype=np.int64)
+            if not len(offsets) or max(np.abs(nexts).max(), np.abs(uptimes).max()) < 2**53:  # no overflow below
+                return offsets, nexts, uptimes * 1000
+    except (TypeError, KeyError, IndexError, OverflowError):
+        pass
+    kept_at, kept_next, kept_us = [], [], []
+    for at, body in zip(offsets.tolist(), decoded, strict=True):
+        try:
+            next_sample, uptime_ms = body["log_next_sample"], body["uptime_ms"]
+        except (TypeError, KeyError, IndexError):  # not an object, or without the fields (json_fields' checks)
+            next_sample = uptime_ms = None
+        if type(next_sample) is int and type(uptime_ms) is int and max(abs(next_sample), abs(uptime_ms)) < 2**53:
+            kept_at.append(at)
+            kept_next.append(next_sample)
+            kept_us.append(uptime_ms * 1000)
+        else:
+            totals.malformed += 1
+    return (np.array(kept_at, dtype=np.int64), np.array(kept_next, dtype=np.int64),
+            np.array(kept_us, dtype=np.int64))
+
+
+def _walk(chunk: IndexedChunk, state: _State, controls: list[tuple[int, int]], control_ids: dict[int, str],
+          beats: _Beats, samples: _Samples | None) -> None:
+    """The control messages one by one in file order (HELLOs start boots); then the SAMPLEs at once, each taken in
+    its boot and with the latest HEARTBEAT before it of that boot (a new boot forgets the last one)."""
+    start_beat = state.heartbeat or (-1, 0)
     boots: list[BootCounts] = [state.boot]
     boot_of = [0]
-    heartbeats = [state.heartbeat or (-1, 0)]
-    for offset, cid, _ in controls:
+    starts: list[int] = []  # file offsets of the controls that began a new boot
+    for offset, cid in controls:
         state.control(control_ids[cid], _message(chunk, offset, control_ids[cid]))
         if state.boot is not boots[-1]:
             boots.append(state.boot)
+            starts.append(offset)
         boot_of.append(len(boots) - 1)
-        heartbeats.append(state.heartbeat or (-1, 0))
+    beat_at, beat_next, beat_us = beats
+    last_start = starts[-1] if starts else -1
+    if len(beat_at) and beat_at[-1] > last_start:
+        state.heartbeat = (int(beat_next[-1]), int(beat_us[-1]))
     if samples is None:
         return
     offsets, index, t_us, backfilled = samples
-    at = np.searchsorted(np.array([offset for offset, _, _ in controls], dtype=np.int64), offsets)
-    beat = np.array(heartbeats, dtype=np.int64)[at]
-    elapsed_s = np.maximum(0.0, (t_us - beat[:, 1]) / 1e6)
-    possible = (beat[:, 0] < 0) | (index <= beat[:, 0] + SAMPLE_SLACK + MAX_SAMPLE_RATE_HZ * elapsed_s)
-    boot = np.array(boot_of, dtype=np.int64)[at]
+    boot = np.array(boot_of, dtype=np.int64)[np.searchsorted(np.array([o for o, _ in controls], dtype=np.int64),
+                                                             offsets)]
+    started = np.array([-1, *starts], dtype=np.int64)[np.searchsorted(np.array(starts, dtype=np.int64), offsets)]
+    latest = np.searchsorted(beat_at, offsets) - 1
+    if len(beat_at):
+        clipped = np.maximum(latest, 0)
+        has = (latest >= 0) & (beat_at[clipped] > started)
+        before_next, before_us = beat_next[clipped], beat_us[clipped]
+    else:
+        has = np.zeros(len(offsets), dtype=bool)
+        before_next = before_us = np.zeros(len(offsets), dtype=np.int64)
+    carried = started < 0  # no new boot before the sample: the heartbeat from before the chunk still holds
+    beat_next_sample = np.where(has, before_next, np.where(carried, start_beat[0], -1))
+    beat_at_us = np.where(has, before_us, np.where(carried, start_beat[1], 0))
+    elapsed_s = np.maximum(0.0, (t_us - beat_at_us) / 1e6)
+    possible = (beat_next_sample < 0) | (index <= beat_next_sample + SAMPLE_SLACK + MAX_SAMPLE_RATE_HZ * elapsed_s)
     t = state.totals
     for number, counts in enumerate(boots):
         mine = boot == number

@@ -144,9 +144,17 @@ def _hex(text: str) -> str:
     return f"{int(text):08x}" if text.isdigit() else text
 
 
+# The agent's parameters that set the plant's side of the task (PlantParams fields): the agent's own table wins over
+# the preset's figures (the C firmware keeps its own defaults: 2.1 deg steps in a +/- 19.5 deg window on any plant).
+_PLANT_PARAMETERS = (("target_depth_m", "target_depth_m"), ("action_step_deg", "action_step_deg"),
+                     ("action_win_deg", "action_window_deg"), ("control_dt_s", "control_period_s"),
+                     ("success_time_s", "episode_limit_s"))
+
+
 def _env_kwargs(recording: Recording) -> dict[str, Any]:
     """make() options of DivingAgent-v0 that match the recorded task: the plant preset and learner the run named
-    (a sim:// run; a real agent's plant is the water: the default plant stands in), the agent's parameters."""
+    (a sim:// run; a real agent's plant is the water: the default plant stands in), the agent's parameters (its
+    grid, and the plant figures it sets: step, window, period, target, success time, start at rest)."""
     params = recording.parameters
     env = environment(recording.metadata)
     kwargs: dict[str, Any] = {}
@@ -160,8 +168,13 @@ def _env_kwargs(recording: Recording) -> dict[str, Any]:
     for wire_name, option in (("z_cells", "z_cells"), ("zdot_cells", "zdot_cells"), ("act_bins", "actuator_bins")):
         if wire_name in params:
             kwargs[option] = int(float(params[wire_name]))
-    if "target_depth_m" in params:
-        kwargs["params"] = {"target_depth_m": float(tidy_number(params["target_depth_m"]))}
+    plant = {field: float(tidy_number(params[name])) for name, field in _PLANT_PARAMETERS if name in params}
+    if "start_at_rest" in params:
+        plant["start_with_recovery"] = not float(params["start_at_rest"])
+    if env["firmware"] == "c":
+        plant["use_observer"] = True  # the firmware's learner sees its own observer's estimate, whatever the preset
+    if plant:
+        kwargs["params"] = plant
     return kwargs
 
 

@@ -12,7 +12,9 @@ own protocol, so `dive view`, `status`, `mark`, `surface`, ... attach with the s
   to the agent by the session, with the session's seq and signature, once (a client's retry of the same seq is not
   sent again); the agent's ACK goes back to that client with the client's seq;
 - a client's TIMESYNC request is answered by the hub from the run's clock model: no tool's TIMESYNC reaches the agent;
-- a client's TEXT is a marker for the run's recording (`dive mark`), confirmed by a TEXT back.
+- a client's TEXT is a marker for the run's recording (`dive mark`), confirmed by a TEXT back;
+- the run's markers and alarms are fanned out too, each as a TEXT flagged as the ground's (links/hub_events.py): a
+  `dive record` attached to the run records them, a `dive view` shows them, as the run's own recorder and view do.
 
 A client that does not keep up is dropped (its queue is bounded): a slow viewer never slows the run.
 """
@@ -28,6 +30,7 @@ from collections import OrderedDict
 
 from groundstation.errors import LinkError
 from groundstation.links.hub_auth import HubAuthError, HubSide
+from groundstation.links.hub_events import FANNED_OUT, GROUND_FLAG, ground_text
 from groundstation.run.history import History
 from groundstation.run.hub_clients import EMERGENCY, FORWARDED, HANDSHAKE_S, MAX_CLIENTS, MAX_REJECTS, HubClient
 from groundstation.run.marker import CONFIRMATION as MARKER_CONFIRMATION
@@ -38,7 +41,7 @@ from protocol import messages as m
 
 CLIENT_QUEUE_LIMIT = 4 * 1024 * 1024  # bytes queued for one client before it is dropped as too slow
 FORWARDED_MEMORY = 256  # forwarded commands remembered (for ACK mapping and client retries)
-_KEPT_FLAGS = int(FrameFlag.REPLAYED)
+_KEPT_FLAGS = int(FrameFlag.REPLAYED)  # of an agent frame; the rest (GROUND_FLAG too) cleared: no forged events
 _TAKE_OVER_IDS = {kind.MSG_ID: kind.DEFINITION.name for kind in (m.Surface, m.Stop, m.Hover, m.Pause)}
 _U64_MAX = 2**64 - 1
 _Client = HubClient
@@ -123,7 +126,14 @@ class Hub:
             self._forwarded_seq = sent.seq
 
     def on_event(self, event: LinkEvent) -> None:
-        pass
+        if event.kind not in FANNED_OUT:
+            return  # the run's own link's life (lost, restored, stats): each tool has its own link to the hub
+        text = ground_text(event.kind, event.detail, event.data)
+        with self._lock:
+            for client in self._clients:
+                if client.hello_seen and client.attached:
+                    client.outbuf += client.encoder.encode(text, GROUND_FLAG).wire
+        self._wake()
 
     def _answer_forwarded(self, ack: m.Ack) -> None:
         with self._lock:

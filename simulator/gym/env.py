@@ -24,6 +24,11 @@ Reward, `reward=` of `make`:
   leaves it: the return is the time held in seconds, largest for a success. Use it to train
   Gymnasium agents (PPO, DQN ...) on the task.
 
+`reset(options={"start": {"depth_m", "velocity_mps", "alpha_deg", "alpha_cmd_deg", "centre_deg"}})` starts an
+episode from a recorded state: a recorded episode's actions replayed from its first SAMPLE retrace it within the
+sensor's noise in the environment a Minari export's `recover_environment()` rebuilds (tests/groundstation/recording/
+test_minari_groups.py).
+
 `info` carries `success` (the episode ended by holding for the success time) and `time_held_s` (time
 in the region so far) under either reward.
 """
@@ -96,7 +101,7 @@ class DivingAgentEnv(gymnasium.Env[NDArray[np.float64], np.int64]):
             # Gymnasium seeded np_random from entropy: derive the plant's stream from it, once.
             seed = int(self.np_random.integers(2**63))
         self._seeded = True
-        obs, info = self._task.reset(seed=seed)
+        obs, info = self._task.reset(seed=seed, options=options)  # options={"start": ...}: task.py
         self._trace = [(0.0, float(obs[0]), float(obs[2]))]
         info["time_held_s"], info["success"] = 0.0, False
         return self._clip(obs), info

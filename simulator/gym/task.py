@@ -9,7 +9,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from learning import LearnerConfig
-from learning.config import kernel_spec
+from learning.config import MAX_VELOCITY_DIFF_STEPS, kernel_spec
 from learning.rng import new_stream
 from simulator.errors import SimulatorError
 from simulator.parameters import PlantParams, kernel_params
@@ -18,16 +18,25 @@ from simulator.plant.episode import (
     E_CENTER,
     E_CMD,
     E_DEPTH_MEAS,
+    E_OBS_X1,
+    E_OBS_X2,
+    E_PLANT_END,
     E_RECOVERY_S,
+    E_RING,
     E_STEPS,
     E_VEL_EST,
     E_Z,
     E_ZDOT,
     episode_cell_kernel,
     episode_reset_kernel,
+    episode_state_kernel,
     episode_step_kernel,
     new_env_state,
 )
+from simulator.plant.kernel import plant_place
+
+# reset(options={"start": {...}}): a recorded state to start from (a recording replayed through the plant)
+START_KEYS = ("depth_m", "velocity_mps", "alpha_deg", "alpha_cmd_deg", "centre_deg")
 
 
 class DivingEnv:
@@ -52,7 +61,11 @@ class DivingEnv:
     def reset(
         self, *, seed: int | Sequence[int] | None = None, options: dict[str, Any] | None = None
     ) -> tuple[NDArray[np.float64], dict[str, Any]]:
-        """Start an episode; a seed restarts the stream and the plant, so the same seed repeats exactly."""
+        """Start an episode; a seed restarts the stream and the plant, so the same seed repeats exactly.
+
+        options={"start": {depth_m, velocity_mps, alpha_deg, alpha_cmd_deg, centre_deg}} starts it from that state
+        instead (a recorded episode's first SAMPLE: its actions replayed then retrace it, within the sensor's noise).
+        """
         if seed is not None:
             self._rng_state = new_stream(np.random.default_rng(seed))
             self._env = new_env_state(self._spec)
@@ -61,8 +74,24 @@ class DivingEnv:
                 self._env, self.params.target_depth_m, self._spec, self._lspec, self._rng_state
             )
         )
+        start = (options or {}).get("start")
+        if start is not None:
+            state = self._place(start)
         self._ready = True
         return self._obs(), self._info(state)
+
+    def _place(self, start: dict[str, float]) -> int:
+        missing = [key for key in START_KEYS if key not in start]
+        if missing:
+            raise SimulatorError(f"options['start'] lacks {', '.join(missing)}")
+        e = self._env
+        depth, velocity = float(start["depth_m"]), float(start["velocity_mps"])
+        plant_place(e[:E_PLANT_END], depth, velocity, float(start["alpha_deg"]))
+        e[E_CMD], e[E_CENTER] = float(start["alpha_cmd_deg"]), float(start["centre_deg"])
+        # The agent has measured this depth and believes this velocity: so does its observer, and its depth history.
+        e[E_OBS_X1], e[E_OBS_X2], e[E_DEPTH_MEAS], e[E_VEL_EST] = depth, velocity, depth, velocity
+        e[E_RING:E_RING + MAX_VELOCITY_DIFF_STEPS] = depth
+        return int(episode_state_kernel(e, self.params.target_depth_m, self._spec, self._lspec))
 
     def step(self, action: int) -> tuple[NDArray[np.float64], float, bool, bool, dict[str, Any]]:
         """One control period with action 0 (decrease volume) or 1 (increase volume)."""

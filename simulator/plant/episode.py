@@ -159,6 +159,9 @@ def _state(env: NDArray[np.float64], target_depth_m: float, spec: KernelSpec, ls
     return state_index_kernel(env[E_DEPTH_MEAS], env[E_VEL_EST], target_depth_m, fraction, lspec)
 
 
+episode_state_kernel = _state  # the learner's state of the current measurement (gym/task.py: a placed start)
+
+
 # Inlined into the study's trial loop (its hottest call, once per learner step): 1.2x on the whole study.
 @njit(cache=True, error_model="numpy", inline="always")
 def episode_step_kernel(

@@ -6,9 +6,11 @@ from __future__ import annotations
 
 import dataclasses
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
+from numpy.typing import NDArray
 from typer.testing import CliRunner
 
 from groundstation import open_recording
@@ -20,6 +22,7 @@ from protocol import Frame
 from protocol import messages as m
 from protocol.frame import build_inner
 from simulator.parameters import preset, with_overrides
+from tests.groundstation.recording.onboard_recording import record_onboard
 from tests.groundstation.synthetic_agent import generate, play_session
 
 RUNS = {"paper": {"sim_preset": "paper"}, "hardware": {"sim_preset": "hardware"},
@@ -89,9 +92,11 @@ def test_a_mixed_folder_makes_one_dataset_per_environment(folder: Path, tmp_path
         assert "environment" in described and "0.10000000149011612" not in described  # no float32 noise
         assert dataset.spec.env_spec.kwargs["z_tol_m"] == 0.1
         env = dataset.recover_environment()
-        # the plant that made the data: the run's preset with the recorded target depth
-        assert env.unwrapped.plant == with_overrides(preset(RUNS[name]["sim_preset"]),  # type: ignore[attr-defined]
-                                                     {"target_depth_m": 0.5})
+        # the plant that made the data: the run's preset with the figures the agent's parameter table set (and
+        # the C firmware's own observer)
+        expected = with_overrides(preset(RUNS[name]["sim_preset"]), {"target_depth_m": 0.5, "action_step_deg": 2.1,
+                                                                     "use_observer": name != "paper"})
+        assert env.unwrapped.plant == expected  # type: ignore[attr-defined]
         episodes = list(dataset.iterate_episodes())
         runs = [folder / f"{name}.mcap"] + ([folder / "paper-late.mcap"] if name == "paper" else [])
         assert len(episodes) == sum(len(open_recording(run).episodes()) - 1 for run in runs)  # the last is open
@@ -100,3 +105,62 @@ def test_a_mixed_folder_makes_one_dataset_per_environment(folder: Path, tmp_path
         obs, _ = env.reset(seed=1)
         assert obs.shape == episodes[0].observations[0].shape and np.isfinite(obs).all()
 
+
+
+# In-process runs of the real on-board programs over their plants (onboard_recording.py): what replays can check.
+PLANTS = {"paper": ("paper", "python"), "hardware": ("hardware", "python"), "firmware": ("paper", "c")}
+REPLAYED_EPISODES, REPLAYED_STEPS = 3, 20
+# The pressure sensor's noise as depth (PlantParams: 6.5 Pa RMS): 0.66 mm. The recovered plant retraces a recorded
+# episode within a few of it; the other preset's plant is off by centimetres (its trim, step, window, observer).
+DEPTH_NOISE_M = 6.5 / (1000.0 * 9.81)
+
+
+@pytest.fixture(scope="module")
+def plant_folder(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    folder = tmp_path_factory.mktemp("plants")
+    for name, (preset_name, firmware) in PLANTS.items():
+        record_onboard(folder / f"{name}.mcap", preset_name, firmware, seed=3, episodes=REPLAYED_EPISODES)
+    return folder
+
+
+def _replay_error(env: Any, episode: Any, samples: NDArray[np.void]) -> tuple[float, float]:
+    """RMS of (plant depth - recorded measured depth) and the largest actuator-column difference, over the first
+    steps of `episode` replayed from its recorded first state with its recorded actions."""
+    obs, actions = episode.observations, episode.actions
+    first = samples[samples["sample"] == episode.infos["sample"][0]][0]
+    centre = float(first["actuator_cmd_deg"]) - (float(obs[1, 2]) if len(obs) > 1 else 0.0)
+    env.reset(seed=0, options={"start": {"depth_m": obs[0, 0], "velocity_mps": obs[0, 1],
+                                         "alpha_deg": float(first["actuator_deg"]), "centre_deg": centre,
+                                         "alpha_cmd_deg": centre + obs[0, 2]}})
+    depth_errors, column_errors = [], []
+    for t, action in enumerate(actions[:REPLAYED_STEPS]):
+        seen, _, terminated, truncated, info = env.step(int(action))
+        depth_errors.append(info["depth_m"] - obs[t + 1, 0])  # the plant's true depth against the measured one
+        column_errors.append(abs(seen[2] - obs[t + 1, 2]))
+        if terminated or truncated:
+            break
+    return float(np.sqrt(np.mean(np.square(depth_errors)))), max(column_errors)
+
+
+def test_recovered_environments_replay_each_presets_recorded_episodes(plant_folder: Path, tmp_path: Path,
+                                                                      monkeypatch: pytest.MonkeyPatch) -> None:
+    import gymnasium
+    import minari
+
+    monkeypatch.setenv("MINARI_DATASETS_PATH", str(tmp_path / "datasets"))
+    done = CliRunner().invoke(app, ["log", "export", str(plant_folder), "--format", "minari", "--out",
+                                    str(tmp_path / "datasets")])
+    assert done.exit_code == 0, done.output
+    for name, (preset_name, firmware) in PLANTS.items():
+        [dataset_id] = [d for d in minari.list_local_datasets() if f"_{preset_name}_paper_{firmware}_" in d]
+        dataset = minari.load_dataset(dataset_id)
+        env = dataset.recover_environment().unwrapped
+        other = "hardware" if preset_name == "paper" else "paper"
+        wrong = gymnasium.make(dataset.spec.env_spec.id, **{**dataset.spec.env_spec.kwargs, "preset": other})
+        samples = open_recording(plant_folder / f"{name}.mcap").samples()
+        episodes = list(dataset.iterate_episodes())[:REPLAYED_EPISODES]
+        assert len(episodes) == REPLAYED_EPISODES
+        for episode in episodes:
+            depth_rms, column = _replay_error(env, episode, samples)
+            assert depth_rms < 4 * DEPTH_NOISE_M and column < 1e-4, (name, episode.id, depth_rms, column)
+            assert _replay_error(wrong.unwrapped, episode, samples)[0] > 8 * DEPTH_NOISE_M, (name, episode.id)
