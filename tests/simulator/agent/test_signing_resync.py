@@ -1,17 +1,20 @@
-"""Issue 25 L5 on the Python agent: a ground whose clock is an hour ahead signs first and locks out a ground with the
-right time; that ground's Session re-syncs the agent by itself once (SPEC.md s. 12, "Re-sync") and gets in, and the
-re-sync cannot be replayed."""
+"""Issue 25 L5 on the Python agent and the C firmware's host build: a ground whose clock is an hour ahead signs first
+and locks out a ground with the right time; that ground's Session re-syncs the agent by itself once (SPEC.md s. 12,
+"Re-sync") and gets in, and the re-sync cannot be replayed."""
 
 from __future__ import annotations
 
 import time
 from pathlib import Path
 
+import pytest
+
 from groundstation.links import make_link
 from groundstation.session.agent_session import Session, SessionConfig
 from groundstation.session.events import EventKind, LinkEvent, Received, Sent
 from protocol import AckResult, FrameEncoder, Signer, messages
 from protocol.signing import RESYNC_NAME, resync_nonce
+from tests.firmware.core_build import use_firmware_cache
 from tests.simulator.agent_client import AgentClient, running
 
 KEY = bytes(range(32))
@@ -37,13 +40,18 @@ class Heard:
             self.notices.append(event.detail)
 
 
+@pytest.mark.parametrize("agent", ["python", "c"])
 def test_a_ground_locked_out_by_a_clock_an_hour_ahead_re_syncs_once_and_the_re_sync_cannot_be_replayed(
-        tmp_path: Path) -> None:
+        agent: str, tmp_path: Path, tmp_path_factory: pytest.TempPathFactory) -> None:
     key_file = tmp_path / "agent.key"
     key_file.write_text(KEY.hex() + "\n")
     key_file.chmod(0o600)
-    with running("--tcp", "127.0.0.1:0", "--speed", "20", "--seed", "5", "--key-file", str(key_file),
-                 "--state-dir", str(tmp_path / "state")) as server:
+    firmware = ("--firmware", "c") if agent == "c" else ()
+    if firmware:
+        use_firmware_cache(tmp_path_factory)
+    args = ("--tcp", "127.0.0.1:0", "--speed", "20", "--seed", "5", "--key-file", str(key_file), "--state-dir",
+            str(tmp_path / "state"), *firmware)
+    with running(*args) as server:
         ahead = AgentClient.tcp(server.address)
         ahead.encoder = FrameEncoder(100, signer=Signer(KEY, 5, clock_ns=lambda: time.time_ns() + HOUR_NS))
         assert ahead.command(messages.ParamGet(index=0)).result == AckResult.ACCEPTED  # first: sets the estimate
@@ -73,3 +81,13 @@ def test_a_ground_locked_out_by_a_clock_an_hour_ahead_re_syncs_once_and_the_re_s
             assert late.result == AckResult.UNAUTHORIZED and "too new" in late.reason, late
         finally:
             replay.close()
+    if firmware:
+        return  # a reboot costs one more start (~5 s): the Python agent's here, the C agent's in test_core_signing
+    with running(*args) as server:  # rebooted: the mark stored by the re-sync, not the hour-ahead one, holds
+        right = AgentClient.tcp(server.address)
+        try:  # the mark is 10 s past the last accepted frame (s. 12): a ground past it gets in, not one an hour on
+            right.encoder = FrameEncoder(400, signer=Signer(KEY, 8, clock_ns=lambda: time.time_ns() + 15 * 10**9))
+            after = right.command(messages.ParamGet(index=0))
+            assert after.result == AckResult.ACCEPTED, after
+        finally:
+            right.close()
