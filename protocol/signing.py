@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import hashlib
 import hmac
+import re
+import secrets
 import time
 from collections import OrderedDict
 from collections.abc import Callable
@@ -34,6 +36,12 @@ LINK_IDS_HELD = 16  # replay state kept for this many link ids; the least recent
 # The highest accepted timestamp survives a reboot: the receiver stores mark = accepted + this whenever an accepted
 # timestamp passes the stored mark (at most one non-volatile write per 10 s) and refuses timestamps <= the mark.
 MARK_AHEAD_S = 10.0
+# The signed re-sync (SPEC.md section 12): a validly signed PARAM_SET of index -1 with this name and the agent's
+# current nonce as its value resets the receiver's replay state to the frame's timestamp. The agent tells its nonce
+# at the end of every refusal for the timestamp (replayed, too old, too new), in RESYNC_NONCE_FORMAT.
+RESYNC_NAME = "resync"
+RESYNC_NONCE_FORMAT = "re-sync nonce {:08x}"
+_RESYNC_NONCE = re.compile(r"re-sync nonce ([0-9a-f]{8})\b")
 _TICKS_PER_S = 1_000_000 // TIMESTAMP_UNIT_US
 _SIGNED = int(FrameFlag.SIGNED)
 
@@ -82,6 +90,17 @@ def timestamp_from_unix_ns(unix_ns: int) -> int:
     return min(max(ticks, 0), TIMESTAMP_MAX)
 
 
+def resync_nonce(reason: str) -> int | None:
+    """The re-sync nonce an agent's refusal names (SPEC.md section 12), or None."""
+    found = _RESYNC_NONCE.search(reason)
+    return int(found.group(1), 16) if found else None
+
+
+def new_nonce() -> int:
+    """A fresh random re-sync nonce, never 0 (0 is what an unset field reads as)."""
+    return secrets.randbits(32) or 1
+
+
 def signature(key: bytes, signed_part: bytes) -> bytes:
     """The first 6 bytes of HMAC-SHA256(key, everything in the inner frame before the signature)."""
     return hmac.new(key, signed_part, hashlib.sha256).digest()[:SIGNATURE_SIZE]
@@ -122,6 +141,7 @@ class VerifierStats:
     replayed: int = 0
     too_old: int = 0
     too_new: int = 0
+    resyncs: int = 0  # signed re-syncs accepted
 
     @property
     def rejects(self) -> int:
@@ -147,6 +167,7 @@ class SignatureVerifier:
     floor: int = -1
     persist: Callable[[int], None] | None = None
     mark: int = field(init=False)  # the mark last persisted (floor until the first one)
+    nonce: int = field(init=False)  # what the next signed re-sync must carry: new at boot and after each re-sync
     _last_by_link: OrderedDict[int, int] = field(default_factory=OrderedDict)
     _best_timestamp: int | None = None
     _best_at_s: float = 0.0
@@ -154,6 +175,7 @@ class SignatureVerifier:
     def __post_init__(self) -> None:
         self.key = check_key(self.key)
         self.mark = self.floor
+        self.nonce = new_nonce()
 
     def check(self, inner: bytes, now_s: float) -> SignatureCheck:
         """Check the inner frame (CRC included, already CRC-checked); a VALID frame moves the replay state on."""
@@ -172,6 +194,20 @@ class SignatureVerifier:
         result = self._admit(inner, now_s)
         self._count(result)
         return result
+
+    def resync(self, inner: bytes, now_s: float) -> None:
+        """Accept an authenticated re-sync (its nonce already matched): the frame's timestamp becomes the estimate,
+        its link id the only one in the table, and the floor and mark start from it; the nonce is renewed, so the
+        same frame cannot re-sync again (SPEC.md section 12, "Re-sync")."""
+        link_id, stamp = self._trailer(inner)
+        self._last_by_link = OrderedDict({link_id: stamp})
+        self._best_timestamp, self._best_at_s = stamp, now_s
+        self.floor = stamp
+        self.mark = min(stamp + int(MARK_AHEAD_S * _TICKS_PER_S), TIMESTAMP_MAX)
+        if self.persist is not None:
+            self.persist(self.mark)  # lower than the stored one: a reboot must not bring the old lock-out back
+        self.nonce = new_nonce()
+        self.stats.resyncs += 1
 
     def estimate(self, now_s: float) -> int | None:
         """The receiver's estimate of the sender's current timestamp, or None before the first valid frame."""
@@ -193,10 +229,15 @@ class SignatureVerifier:
             return SignatureCheck.BAD_SIGNATURE
         return SignatureCheck.VALID
 
-    def _admit(self, inner: bytes, now_s: float) -> SignatureCheck:
+    @staticmethod
+    def _trailer(inner: bytes) -> tuple[int, int]:
+        """(link id, timestamp) of a signed inner frame."""
         sig_start = len(inner) - 2 - SIGNATURE_SIZE
         link_id = inner[sig_start - TIMESTAMP_SIZE - LINK_ID_SIZE]
-        stamp = int.from_bytes(inner[sig_start - TIMESTAMP_SIZE : sig_start], "little")
+        return link_id, int.from_bytes(inner[sig_start - TIMESTAMP_SIZE : sig_start], "little")
+
+    def _admit(self, inner: bytes, now_s: float) -> SignatureCheck:
+        link_id, stamp = self._trailer(inner)
         last = self._last_by_link.get(link_id)
         if (last is not None and stamp <= last) or stamp <= self.floor:
             return SignatureCheck.REPLAYED

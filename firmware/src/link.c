@@ -160,9 +160,64 @@ static const answered_t *answered(const frame_t *f) {
     return NULL;
 }
 
+#define RESYNC_NAME "resync"
+#define RESYNC_NONCE_TEXT "; re-sync nonce "
+#define RESYNCED "re-synced: the signing estimate, link ids and mark start again from this frame's timestamp"
+
+/* `why`, then "; re-sync nonce " and the nonce in 8 lower-case hex digits (SPEC s. 12, "Re-sync"). */
+static void refuse_naming_nonce(const frame_t *f, const char *why) {
+    static const char hex[] = "0123456789abcdef";
+    char reason[MSG_ACK_TAIL_MAX_BYTES + 1u];
+    size_t n = strlen(why);
+    size_t tail = sizeof RESYNC_NONCE_TEXT - 1u;
+    if (n + tail + 8u > MSG_ACK_TAIL_MAX_BYTES) { n = MSG_ACK_TAIL_MAX_BYTES - tail - 8u; }
+    memcpy(reason, why, n);
+    memcpy(reason + n, RESYNC_NONCE_TEXT, tail);
+    uint32_t nonce = signing_nonce();
+    for (unsigned i = 0; i < 8u; i++) { reason[n + tail + i] = hex[(nonce >> (28u - 4u * i)) & 0xFu]; }
+    reason[n + tail + 8u] = '\0';
+    g_signing_rejects++;
+    send_ack(f, ACK_RESULT_UNAUTHORIZED, reason);
+}
+
 static void refuse(const frame_t *f, sign_result_t r) {
+    if (signing_refusal_names_nonce(r)) {
+        refuse_naming_nonce(f, signing_reason(r));
+        return;
+    }
     g_signing_rejects++;
     send_ack(f, ACK_RESULT_UNAUTHORIZED, signing_reason(r));
+}
+
+static void remember(const frame_t *f, uint8_t result) {
+    answered_t *slot = &g_answered[g_answered_next];
+    g_answered_next = (uint8_t)((g_answered_next + 1u) % LINK_ACK_MEMORY);
+    slot->msg_id = f->msg_id;
+    slot->seq = f->seq;
+    slot->result = result;
+    slot->used = true;
+}
+
+/* PARAM_SET index -1 named `resync`: the signed re-sync, not a parameter; its value in *nonce. */
+static bool is_resync(const frame_t *f, double *nonce) {
+    if (f->msg_id != MSG_PARAM_SET_ID) { return false; }
+    msg_param_set_t m;
+    msg_param_set_unpack(&m, frame_payload(f), f->payload_len);
+    if (m.index != -1 || strncmp(m.name, RESYNC_NAME, sizeof m.name) != 0) { return false; }
+    memcpy(nonce, &m.value_bits, sizeof *nonce);
+    return true;
+}
+
+/* Authenticated already; its timestamp is what it repairs, so steps 3-4 are not made. Each nonce re-syncs once. */
+static void handle_resync(const frame_t *f, double nonce) {
+    if (nonce != (double)signing_nonce()) {
+        refuse_naming_nonce(f, "stale re-sync nonce");
+        return;
+    }
+    signing_resync(f, hal_link_time_us());
+    alive();
+    remember(f, ACK_RESULT_ACCEPTED);
+    send_ack(f, ACK_RESULT_ACCEPTED, RESYNCED);
 }
 
 /* ACK reason of a CMD_SURFACE run without a valid signature or timestamp (SPEC 1.2 s. 12): the fail-safe. */
@@ -192,6 +247,11 @@ static void handle_command(const frame_t *f) {
         send_ack(f, memory->result, "");
         return;
     }
+    double nonce;
+    if (signing_enabled() && verified && is_resync(f, &nonce)) {
+        handle_resync(f, nonce);
+        return;
+    }
     if (signing_enabled() && verified) {
         sign_result_t r = signing_check_time(f, hal_link_time_us());
         if (r != SIGN_VALID && f->msg_id != MSG_CMD_SURFACE_ID) {
@@ -204,12 +264,7 @@ static void handle_command(const frame_t *f) {
     }
     verdict_t v;
     g_up->command(f, false, &v);
-    answered_t *slot = &g_answered[g_answered_next];
-    g_answered_next = (uint8_t)((g_answered_next + 1u) % LINK_ACK_MEMORY);
-    slot->msg_id = f->msg_id;
-    slot->seq = f->seq;
-    slot->result = v.result;
-    slot->used = true;
+    remember(f, v.result);
     send_ack(f, v.result, verified || v.result != ACK_RESULT_ACCEPTED ? v.reason : UNVERIFIED_SURFACE);
     if (v.result == ACK_RESULT_ACCEPTED) { g_up->command(f, true, &v); }
 }

@@ -27,6 +27,12 @@ static uint64_t g_best_stamp;
 static uint64_t g_best_at_us;
 static uint64_t g_boot_mark;    /* refused: timestamps <= this (persisted before boot) */
 static uint64_t g_stored_mark;  /* what the nv area holds now */
+static uint32_t g_nonce;        /* what the next re-sync must carry */
+
+static void new_nonce(void) {
+    g_nonce = hal_entropy();
+    if (g_nonce == 0u) { g_nonce = 1u; }  /* 0 is what an unset field reads as */
+}
 
 void signing_init(const uint8_t *key_or_null) {
     memset(g_links, 0, sizeof g_links);
@@ -36,6 +42,7 @@ void signing_init(const uint8_t *key_or_null) {
     g_stored_mark = 0;
     g_enabled = key_or_null != NULL;
     if (!g_enabled) { return; }
+    new_nonce();
     memcpy(g_key, key_or_null, HMAC_KEY_BYTES);
     uint8_t record[MARK_RECORD_BYTES];
     if (hal_nv_read(record, sizeof record) && wire_get_u32(record) == MARK_MAGIC) {
@@ -80,8 +87,7 @@ static link_entry_t *new_link(uint8_t link_id) {
     return victim;
 }
 
-static void persist_mark(uint64_t stamp) {
-    if (stamp <= g_stored_mark) { return; }  /* so at most one write per 10 s of timestamps */
+static void store_mark(uint64_t stamp) {
     uint8_t record[MARK_RECORD_BYTES];
     g_stored_mark = stamp + SIGNING_MARK_AHEAD_TICKS;
     wire_put_u32(record, MARK_MAGIC);
@@ -89,12 +95,21 @@ static void persist_mark(uint64_t stamp) {
     (void)hal_nv_write(record, sizeof record);
 }
 
-sign_result_t signing_check_time(const frame_t *f, uint64_t link_now_us) {
-    if (!g_enabled) { return SIGN_VALID; }
+static void persist_mark(uint64_t stamp) {
+    if (stamp > g_stored_mark) { store_mark(stamp); }  /* so at most one write per 10 s of timestamps */
+}
+
+static uint64_t trailer_stamp(const frame_t *f) {
     size_t at = trailer_at(f);
-    uint8_t link_id = f->inner[at];
     uint64_t stamp = 0;
     for (unsigned i = 0; i < TIMESTAMP_BYTES; i++) { stamp |= (uint64_t)f->inner[at + 1u + i] << (8u * i); }
+    return stamp;
+}
+
+sign_result_t signing_check_time(const frame_t *f, uint64_t link_now_us) {
+    if (!g_enabled) { return SIGN_VALID; }
+    uint8_t link_id = f->inner[trailer_at(f)];
+    uint64_t stamp = trailer_stamp(f);
     if (stamp <= g_boot_mark) { return SIGN_BEFORE_MARK; }
     link_entry_t *entry = find_link(link_id);
     if (entry != NULL && stamp <= entry->last_stamp) { return SIGN_REPLAYED; }
@@ -129,4 +144,24 @@ const char *signing_reason(sign_result_t r) {
     case SIGN_BEFORE_MARK: return "signature replayed (before the persisted mark)";
     }
     return "signature refused";
+}
+
+uint32_t signing_nonce(void) { return g_nonce; }
+
+bool signing_refusal_names_nonce(sign_result_t r) {
+    return r == SIGN_REPLAYED || r == SIGN_TOO_OLD || r == SIGN_TOO_NEW || r == SIGN_BEFORE_MARK;
+}
+
+void signing_resync(const frame_t *f, uint64_t link_now_us) {
+    uint64_t stamp = trailer_stamp(f);
+    memset(g_links, 0, sizeof g_links);
+    link_entry_t *entry = new_link(f->inner[trailer_at(f)]);
+    entry->last_stamp = stamp;
+    entry->used = ++g_lru_clock;
+    g_have_estimate = true;
+    g_best_stamp = stamp;
+    g_best_at_us = link_now_us;
+    g_boot_mark = stamp;  /* the floor: nothing at or before the re-sync's own time */
+    store_mark(stamp);    /* lower than the stored mark: a reboot must not bring the lock-out back */
+    new_nonce();
 }

@@ -33,5 +33,12 @@ sign_result_t signing_check_hmac(const frame_t *f);
 /* Step 4 (after the ACK memory): replay, too old, too new, the boot mark; accepts (stores) when VALID. */
 sign_result_t signing_check_time(const frame_t *f, uint64_t link_now_us);
 const char *signing_reason(sign_result_t r);
+/* The re-sync (SPEC.md s. 12, "Re-sync"): the nonce a signed PARAM_SET `resync` must carry, new at boot and after
+   every re-sync; a refusal for the timestamp names it. */
+uint32_t signing_nonce(void);
+bool signing_refusal_names_nonce(sign_result_t r);
+/* An authenticated re-sync with the current nonce: estimate, link-id table, floor and mark start from its
+   timestamp (the mark stored lower, on purpose); a new nonce is drawn. */
+void signing_resync(const frame_t *f, uint64_t link_now_us);
 
 #endif

@@ -28,6 +28,8 @@ from protocol.cobs import cobs_decode
 from protocol.jsonschema import message_json_schema
 from protocol.registry import message_classes
 
+RAW_RX_UNUSED_TOPIC = "/raw/rx_unused"  # received frames the session did not use (Recorder.on_unused)
+
 ENVELOPE = {
     "_seq": {"type": "integer", "description": "frame sequence number", "minimum": 0, "maximum": 65535},
     "_flags": {"type": "integer", "description": "frame flags (FrameFlag)", "minimum": 0, "maximum": 255},
@@ -167,6 +169,7 @@ class Recorder:
         self._rx_channels: dict[type[Message], int] = {}
         self._tx_channels: dict[type[Message], int] = {}
         self._raw_rx = 0
+        self._raw_unused: int | None = None  # /raw/rx_unused of the open part, made at its first frame
         self._splits = self.config.splits
         self._base: Path | None = None  # the file name without its part number and suffix, fixed at the first file
         # Every part's session metadata carries it: readers tell the parts of one recording from other recordings.
@@ -204,6 +207,18 @@ class Recorder:
             self._early.append(("rx", received))
         elif self._splits:
             self._rotate_if_due()
+
+    @_guarded
+    def on_unused(self, received: Received) -> None:
+        """A frame the session received but did not use (a SAMPLE or episode frame it already held, an impossible
+        SAMPLE, the same frame twice): its raw bytes on /raw/rx_unused, so /raw/rx and it together are every frame
+        the link delivered, in order, and its seq gaps can be recounted exactly. Before the file opens: none come."""
+        w = self._writer
+        if w is None:
+            return
+        if self._raw_unused is None:
+            self._raw_unused = w.channel(RAW_RX_UNUSED_TOPIC, RAW_ENCODING)
+        w.write(self._raw_unused, received.frame.inner, received.host_time_ns, received.agent_time_ns)
 
     @_guarded
     def on_sent(self, sent: Sent) -> None:
@@ -280,6 +295,7 @@ class Recorder:
         path = self._writer.path
         self._rx_channels, self._tx_channels = {}, {}
         self._raw_rx = self._writer.channel("/raw/rx", RAW_ENCODING)
+        self._raw_unused = None
         self.paths.append(path)
         self._opened_s = time.monotonic()
         w = self._writer

@@ -13,7 +13,7 @@ from collections import deque
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 
-from groundstation.errors import CommandTimeout, LinkError
+from groundstation.errors import CommandError, CommandTimeout, LinkError
 from groundstation.links import Link
 from groundstation.session.clock import ClockModel
 from groundstation.session.commands import PendingCommand, PendingCommands, refusal
@@ -24,8 +24,9 @@ from groundstation.session.gaps import BackfillPlanner
 from groundstation.session.hello import ground_hello
 from groundstation.session.params import ParamTable
 from groundstation.session.stats import LinkStats
-from protocol import FrameEncoder, Message, Signer, StreamDecoder
+from protocol import AckResult, FrameEncoder, Message, Signer, StreamDecoder
 from protocol import messages as m
+from protocol.signing import RESYNC_NAME, resync_nonce
 
 
 @dataclass(frozen=True, slots=True)
@@ -90,6 +91,7 @@ class SessionCore:
         self._hello_problem: str | None = None
         self._hello_resend_s: float | None = None  # while our HELLO is unanswered: when to send it again
         self._hello_tries = 0  # HELLOs sent on this connection since the last answer
+        self._resynced = False  # the signed re-sync is tried once per session (SPEC s. 12)
         self._recent = RecentFrames()
         self._timesync_origins: deque[int] = deque(maxlen=8)  # our last TIMESYNC requests: only their answers count
         self.sample_check = SampleIndexCheck()
@@ -133,8 +135,33 @@ class SessionCore:
             raise CommandTimeout(f"{name}: no ACK from the agent after {pending.attempts} tries")
         refused = refusal(name, pending.ack)
         if refused is not None:
-            raise refused
+            nonce = self._resync_nonce(message, pending.ack)
+            if nonce is None:
+                raise refused
+            try:
+                self._resync(nonce)
+            except CommandError as e:
+                raise refused from e
+            return self.send(message, wait=wait, timeout_s=timeout_s)  # once more, with new bytes and seq
         return pending.ack
+
+    def _resync_nonce(self, message: Message, ack: m.Ack) -> int | None:
+        """The nonce to re-sync with when the agent refused our timestamp (replayed, too old or too new: a ground
+        with a clock far off signed first) and this session holds the key and has not re-synced yet; else None."""
+        if ack.result != AckResult.UNAUTHORIZED or self.config.key is None or self._resynced:
+            return None
+        if isinstance(message, m.ParamSet) and message.name == RESYNC_NAME:
+            return None
+        return resync_nonce(ack.reason)
+
+    def _resync(self, nonce: int) -> None:
+        """The signed re-sync (SPEC s. 12): the agent's replay state starts again from our clock; said in one line."""
+        self._resynced = True
+        ack = self.send(m.ParamSet(index=-1, value=float(nonce), name=RESYNC_NAME))
+        assert ack is not None
+        self._emit(LinkEvent(EventKind.ERROR, time.time_ns(),
+                             "the agent refused our signatures' timestamps (a ground with a clock far off signed "
+                             "first): re-synced its signing clock to ours", {"reason": ack.reason}))
 
     # ------------------------------------------------------------------ helpers
     def _ack_timeout_s(self) -> float:

@@ -94,6 +94,18 @@ class Listeners:
             except Exception as e:  # noqa: BLE001 a listener's bug must not stop the session
                 self._failed(listener, e)
 
+    def unused(self, received: Received) -> None:
+        """A frame received but not used (already held, impossible, the same twice): only to the listeners that
+        want those, through an optional `on_unused` (the recorder keeps their raw bytes)."""
+        for listener in list(self._listeners):
+            on_unused = getattr(listener, "on_unused", None)
+            if on_unused is None:
+                continue
+            try:
+                on_unused(received)
+            except Exception as e:  # noqa: BLE001
+                self._failed(listener, e)
+
     def sent(self, sent: Sent) -> None:
         for listener in list(self._listeners):
             try:

@@ -136,14 +136,16 @@ class ReceiveLoop(SessionCore):
 
     # ------------------------------------------------------------------ frames in
     def _handle(self, frame: Frame, host_ns: int) -> None:
+        backfilled = bool(frame.flags & FrameFlag.REPLAYED)
         if self._recent.seen(frame.inner):
+            self._unused(frame, host_ns, backfilled)
             return  # the same frame twice (same seq, same bytes): handled and recorded once
         msg = frame.message
-        backfilled = bool(frame.flags & FrameFlag.REPLAYED)
         deliver = True
         if isinstance(msg, m.Sample):
             if not self.sample_check.possible(msg.sample, msg.t_us):
                 self._impossible_sample(msg)
+                self._unused(frame, host_ns, backfilled)
                 return
             self.backfill.episodes.saw_sample(msg.sample, msg.episode, msg.mode == Mode.LEARNING)
             new = self.backfill.held.add(msg.sample)
@@ -207,6 +209,15 @@ class ReceiveLoop(SessionCore):
             agent_ns = self.clock.to_host_ns(t_us) if isinstance(t_us, int) and t_us else None
             received = Received(frame, host_ns, agent_ns, backfilled, after_end)
             self.listeners.received(received)
+        elif not deliver:
+            self._unused(frame, host_ns, backfilled)
+
+    def _unused(self, frame: Frame, host_ns: int, backfilled: bool) -> None:
+        """A frame decoded (its seq counted) but not used: a replay of a sample already held (a LOG_REQUEST range
+        holds them between its holes), an impossible SAMPLE, the same frame twice. Its raw bytes still go to the
+        recorder, so that the recording keeps every frame whose seq the loss count saw."""
+        if self.agent_hello is not None:
+            self.listeners.unused(Received(frame, host_ns, None, backfilled))
 
     def _on_ack(self, ack: m.Ack) -> None:
         pending = self._pending.acknowledge(ack)

@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import os
-import shutil
-import sys
 import threading
 import time
 import uuid
@@ -12,7 +10,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from types import TracebackType
 from typing import Any
-from urllib.parse import quote
 
 import numpy as np
 import rerun as rr
@@ -24,6 +21,7 @@ from groundstation.view.errors import ViewError
 from groundstation.view.heatmap import AXIS_COLOUR, DEFAULT_GRID, SWATCH_RADIUS, Bounds, Frame, bounds, default_grid
 from groundstation.view.model import ENTITIES, MOVING_AVERAGE_EPISODES, SUCCESS_TIME_S, Batch, Kind, Rows, ViewModel
 from groundstation.view.options import Viewer
+from groundstation.view.web_server import WebViewerServer, rerun_executable
 
 APPLICATION_ID = "diving_agent"
 SERIES_COLOURS: dict[str, tuple[int, int, int]] = {
@@ -257,36 +255,34 @@ def _has_display() -> bool:
     return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")) or os.name == "nt"
 
 
-def open_sinks(rec: rr.RecordingStream, config: ViewConfig) -> str | None:
-    """Connect the stream to the configured viewer and file; returns the address to print, if any."""
+def open_sinks(rec: rr.RecordingStream, config: ViewConfig) -> WebViewerServer | None:
+    """Connect the stream to the configured viewer and file; returns the web viewer's server, if one was started."""
     sinks: list[Any] = []
-    address: str | None = None
+    server: WebViewerServer | None = None
     try:
         if config.viewer == Viewer.SPAWN:
             if not _has_display():
                 raise ViewError("no display for the native viewer: use --viewer web on a headless machine")
-            executable = shutil.which("rerun") or str(Path(sys.executable).with_name("rerun"))
             rr.spawn(port=config.grpc_port, connect=False, memory_limit=config.viewer_memory_limit,
-                     server_memory_limit=config.server_memory_limit, executable_path=executable,
+                     server_memory_limit=config.server_memory_limit, executable_path=rerun_executable(),
                      hide_welcome_screen=True)
             sinks.append(rr.GrpcSink(f"rerun+http://127.0.0.1:{config.grpc_port}/proxy"))
         elif config.viewer == Viewer.WEB:
-            server = rr.GrpcServerSink("127.0.0.1", config.grpc_port, server_memory_limit=config.server_memory_limit)
-            sinks.append(server)
-            address = f"http://127.0.0.1:{config.web_port}/?url={quote(server.uri, safe='')}"
+            server = WebViewerServer.start(config.web_port, config.grpc_port, config.server_memory_limit)
+            sinks.append(rr.GrpcSink(server.uri))
         if config.rrd is not None:
             config.rrd.parent.mkdir(parents=True, exist_ok=True)
             sinks.append(rr.FileSink(config.rrd))
         rec.set_sinks(*sinks, default_blueprint=blueprint(Layout(replay=config.replay)))
-        if config.viewer == Viewer.WEB:
-            rr.serve_web_viewer(web_port=config.web_port, open_browser=False, connect_to=sinks[0].uri)
-    except ViewError:
-        raise
-    except (OSError, RuntimeError, ValueError) as e:
+    except (ViewError, OSError, RuntimeError, ValueError) as e:
+        if server is not None:
+            server.close()
+        if isinstance(e, ViewError):
+            raise
         raise ViewError(f"cannot open the {config.viewer.value} viewer: {e}") from e
     rec.send_blueprint(blueprint(Layout(replay=config.replay)), make_active=True)
     send_styles(rec)
-    return address
+    return server
 
 
 class RerunView:
@@ -296,9 +292,10 @@ class RerunView:
     `view.close()` at the end (or `with RerunView.open(...) as view:`).
     """
 
-    def __init__(self, rec: rr.RecordingStream, address: str | None, flush_interval_s: float = 0.1,
+    def __init__(self, rec: rr.RecordingStream, server: WebViewerServer | None = None, flush_interval_s: float = 0.1,
                  replay: bool = False) -> None:
         self._rec = rec
+        self._server = server
         self._model = ViewModel()
         self._lock = threading.Lock()  # the session's reader thread and the caller may both feed it
         # Rows go out in columns at most every flush_interval_s: a send costs ~0.1 ms per entity, so a fast
@@ -306,13 +303,12 @@ class RerunView:
         self._flush_interval_s = flush_interval_s
         self._last_send_s = 0.0
         self._layout = Layout(replay=replay)  # what the blueprint sent last was made for
-        self.address = address
+        self.address = server.address if server is not None else None
 
     @classmethod
     def open(cls, config: ViewConfig, name: str = "live") -> RerunView:
         rec = new_recording(name)
-        address = open_sinks(rec, config)
-        return cls(rec, address, replay=config.replay)
+        return cls(rec, open_sinks(rec, config), replay=config.replay)
 
     def _send_if_due(self) -> None:
         now_s = time.monotonic()
@@ -361,8 +357,12 @@ class RerunView:
         self._rec.flush()
 
     def close(self) -> None:
-        self.flush()
-        self._rec.disconnect()
+        try:
+            self.flush()
+            self._rec.disconnect()
+        finally:
+            if self._server is not None:
+                self._server.close()
 
     def __enter__(self) -> RerunView:
         return self

@@ -24,6 +24,7 @@ from protocol import (
 from protocol.decoder import COMMAND_IDS_FROM, UndecodedCommand
 from protocol.frame import HEADER
 from protocol.registry import Message
+from protocol.signing import RESYNC_NAME, RESYNC_NONCE_FORMAT
 from simulator.agent import dumps as agent_dumps
 from simulator.agent.dumps import DumpStore
 from simulator.agent.log_ring import LogRing
@@ -40,6 +41,12 @@ _SURFACE_ID = messages.Surface.MSG_ID
 _ACK_ID = messages.Ack.MSG_ID
 # The ACK reason of a CMD_SURFACE run without a valid signature or with a stale timestamp (SPEC 1.2 s. 12).
 UNVERIFIED_SURFACE = "surfacing without a valid signature: the fail-safe"
+RESYNCED = "re-synced: the signing estimate, link ids and mark start again from this frame's timestamp"
+
+
+def _is_resync(message: Message) -> bool:
+    """PARAM_SET of index -1 named `resync`: the signed re-sync of SPEC s. 12, not a parameter."""
+    return isinstance(message, messages.ParamSet) and message.index == -1 and message.name == RESYNC_NAME
 
 # A command's verdict and what follows its ACK: messages, or inner frames of the on-board log to replay.
 Outcome = tuple[Verdict, list[Message | bytes]]
@@ -268,16 +275,41 @@ class AgentLink:
         if answered is not None:
             self._ack(frame, AckResult(answered[0]), answered[1])  # a retry: answer again, do not act again
             return
+        if verifier is not None and not unverified and _is_resync(message):
+            self._resync(frame)
+            return
         if verifier is not None and not unverified:
             check = verifier.admit(frame.inner, self.link_clock_s())
             if check is SignatureCheck.VALID:
                 self._alive()
             elif frame.msg_id != _SURFACE_ID:  # surfacing is always safe: CMD_SURFACE runs whatever its timestamp
-                self._refuse(frame, f"signature {check.name.lower().replace('_', ' ')}")
+                # a refusal for the timestamp names the nonce a key holder re-syncs with (SPEC s. 12, "Re-sync")
+                self._refuse(frame, f"signature {check.name.lower().replace('_', ' ')}; "
+                                    + RESYNC_NONCE_FORMAT.format(verifier.nonce))
                 return
             else:
                 unverified = check.name.lower().replace("_", " ")
         self._execute(frame, f"{UNVERIFIED_SURFACE} ({unverified})" if unverified else "")
+
+    def _resync(self, frame: Frame) -> None:
+        """The signed re-sync (SPEC s. 12): authenticated already; with the current nonce, the replay state starts
+        again from this frame's timestamp (the timestamp checks are what it repairs, so they are not made)."""
+        verifier, message = self.verifier, frame.message
+        assert verifier is not None and isinstance(message, messages.ParamSet)
+        if message.value != verifier.nonce:  # a replayed or stale re-sync: each nonce re-syncs once
+            self._refuse(frame, "stale re-sync nonce; " + RESYNC_NONCE_FORMAT.format(verifier.nonce))
+            return
+        verifier.resync(frame.inner, self.link_clock_s())
+        self._alive()
+        self._remember(frame, AckResult.ACCEPTED, RESYNCED)
+        self._ack(frame, AckResult.ACCEPTED, RESYNCED)
+
+    def _remember(self, frame: Frame, result: AckResult, reason: str) -> None:
+        """The ACK memory (SPEC s. 5): a retry of this (msg_id, seq) is answered the same, not run again."""
+        answered = self._answered
+        answered[(frame.msg_id, frame.seq)] = (int(result), reason)
+        if len(answered) > ACK_MEMORY:
+            del answered[next(iter(answered))]
 
     def _execute(self, frame: Frame, note: str = "") -> None:
         """Run a command and ACK it; `note` replaces an ACCEPTED's empty reason (an unverified CMD_SURFACE)."""
@@ -293,10 +325,7 @@ class AgentLink:
             deferred, self._deferred = self._deferred, None
         if note and result == AckResult.ACCEPTED:
             reason = note
-        answered = self._answered
-        answered[(frame.msg_id, frame.seq)] = (int(result), reason)
-        if len(answered) > ACK_MEMORY:
-            del answered[next(iter(answered))]
+        self._remember(frame, result, reason)
         self._ack(frame, result, reason)
         for action in deferred:
             action()

@@ -132,6 +132,8 @@ class Transport(ABC):
 
 
 REPLACED_NOTICE_WAIT_S = 1.0
+# How long a replaced client's socket stays open after the notice, read and discarded, unless it closes first.
+RETIRED_OPEN_S = 5.0
 
 
 class TcpTransport(Transport):
@@ -147,6 +149,7 @@ class TcpTransport(Transport):
         bound_host, bound_port = self.listener.getsockname()[:2]
         self.address = f"tcp://{bound_host}:{bound_port}"
         self.client: socket.socket | None = None
+        self._retired: dict[socket.socket, float] = {}  # replaced clients' sockets -> when to close them anyway
         selector.register(self.listener, selectors.EVENT_READ, self._accept)
 
     @property
@@ -160,6 +163,7 @@ class TcpTransport(Transport):
             return
         if self.client is not None:  # say why before closing: the old ground then stops instead of fighting back
             self._tell_replaced(self.client)
+            self._retire()
         self.drop_client()
         sock.setblocking(False)
         sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
@@ -174,6 +178,39 @@ class TcpTransport(Transport):
 
     def _tell_replaced(self, old: socket.socket) -> None:
         tell_replaced(old, self.on_replaced())
+
+    def _retire(self) -> None:
+        """Stop serving the replaced client, but keep its socket open, reading and discarding, until it closes or
+        RETIRED_OPEN_S pass. Closed at once, what the old ground still sends (a heartbeat, a parameter request while
+        it connects) is answered with a reset, and a reset makes Linux drop the notice it has not read yet: it would
+        see only a broken link, reconnect and take the link back from the new ground."""
+        old = self.client
+        assert old is not None
+        self.client = None
+        self.outbuf.clear()
+        self._retired[old] = time.monotonic() + RETIRED_OPEN_S
+        self.selector.modify(old, selectors.EVENT_READ, lambda _mask: self._read_retired(old))
+        self.on_disconnect()
+
+    def _read_retired(self, old: socket.socket) -> None:
+        try:
+            data = old.recv(READ_BYTES)
+        except (BlockingIOError, InterruptedError):
+            return
+        except OSError:
+            data = b""
+        if not data:
+            self._close_retired(old)
+
+    def _close_retired(self, old: socket.socket) -> None:
+        del self._retired[old]
+        self.selector.unregister(old)
+        old.close()
+
+    def poll(self) -> None:
+        now = time.monotonic()
+        for old in [old for old, until in self._retired.items() if until < now]:
+            self._close_retired(old)
 
     def _ready(self, mask: int) -> None:
         if mask & selectors.EVENT_READ:
@@ -218,6 +255,8 @@ class TcpTransport(Transport):
 
     def close(self) -> None:
         self.drop_client()
+        for old in list(self._retired):
+            self._close_retired(old)
         self.selector.unregister(self.listener)
         self.listener.close()
 

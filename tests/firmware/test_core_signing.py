@@ -105,6 +105,24 @@ def test_mark_survives_a_reboot(keyed: KeyedAgent) -> None:
     assert results(keyed.send(fresh.encode(messages.Hover(depth_m=0.2), ACK).wire)) == [AckResult.ACCEPTED]
 
 
+def test_a_re_sync_lowers_the_mark_a_clock_an_hour_ahead_left_so_a_reboot_does_not_lock_out_again(
+        keyed: KeyedAgent) -> None:
+    """SPEC.md s. 12, "Re-sync" (issue 25 L5): the mark an hour ahead is replaced by the re-sync's, in nv."""
+    from protocol.signing import RESYNC_NAME, resync_nonce
+
+    ahead = FrameEncoder(first_seq=1000, signer=Signer(KEY, 11, lambda: time.time_ns() + 3600 * 10**9))
+    assert results(keyed.send(ahead.encode(messages.Hover(depth_m=0.2), ACK).wire)) == [AckResult.ACCEPTED]
+    right = FrameEncoder(first_seq=1100, signer=Signer(KEY, 12))
+    [refused] = keyed.send(right.encode(messages.Hover(depth_m=0.3), ACK).wire)
+    nonce = resync_nonce(refused.reason)
+    assert refused.result == AckResult.UNAUTHORIZED and nonce is not None, refused
+    [synced] = keyed.send(right.encode(messages.ParamSet(index=-1, value=float(nonce), name=RESYNC_NAME), ACK).wire)
+    assert synced.result == AckResult.ACCEPTED and "re-synced" in synced.reason, synced
+    keyed.agent._lib.host_init(9, KEY)  # reboot: RAM state gone, the nv area kept
+    later = FrameEncoder(first_seq=1200, signer=Signer(KEY, 13, lambda: time.time_ns() + 11 * 10**9))
+    assert results(keyed.send(later.encode(messages.Hover(depth_m=0.2), ACK).wire)) == [AckResult.ACCEPTED]
+
+
 def test_unsigned_or_wrongly_signed_surface_runs_and_says_so(keyed: KeyedAgent) -> None:
     """SPEC.md 1.2 s. 12, emergencies: anyone may make a keyed agent surface; the ACK says it ran unverified."""
     ground = FrameEncoder(first_seq=600, signer=Signer(KEY, 9))

@@ -12,6 +12,7 @@ from typing import Any
 
 from mcap.reader import make_reader
 
+from groundstation.recording.recorder import RAW_RX_UNUSED_TOPIC
 from tests.reliability.recordings import Recording, dive, read
 from tests.simulator.agent_client import running
 
@@ -48,26 +49,50 @@ def run_against_faults(tmp_path: Path, faults: list[str], speed: str = "max", ep
 
 
 def _rx_by_connection(path: Path) -> tuple[list[list[int]], list[int]]:
-    """The seqs of /raw/rx frames in file order (one list: the agent's connections are told apart by seq), and
-    the positions of the HELLOs among them."""
+    """The seqs of every frame received, in file order (one list: the agent's connections are told apart by seq),
+    and the positions of the HELLOs among them. Every frame: /raw/rx and /raw/rx_unused, the frames the session
+    decoded (their seqs counted) but did not use, such as a LOG_REQUEST range's replays of samples it already held;
+    without them a loss just before such replays at a connection's end looked invisible, and the ground's exact
+    count read as 1-6 too many under heavy load."""
     seqs: list[int] = []
     hellos: list[int] = []
     with path.open("rb") as f:
-        for _, _, message in make_reader(f).iter_messages(topics=["/raw/rx"], log_time_order=False):
+        for _, _, message in make_reader(f).iter_messages(topics=["/raw/rx", RAW_RX_UNUSED_TOPIC],
+                                                          log_time_order=False):
             seqs.append(message.data[2] | message.data[3] << 8)
             if message.data[4] == HELLO_ID:
                 hellos.append(len(seqs) - 1)
     return [seqs], hellos
 
 
-def _unwrap(seqs: list[int], base: int) -> list[int]:
-    """Seqs as distances from `base`, counting wraps of the u16 (consecutive seqs are less than 32768 apart)."""
-    out, position, previous = [], 0, base
+def _connection_spans(out: dict[str, Any]) -> list[tuple[int, int, int]]:
+    """(base seq, start, end) of each agent connection on one axis of seqs counted from the run's first: from each
+    connection's length and the gap to the next, both below 65 536, never from two bases' difference (a connection
+    that sent a long backfill held 30 115 seqs, and two bases 32 768 or more apart read as a step back)."""
+    spans, position, previous_end = [], 0, None
+    for (base, *_), end in zip(out["lost_by_connection"], out["connection_end_seqs"], strict=True):
+        if previous_end is not None:
+            position += (base - previous_end) & 0xFFFF
+        spans.append((base, position, position + ((end - base) & 0xFFFF)))
+        position, previous_end = spans[-1][2], end
+    return spans
+
+
+def _positions(seqs: list[int], spans: list[tuple[int, int, int]]) -> list[int | None]:
+    """Each received seq on the spans' axis, in file order: in the connection it came on (the first, from the
+    current one on, whose span holds it); None for one no connection holds."""
+    out: list[int | None] = []
+    current = 0
     for seq in seqs:
-        step = (seq - previous) & 0xFFFF
-        position += step - 0x10000 if step >= 0x8000 else step
-        previous = seq
-        out.append(position)
+        for k in range(current, len(spans)):
+            base, start, end = spans[k]
+            distance = (seq - base) & 0xFFFF
+            if distance < end - start:
+                current = k
+                out.append(start + distance)
+                break
+        else:
+            out.append(None)
     return out
 
 
@@ -76,19 +101,13 @@ def visible_losses(run: FaultRun) -> int:
     within the same connection (the ground starts counting afresh on every reconnect), the later one not a HELLO
     (any HELLO resets sequence tracking before it is counted, SPEC.md section 1)."""
     out = run.report["out"]
-    bases = [c[0] for c in out["lost_by_connection"]]
-    origin = bases[0]
-    starts = _unwrap(bases, origin)
-    ends = [start + ((end - base) & 0xFFFF) for start, base, end in zip(starts, bases, out["connection_end_seqs"],
-                                                                         strict=True)]
-    received = _unwrap(run.connections[0], origin)
+    spans = _connection_spans(out)
+    received = _positions(run.connections[0], spans)
     hello_at = {received[i] for i in run.hellos}
     total = 0
-    for start, base, end, (_, *lost) in zip(starts, bases, ends, out["lost_by_connection"], strict=True):
-        mine = sorted(p for p in received if start <= p < end)
-        # from the connection's own first seq: unwrapped from the run's first one, a lost seq more than 32 768 past
-        # it read as negative, and a long run's later connections lost their counts (780 seen, 507 counted)
-        for p in (start + distance for distance in _unwrap(lost, base)):
+    for (base, start, end), (_, *lost) in zip(spans, out["lost_by_connection"], strict=True):
+        mine = sorted(p for p in received if p is not None and start <= p < end)
+        for p in (start + ((seq - base) & 0xFFFF) for seq in lost):
             index = bisect_right(mine, p)
             if 0 < index < len(mine) and mine[index] not in hello_at:
                 total += 1

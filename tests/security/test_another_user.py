@@ -18,7 +18,8 @@ import pytest
 from groundstation.mcap_io import read_recording
 from protocol.signing import KEY_SIZE
 from tests.groundstation.fake_agent import FakeAgent
-from tests.security.attack import RunInThread, as_another_user, wait_for
+from tests.security.attack import RunInThread, as_another_user
+from tests.waiting import wait_for
 
 ROOT = Path(__file__).resolve().parents[2]
 SYSTEM_PYTHON = shutil.which("python3", path="/usr/bin:/bin")  # the intruder's: outside root's home, stdlib only

@@ -12,7 +12,8 @@ from groundstation.errors import ListenerError
 from groundstation.session.events import LinkEvent, Received, Sent
 from protocol import messages as m
 from tests.groundstation.fake_agent import FakeAgent
-from tests.security.attack import RunInThread, recorded, sample_indices, wait_for
+from tests.security.attack import RunInThread, recorded, sample_indices
+from tests.waiting import wait_for
 
 U64_MAX = 2**64 - 1
 

@@ -25,7 +25,8 @@ from protocol import FrameEncoder, StreamDecoder
 from protocol import messages as m
 from protocol.signing import KEY_SIZE
 from tests.groundstation.fake_agent import FakeAgent
-from tests.security.attack import as_another_user, attached, hub_run, tool, wait_for
+from tests.security.attack import as_another_user, attached, hub_run, tool
+from tests.waiting import wait_for
 
 HELLO = m.Hello(protocol_version=1, node_kind=2, definitions_hash=0, firmware_major=0, firmware_minor=0,
                 firmware_patch=0, node_id=1, boot_id=1, name="intruder")

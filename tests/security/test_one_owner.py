@@ -39,8 +39,9 @@ def test_a_run_whose_link_another_ground_takes_stops_in_one_line_instead_of_figh
     """The agent (the real virtual one) tells the old connection it was replaced (SPEC.md s. 3); the run stops."""
     from groundstation.errors import LinkTakenError
     from groundstation.recording.info import summarize
-    from tests.security.attack import RunInThread, wait_for
+    from tests.security.attack import RunInThread
     from tests.simulator.agent_client import AgentClient, running
+    from tests.waiting import wait_for
 
     with running("--tcp", "127.0.0.1:0", "--speed", "5", "--seed", "4") as server:
         # a link timeout longer than a loaded machine's stalls: a reconnect of ours would take the link back first

@@ -14,7 +14,7 @@ from typing import Any
 from protocol import FrameEncoder, messages
 from protocol.cobs import cobs_decode
 from protocol.registry import Message
-from protocol.signing import EPOCH_2015_UNIX_S, TIMESTAMP_UNIT_US, Signer
+from protocol.signing import EPOCH_2015_UNIX_S, RESYNC_NAME, TIMESTAMP_UNIT_US, Signer
 
 SIGNED_VECTORS_PATH = Path(__file__).with_name("signed.jsonl")
 KEY = bytes(range(32))  # 00 01 02 ... 1f: a test key, never a real one
@@ -27,6 +27,8 @@ CASES: list[tuple[Message, int, int, int]] = [
     (messages.Surface(), 1, 19, TIMESTAMP + 1),
     (messages.Text(t_us=1, severity=1, text="signed text[] tail"), 200, 65535, TIMESTAMP + 100_000),
     (messages.Heartbeat(uptime_ms=1000), 200, 0, 2**48 - 1),
+    # the re-sync of SPEC.md s. 12 with the nonce 0x0a1b2c3d: a PARAM_SET, not a parameter
+    (messages.ParamSet(index=-1, value=float(0x0A1B2C3D), name=RESYNC_NAME), 1, 20, TIMESTAMP + 2),
 ]
 
 

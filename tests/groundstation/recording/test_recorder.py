@@ -6,14 +6,17 @@ import shutil
 from pathlib import Path
 
 import numpy as np
+from mcap.reader import make_reader
 
 from groundstation.links.runs import find_run
 from groundstation.mcap_io import is_complete, read_recording, recover
 from groundstation.recording.export import export_csv, export_npz
 from groundstation.recording.info import summarize
-from groundstation.recording.recorder import RecorderConfig
+from groundstation.recording.recorder import RAW_RX_UNUSED_TOPIC, RecorderConfig
 from groundstation.run.job import RunConfig, run
 from groundstation.run.marker import send_marker
+from protocol import FrameFlag
+from protocol import messages as m
 from tests.groundstation.fake_agent import FakeAgent
 from tests.groundstation.mcap_validation import validate_with_mcap_library
 
@@ -42,6 +45,12 @@ def test_main_job_records_a_complete_valid_mcap(tmp_path: Path) -> None:
         assert counts.get(topic), topic
     contents = read_recording(path, {"/marker", "/agent/PARAM_VALUE"})
     assert [m.json()["text"] for m in contents.messages if m.topic == "/marker"] == ["first progress"]
+    # the LOG_REQUEST ranges replayed samples (and episode frames) already held between their holes: unused by the
+    # session, but their raw frames kept, so /raw/rx and /raw/rx_unused hold every frame whose seq was counted
+    with path.open("rb") as f:
+        unused = [message.data for _, _, message in make_reader(f).iter_messages(topics=[RAW_RX_UNUSED_TOPIC])]
+    replays = {m.Sample.MSG_ID, m.EpisodeStart.MSG_ID, m.EpisodeEnd.MSG_ID}
+    assert unused and all(d[4] in replays and d[1] & FrameFlag.REPLAYED for d in unused), {(d[4], d[1]) for d in unused}
     assert contents.metadata["parameters"][-1]["target_depth_m"] == "0.6"
     summary = summarize(path)
     assert summary.complete and summary.samples_missing == 0 and summary.samples_backfilled > 0

@@ -7,7 +7,6 @@ import json
 import resource
 import threading
 import time
-from collections.abc import Callable
 from pathlib import Path
 
 import pytest
@@ -23,17 +22,9 @@ from groundstation.session.events import EventKind, LinkEvent, Received, Sent
 from protocol import DumpKind, Message, Mode
 from protocol import messages as m
 from tests.groundstation.fake_agent import FakeAgent
+from tests.waiting import wait_for
 
 QUICK = SessionConfig(backoff_s=(0.05, 0.2), link_timeout_s=1.0)
-
-
-def wait_for(condition: Callable[[], bool], timeout_s: float = 10.0) -> bool:
-    deadline = time.monotonic() + timeout_s
-    while not condition():
-        if time.monotonic() > deadline:
-            return False
-        time.sleep(0.02)
-    return True
 
 
 class Events:

@@ -16,6 +16,7 @@ from typer.testing import CliRunner
 from groundstation.cli.app import app
 from tests.groundstation.rrd_readback import rows_per_entity
 from tests.groundstation.synthetic_agent import Traffic, generate, record
+from tests.listening import listening_addresses, other_local_addresses
 
 DIVE = str(Path(sys.executable).with_name("dive"))
 
@@ -78,7 +79,15 @@ def _free_port() -> int:
         return int(s.getsockname()[1])
 
 
-def test_web_viewer_mode_answers_http_and_stops_cleanly(small_recording: Path) -> None:
+def _answers(address: str, port: int) -> bool:
+    with socket.socket() as s:
+        s.settimeout(2.0)
+        return s.connect_ex((address, port)) == 0
+
+
+def test_web_viewer_mode_answers_http_on_loopback_only_and_stops_cleanly(small_recording: Path) -> None:
+    """Both servers of --viewer web (the page and the data stream) listen on 127.0.0.1 and on no other address of
+    this machine (issue 25 L4: rerun-sdk's serve_web_viewer listened on all interfaces)."""
     web_port, grpc_port = _free_port(), _free_port()
     process = subprocess.Popen(
         [DIVE, "replay", str(small_recording), "--viewer", "web",
@@ -92,6 +101,10 @@ def test_web_viewer_mode_answers_http_and_stops_cleanly(small_recording: Path) -
         with urllib.request.urlopen(f"http://127.0.0.1:{web_port}/", timeout=20) as response:
             assert response.status == 200
             assert b"<html" in response.read().lower()
+        for port in (web_port, grpc_port):
+            assert listening_addresses(port) == {"127.0.0.1"}, port
+            for other in other_local_addresses():  # where the machine has one: not answered there
+                assert not _answers(other, port), f"{other}:{port} answers"
         process.send_signal(signal.SIGTERM)
         assert process.wait(timeout=20) == 130  # stopped as by Ctrl-C, after a clean shutdown
     finally:
