@@ -68,6 +68,9 @@ class PlantParams:
     recovery_phi_mps: float = 0.5  # F: boundary layer
     recovery_gain_deg: float = 65.0  # E: full half-stroke at the edge of the boundary layer
     recovery_avg_time_s: float = 10.0  # E: time constant of the running mean alpha_avg
+    # An inner, steeper boundary layer that takes up the gear's lost motion on each reversal of s (0 = off).
+    recovery_near_gain_deg: float = 0.0  # E: extra gear angle at the edge of the inner layer; ~ the backlash
+    recovery_near_phi_mps: float = 0.01  # E: inner boundary layer of s (the settle band's velocity)
     settle_depth_m: float = 0.01  # F: hand over when |e| < 0.01 m ..
     settle_velocity_mps: float = 0.01  # F: .. and |z'| < 0.01 m/s ..
     settle_time_s: float = 6.25  # F: .. for 6.25 s
@@ -84,7 +87,9 @@ PlantSpec = kernel_tuple_type(PlantParams, "PlantSpec")
 
 _PRESETS: dict[str, PlantParams] = {
     # The firmware figures with the observer in the loop and the recovery controller between episodes.
-    "hardware": PlantParams(trim_error_fraction=0.005),
+    # The inner boundary layer of the recovery controller (recovery_near_gain_deg) lets it settle despite up to
+    # 3 deg of gear backlash (docs/reproduction.md, issue 29).
+    "hardware": PlantParams(trim_error_fraction=0.005, recovery_near_gain_deg=3.0),
     # Calibration P1 of diving-agent.md s. 7, which reproduces the paper's Fig. 5: a narrow actuator
     # window (+/- 6.5 deg) and slower step (1.625 deg) around the true neutral, the true velocity
     # to the learner (the paper names its observer only for the experiment), restarts at rest.

@@ -34,6 +34,8 @@
 #define CFG_RECOVERY_PHI_MPS 0.5f
 #define CFG_RECOVERY_GAIN_DEG 65.0f
 #define CFG_RECOVERY_AVG_TIME_S 10.0f
+#define CFG_RECOVERY_NEAR_GAIN_DEG 3.0f  /* inner layer: takes up the gear backlash (hardware preset) */
+#define CFG_RECOVERY_NEAR_PHI_MPS 0.01f
 #define CFG_SETTLE_DEPTH_M 0.01f
 #define CFG_SETTLE_VELOCITY_MPS 0.01f
 #define CFG_SETTLE_TIME_S 6.25f

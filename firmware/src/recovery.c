@@ -41,7 +41,13 @@ float recovery_step(recovery_state_t *r, const recovery_params_t *p, float depth
     r->elapsed_s += dt_s;
     *settled = r->calm_s >= p->settle_time_s;
     *gave_up = r->elapsed_s >= p->give_up_s && r->calm_s < p->settle_time_s;
-    return clampf(r->avg_deg + p->gain_deg * sat, 0.0f, p->alpha_max_deg);
+    float cmd = r->avg_deg + p->gain_deg * sat;
+    if (p->near_gain_deg > 0.0f) {
+        /* A steep inner layer: each reversal of s steps the command by up to 2 near_gain_deg, which takes
+           up the gear's lost motion that the outer gain alone would limit-cycle on (simulator/recovery.py). */
+        cmd += p->near_gain_deg * clampf(surface / p->near_phi_mps, -1.0f, 1.0f);
+    }
+    return clampf(cmd, 0.0f, p->alpha_max_deg);
 }
 
 float recovery_alpha_avg_deg(const recovery_state_t *r)

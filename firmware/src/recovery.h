@@ -14,6 +14,8 @@ typedef struct {
     float settle_time_s;        /* .. for settle_time_s */
     float give_up_s;            /* not settled within give_up_s: give up */
     float alpha_max_deg;        /* gear range 0 .. alpha_max_deg */
+    float near_gain_deg;        /* inner layer: extra angle at its edge, takes up backlash (0 = off) */
+    float near_phi_mps;         /* inner boundary layer of s */
 } recovery_params_t;
 
 typedef struct recovery_state {

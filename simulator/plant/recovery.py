@@ -47,7 +47,12 @@ def recovery_update_kernel(
     calm = abs(error_m) < spec.settle_depth_m and abs(velocity_mps) < spec.settle_velocity_mps
     state[CALM_S] = state[CALM_S] + dt_s if calm else 0.0
     state[ELAPSED_S] += dt_s
-    return min(max(state[AVG] + spec.recovery_gain_deg * sat, 0.0), spec.alpha_max_deg)
+    cmd = state[AVG] + spec.recovery_gain_deg * sat
+    if spec.recovery_near_gain_deg > 0.0:
+        # A steep inner layer: each reversal of s steps the command by up to 2 near_gain_deg, which takes up
+        # the gear's lost motion; the outer gain alone (0.5 deg at 1 cm) limit-cycles on 1 deg of backlash.
+        cmd += spec.recovery_near_gain_deg * min(max(surface / spec.recovery_near_phi_mps, -1.0), 1.0)
+    return min(max(cmd, 0.0), spec.alpha_max_deg)
 
 
 @njit(cache=True, error_model="numpy")

@@ -31,7 +31,7 @@ class SmoGains(ctypes.Structure):
 class RecoveryParams(ctypes.Structure):
     _fields_ = [(name, ctypes.c_float) for name in (
         "lambda_per_s", "phi_mps", "gain_deg", "avg_time_s", "settle_depth_m", "settle_velocity_mps",
-        "settle_time_s", "give_up_s", "alpha_max_deg",
+        "settle_time_s", "give_up_s", "alpha_max_deg", "near_gain_deg", "near_phi_mps",
     )]
 
 

@@ -1,9 +1,9 @@
 """The C observer, recovery controller, plant and sensor against the Python reference on the same inputs.
 
 The depth sequence is recorded from the Python closed loop (plant, noisy sensor, observer, recovery
-controller, `hardware` preset); the C observer and controller get the same measured depths and gear
-angles and must give the same velocity estimates and commands within float32 rounding, and settle on
-the same step. The C plant (double, as the Python) follows the Python plant to 1e-9 on the same
+controller, `hardware` preset, with and without gear backlash); the C observer and controller get the same
+measured depths and gear angles and must give the same velocity estimates and commands within float32
+rounding, and settle on the same step. The C plant (double, as the Python) follows the Python plant to 1e-9 on the same
 commands; the C sensor, seeded with the Python sensor's stream, reads the same pressures.
 """
 
@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from learning.rng import new_stream
-from simulator.parameters import neutral_alpha_deg, preset
+from simulator.parameters import neutral_alpha_deg, preset, with_overrides
 from simulator.plant.model import Plant
 from simulator.plant.observer import SlidingModeObserver
 from simulator.plant.recovery import RecoveryController
@@ -93,8 +93,10 @@ def test_c_sensor_reads_python_pressures(ctl: ctypes.CDLL) -> None:
         assert ctl.sensor_read_pa(ctypes.byref(c_params), ctypes.byref(c_rng), float(depth)) == sensor.read(depth)
 
 
-def test_c_observer_and_recovery_follow_python(ctl: ctypes.CDLL) -> None:
-    params = preset("hardware")
+@pytest.mark.parametrize("gear", [{}, {"backlash_deg": 2.0, "dead_band_deg": 0.5}], ids=["ideal-gear", "backlash"])
+def test_c_observer_and_recovery_follow_python(ctl: ctypes.CDLL, gear: dict[str, float]) -> None:
+    # With backlash the controller's inner layer (recovery_near_gain_deg) is what lets it settle at all.
+    params = with_overrides(preset("hardware"), gear)
     rng = np.random.default_rng(SEED)
     plant = Plant(params)
     sensor = PressureSensor(params, rng)
@@ -104,7 +106,8 @@ def test_c_observer_and_recovery_follow_python(ctl: ctypes.CDLL) -> None:
     rp = RecoveryParams(
         params.recovery_lambda_per_s, params.recovery_phi_mps, params.recovery_gain_deg,
         params.recovery_avg_time_s, params.settle_depth_m, params.settle_velocity_mps,
-        params.settle_time_s, params.give_up_s, params.alpha_max_deg)
+        params.settle_time_s, params.give_up_s, params.alpha_max_deg, params.recovery_near_gain_deg,
+        params.recovery_near_phi_mps)
     smo, rec = SmoState(), RecoveryState()
     ctl.smo_reset(ctypes.byref(smo), 0.0)
     ctl.recovery_init(ctypes.byref(rec), params.alpha_max_deg / 2.0)

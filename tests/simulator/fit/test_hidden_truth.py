@@ -96,7 +96,8 @@ def test_the_fitted_plant_predicts_a_held_out_recording(
     noise_m = truth[0]["pressure_noise_pa"] / (1000.0 * 9.81)
     windows, rms = predict_recordings([truth[3]], fit.params, window_s=30.0)
     lengths = windows.t_s[windows.ends - 1] - windows.t_s[windows.starts]
-    assert windows.seconds >= 60.0 and lengths.max() >= 20.0, (
+    # The longest windows are recoveries: 10-19 s since the controller's inner layer (issue 29), 30 s before.
+    assert windows.seconds >= 60.0 and lengths.max() >= 15.0, (
         f"too little held-out data to judge: {windows.seconds:.0f} s, longest window {lengths.max():.0f} s")
     # Every window, up to 30 s of open-loop prediction from its start under the recorded commands.
     assert float(rms.max()) <= 2.0 * noise_m, f"worst window {rms.max() * 1000:.3f} mm, noise {noise_m * 1000:.3f}"
