@@ -151,7 +151,7 @@ def test_foxglove_without_a_port_takes_the_default() -> None:
 
 
 def test_the_live_layout_is_current_and_shows_what_the_server_offers() -> None:
-    from scripts.foxglove_layout import BOUNDS_TOPIC, LIVE_OUT, live_layout
+    from scripts.foxglove_layout import BOUNDS_SCRIPT, BOUNDS_TOPIC, LIVE_OUT, live_layout
 
     shipped = json.loads(LIVE_OUT.read_text())
     assert shipped == live_layout(), "docs/foxglove/live-layout.json is stale: run python scripts/foxglove_layout.py"
@@ -164,8 +164,11 @@ def test_the_live_layout_is_current_and_shows_what_the_server_offers() -> None:
     messages = {cls.DEFINITION.name: cls for cls in message_classes().values()}
     paths = [path["value"] for config in panels.values() for path in config.get("paths", [])]
     paths.append(panels["Indicator!mode"]["path"])
+    # depth drawn downward, as the Rerun view draws it: Foxglove's Plot cannot flip an axis, so z up = -depth
+    assert [p["value"] for p in panels["Plot!depth"]["paths"]][0] == "/agent/SAMPLE.depth_m.@negative"
+    assert "z up = -depth" in panels["Plot!depth"]["title"] and "-start.target_depth_m" in BOUNDS_SCRIPT
     for path in paths:  # every field plotted is in the schema of the channel the server publishes
-        topic, field = path.rsplit(".", 1)
+        topic, field = re.sub(r"\.@\w+$", "", path).rsplit(".", 1)  # a math modifier (.@negative) off
         if topic == BOUNDS_TOPIC:
             continue  # the layout's own user script
         name = topic.removeprefix("/agent/")
