@@ -4,6 +4,7 @@ speaking Foxglove's WebSocket protocol as the Foxglove app does: channels, param
 from __future__ import annotations
 
 import json
+import os
 import re
 import socket
 import struct
@@ -20,6 +21,7 @@ from groundstation.recording.recorder import message_schema
 from groundstation.view.foxglove_images import POLICY_TOPIC, VALUE_TOPIC
 from groundstation.view.foxglove_services import REQUESTS
 from groundstation.view.options import with_flag_value
+from protocol import FrameFlag
 from protocol import messages as m
 from protocol.parameters import PARAM_COUNT
 from protocol.registry import message_classes
@@ -49,9 +51,20 @@ def foxglove_client(proc: subprocess.Popen[str]) -> Iterator[FoxgloveClient]:
         interrupt(proc)
 
 
+def write_key(path: Path) -> Path:
+    path.write_text(os.urandom(32).hex() + "\n")
+    path.chmod(0o600)
+    return path
+
+
 @pytest.mark.slow
-def test_foxglove_watches_sets_and_commands_a_running_run(tmp_path: Path) -> None:
-    proc = start_dive(tmp_path, "run", FAST_SIM, "--out", str(tmp_path / "rec"))
+def test_foxglove_watches_sets_and_commands_a_running_keyed_run(tmp_path: Path) -> None:
+    """A keyed run (the agent refuses unsigned commands): Foxglove's parameters and services reach it signed with
+    the run's key, and `dive view --foxglove --key-file` beside it signs its own (the agent refuses even a
+    PARAM_LIST unsigned, so its Parameters panel filled is the proof)."""
+    key = write_key(tmp_path / "agent.key")
+    proc = start_dive(tmp_path, "run", f"{FAST_SIM}&key_file={key}", "--key-file", str(key),
+                      "--out", str(tmp_path / "rec"))
     with foxglove_client(proc) as fox:
         assert fox.ws.subprotocol == SUBPROTOCOL
         # the server advertises its channels once the run's agent is up (a first start compiles the simulator)
@@ -67,7 +80,7 @@ def test_foxglove_watches_sets_and_commands_a_running_run(tmp_path: Path) -> Non
         assert fox.pump(lambda: len(fox.messages.get(samples, [])) >= 5, 10)
         assert {"depth_m", "mode", "_seq"} <= set(json.loads(fox.messages[samples][0]))
         assert set(fox.services) == {"surface", "hover", "start", "stop", "pause", "resume", "target", "mark", "dump"}
-        view = start_dive(tmp_path, "view")  # attaches to the run's hub: started now, looked at below
+        view = start_dive(tmp_path, "view", "--key-file", str(key))  # on the run's hub: looked at below
 
         # the Parameters panel: the agent's table; the value it already has changes nothing
         table = {p["name"]: p["value"] for p in fox.get_parameters([])}
@@ -126,7 +139,9 @@ def test_foxglove_watches_sets_and_commands_a_running_run(tmp_path: Path) -> Non
                   if msg.topic == "/ground/PARAM_SET" and msg.json()["name"] == "gamma"]
     assert gamma_sets == [pytest.approx(0.9)]  # the equal value, the refused and the unconfirmed sets: never sent
     assert [msg.json()["text"] for msg in sent if msg.topic == "/marker"] == ["from foxglove"]
-    assert sum(msg.topic == "/ground/CMD_PAUSE" for msg in sent) == 1
+    assert [bool(msg.json()["_flags"] & FrameFlag.SIGNED) for msg in sent if msg.topic == "/ground/CMD_PAUSE"] == \
+        [True]  # Foxglove's pause, signed
+    assert all(msg.json()["_flags"] & FrameFlag.SIGNED for msg in sent if msg.topic != "/marker")
     assert [msg.json()["target_depth_m"] for msg in sent if msg.topic == "/ground/CMD_SET_TARGET"] == \
         [pytest.approx(0.5)]
 
