@@ -14,6 +14,7 @@ from groundstation.links.hub import MARKER_CONFIRMATION
 from groundstation.recording.recorder import body_json, dump_topic, event_topic, message_json, message_topic
 from groundstation.session.dumps import Dump, DumpAssembler
 from groundstation.session.events import LinkEvent, Received, Sent
+from groundstation.view.foxglove_history import ChannelHistory, FoxgloveHistoryConfig
 from groundstation.view.foxglove_images import DumpImages
 from protocol import Message
 from protocol import messages as m
@@ -63,17 +64,21 @@ def _publishing(method: _Method) -> _Method:
 class FoxgloveChannels:
     """A session listener: each frame, command and event published on the channel the recording would write it to
     (`/agent/SAMPLE`, `/ground/CMD_PAUSE`, `/link`, `/event`, `/marker`, `/dump/VALUES`), and each completed value
-    or policy dump also drawn as an image. A channel is encoded only while a client subscribes to it. On `dive run`
-    it listens to the run's own session: the very frames, commands and events (alarms) the recorder writes."""
+    or policy dump also drawn as an image. A channel is encoded only while a client subscribes to it; what it would
+    have carried is kept (bounded: foxglove_history.py) and sent to each client that subscribes later, to it alone.
+    On `dive run` it listens to the run's own session: the very frames, commands and events (alarms) the recorder
+    writes."""
 
     def __init__(self, context: foxglove.Context,
                  on_parameter: Callable[[m.ParamValue], None] | None = None,
-                 on_failure: Callable[[str], None] | None = None) -> None:
+                 on_failure: Callable[[str], None] | None = None,
+                 history: FoxgloveHistoryConfig | None = None) -> None:
         self._context = context
         self._lock = threading.Lock()  # channels are made from the session's reader thread and from services
         self._channels: dict[str, foxglove.Channel] = {}
-        self._rx: dict[type[Message], foxglove.Channel] = {}
-        self._tx: dict[type[Message], foxglove.Channel] = {}
+        self._rx: dict[type[Message], tuple[foxglove.Channel, str]] = {}  # and its topic
+        self._tx: dict[type[Message], tuple[foxglove.Channel, str]] = {}
+        self.history = ChannelHistory(history)
         self._dumps = DumpAssembler()
         self.images = DumpImages(context)
         self._on_parameter = on_parameter
@@ -103,11 +108,16 @@ class FoxgloveChannels:
             return  # from after the run's end: not in the decoded recording either (Session.request_backfill)
         msg = frame.message
         cls = msg.__class__
-        channel = self._rx.get(cls)
-        if channel is None:
-            channel = self._rx[cls] = self.channel(*message_topic("/agent", cls))
-        if channel.has_sinks():  # at --speed max thousands of SAMPLEs a second: encoded only for a subscriber
-            channel.log(message_json(msg, frame.seq, frame.flags, backfilled), log_time=host_ns)
+        found = self._rx.get(cls)
+        if found is None:
+            topic, schema_name, schema = message_topic("/agent", cls)
+            found = self._rx[cls] = (self.channel(topic, schema_name, schema), topic)
+        channel, topic = found
+        # at --speed max thousands of SAMPLEs a second: encoded only for a subscriber, now or later (history)
+        body = functools.partial(message_json, msg, frame.seq, frame.flags, backfilled)
+        self.history.keep(topic, host_ns, body)
+        if channel.has_sinks():
+            channel.log(body(), log_time=host_ns)
         if isinstance(msg, m.ParamValue):
             self._dumps.saw_parameter(msg.name, msg.value)
             self.images.saw_parameter(msg.name, msg.value)
@@ -119,20 +129,45 @@ class FoxgloveChannels:
                 self.publish_dump(dump, host_ns)
 
     def publish_dump(self, dump: Dump, host_ns: int) -> None:
-        self.channel(*dump_topic(dump.kind)).log(body_json(dump.as_dict()), log_time=host_ns)
+        topic, schema_name, schema = dump_topic(dump.kind)
+        body = body_json(dump.as_dict())
+        self.history.keep_bytes(topic, host_ns, body)
+        self.channel(topic, schema_name, schema).log(body, log_time=host_ns)
         self.images.publish(dump, host_ns)
 
     @_publishing
     def on_sent(self, sent: Sent) -> None:
         cls = sent.message.__class__
-        channel = self._tx.get(cls)
-        if channel is None:
-            channel = self._tx[cls] = self.channel(*message_topic("/ground", cls))
+        found = self._tx.get(cls)
+        if found is None:
+            topic, schema_name, schema = message_topic("/ground", cls)
+            found = self._tx[cls] = (self.channel(topic, schema_name, schema), topic)
+        channel, topic = found
+        flags = cobs_decode(sent.wire[:-1])[1]  # as the recorder takes them: the frame's flags byte
+        body = functools.partial(message_json, sent.message, sent.seq, flags, False)
+        self.history.keep(topic, sent.host_time_ns, body)
         if channel.has_sinks():
-            flags = cobs_decode(sent.wire[:-1])[1]  # as the recorder takes them: the frame's flags byte
-            channel.log(message_json(sent.message, sent.seq, flags, False), log_time=sent.host_time_ns)
+            channel.log(body(), log_time=sent.host_time_ns)
 
     @_publishing
     def on_event(self, event: LinkEvent) -> None:
         topic, schema_name, schema, body = event_topic(event)
-        self.channel(topic, schema_name, schema).log(body_json(body), log_time=event.host_time_ns)
+        encoded = body_json(body)
+        self.history.keep_bytes(topic, event.host_time_ns, encoded)
+        self.channel(topic, schema_name, schema).log(encoded, log_time=event.host_time_ns)
+
+    # ------------------------------------------------------------------ the server's side (a client subscribed)
+    @_publishing
+    def replay(self, topic: str, sink_id: int) -> None:
+        """`topic`'s history to the one client whose sink is `sink_id` (the SDK's client id): a client that
+        connects late sees the learning curve, the heatmaps and the last minutes whole. Sent from FoxgloveLive's
+        replay thread while live messages go on: one that arrives meanwhile may reach the client twice (live and
+        replayed, drawn again on the same spot), and a few live ones may come before the older replayed ones."""
+        if self.images.replay(topic, sink_id):
+            return
+        channel = self._channels.get(topic)  # a dict read, atomic: no lock held while the SDK is called
+        if channel is None:
+            return
+        for host_ns, body in self.history.replay(topic):
+            channel.log(body, log_time=host_ns, sink_id=sink_id)
+

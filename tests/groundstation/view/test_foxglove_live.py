@@ -123,6 +123,19 @@ def test_foxglove_watches_sets_and_commands_a_running_keyed_run(tmp_path: Path) 
         started = fox.call("start")  # handed back to the run, which learns on
         assert started["accepted"] and started["mode"] in ("LEARNING", "RECOVERING"), started
 
+        # a client that connects late is sent, on each channel it subscribes to and to it alone, what it missed:
+        # the episodes from the first, the last minutes of samples
+        seen = len(fox.messages[samples])
+        seen_sample = json.loads(fox.messages[samples][-1])["sample"]
+        with FoxgloveClient.connected(fox.ws.remote_address[1]) as late:
+            assert late.pump(lambda: {"/agent/EPISODE_END", "/agent/SAMPLE"} <= set(late.channels), 5)
+            ends, late_samples = late.subscribe("/agent/EPISODE_END"), late.subscribe("/agent/SAMPLE")
+            assert late.pump(lambda: bool(late.messages.get(ends)) and any(
+                json.loads(body)["sample"] < seen_sample for body in late.messages.get(late_samples, [])), 5)
+            late_episodes = [json.loads(body)["episode"] for body in late.messages[ends]]
+        fox.pump(lambda: False, 0.3)  # what reached the first client meanwhile: live samples only, none replayed
+        assert all(json.loads(body)["sample"] > seen_sample for body in fox.messages[samples][seen:])
+
         # the view's own server, on the run's hub: the same channels and the agent's parameters
         with foxglove_client(view) as beside:
             assert beside.pump(lambda: "/agent/SAMPLE" in beside.channels and "pause" in beside.services, 20)
@@ -137,6 +150,8 @@ def test_foxglove_watches_sets_and_commands_a_running_keyed_run(tmp_path: Path) 
                                       "/marker"}).messages
     gamma_sets = [msg.json()["value"] for msg in sent
                   if msg.topic == "/ground/PARAM_SET" and msg.json()["name"] == "gamma"]
+    first_episodes = [msg.json()["episode"] for msg in read_recording(recording, {"/agent/EPISODE_END"}).messages]
+    assert late_episodes[:len(first_episodes)] == first_episodes[:len(late_episodes)]  # from the run's first on
     assert gamma_sets == [pytest.approx(0.9)]  # the equal value, the refused and the unconfirmed sets: never sent
     assert [msg.json()["text"] for msg in sent if msg.topic == "/marker"] == ["from foxglove"]
     assert [bool(msg.json()["_flags"] & FrameFlag.SIGNED) for msg in sent if msg.topic == "/ground/CMD_PAUSE"] == \
@@ -255,3 +270,54 @@ def test_publishing_that_fails_stops_publishing_not_the_run() -> None:
     for _ in range(3):
         channels.on_event(LinkEvent(EventKind.MARKER, time.time_ns(), "x", {"text": "x"}))  # raises nothing
     assert said == ["Foxglove stopped publishing: RuntimeError: the SDK gave up"]
+
+
+def test_a_late_subscriber_gets_its_channels_history_alone_and_bounded() -> None:
+    """The run's server as `dive run` has it (no agent needed: frames fed as its session would): a client that
+    subscribes late is sent what it missed, in order and to it alone; the client subscribed before gets nothing
+    twice. Larger than the SDK's default per-client queue (1024), which would drop the oldest."""
+    from groundstation.session.dumps import Dump
+    from groundstation.view.foxglove_live import FoxgloveLive
+    from protocol import DumpKind
+    from tests.groundstation.recording_fixtures import received, sample
+
+    live = FoxgloveLive(0)
+    try:
+        with FoxgloveClient.connected(live.port) as early:
+            live.channels.on_received(received(sample(0), 1))
+            assert early.pump(lambda: "/agent/SAMPLE" in early.channels, 5)
+            first = early.subscribe("/agent/SAMPLE")
+            assert early.pump(lambda: len(early.messages.get(first, [])) == 1, 5)  # its own history: sample 0
+            for i in range(1, 3000):
+                live.channels.on_received(received(sample(i), i + 1))
+            with FoxgloveClient.connected(live.port) as late:
+                assert late.pump(lambda: "/agent/SAMPLE" in late.channels, 5)
+                subscription = late.subscribe("/agent/SAMPLE")
+                assert late.pump(lambda: len(late.messages.get(subscription, [])) >= 3000, 10)
+                assert [json.loads(body)["sample"] for body in late.messages[subscription]] == list(range(3000))
+            early.pump(lambda: False, 0.3)
+            assert [json.loads(body)["sample"] for body in early.messages[first]] == list(range(3000))
+        # the newest value and policy images, drawn before the client came
+        live.channels.publish_dump(Dump(2, DumpKind.POLICY, 7, bytes([0, 1, 255] * 33 + [0, 0])), 123_456_789)
+        with FoxgloveClient.connected(live.port) as viewer:
+            assert viewer.pump(lambda: {POLICY_TOPIC, "/dump/POLICY"} <= set(viewer.channels), 5)
+            images, dumps = viewer.subscribe(POLICY_TOPIC), viewer.subscribe("/dump/POLICY")
+            assert viewer.pump(lambda: bool(viewer.messages.get(images)) and bool(viewer.messages.get(dumps)), 5)
+            assert viewer.log_times[images] == viewer.log_times[dumps] == [123_456_789]
+    finally:
+        live.close()
+
+
+def test_the_history_keeps_the_last_minutes_every_episode_and_the_newest_dump() -> None:
+    from groundstation.view.foxglove_history import ChannelHistory, FoxgloveHistoryConfig
+
+    history = ChannelHistory(FoxgloveHistoryConfig(window_s=60.0, max_per_topic=100, max_whole=1000))
+    for second in range(200):  # one message a second of each
+        for topic in ("/agent/SAMPLE", "/agent/EPISODE_END", "/dump/POLICY"):
+            history.keep_bytes(topic, second * 1_000_000_000, b"%d" % second)
+    assert [int(body) for _, body in history.replay("/agent/SAMPLE")] == list(range(139, 200))  # last minute
+    assert len(history.replay("/agent/EPISODE_END")) == 200  # the learning curve whole
+    assert history.replay("/dump/POLICY") == [(199_000_000_000, b"199")]
+    for i in range(300):  # at --speed max a minute holds more than max_per_topic: the newest are kept
+        history.keep_bytes("/agent/HEARTBEAT", 300_000_000_000 + i, b"x")
+    assert len(history.replay("/agent/HEARTBEAT")) == 100 and history.replay("/nothing") == []
