@@ -80,7 +80,6 @@ def test_foxglove_watches_sets_and_commands_a_running_keyed_run(tmp_path: Path) 
         assert fox.pump(lambda: len(fox.messages.get(samples, [])) >= 5, 10)
         assert {"depth_m", "mode", "_seq"} <= set(json.loads(fox.messages[samples][0]))
         assert set(fox.services) == {"surface", "hover", "start", "stop", "pause", "resume", "target", "mark", "dump"}
-        view = start_dive(tmp_path, "view", "--key-file", str(key))  # on the run's hub: looked at below
 
         # the Parameters panel: the agent's table; the value it already has changes nothing
         table = {p["name"]: p["value"] for p in fox.get_parameters([])}
@@ -136,10 +135,16 @@ def test_foxglove_watches_sets_and_commands_a_running_keyed_run(tmp_path: Path) 
         fox.pump(lambda: False, 0.3)  # what reached the first client meanwhile: live samples only, none replayed
         assert all(json.loads(body)["sample"] > seen_sample for body in fox.messages[samples][seen:])
 
-        # the view's own server, on the run's hub: the same channels and the agent's parameters
+        # the view's own server, attached to the run's hub after its first episodes: the same channels, the agent's
+        # parameters, and the run's history, which the view asks the hub for and keeps for its Foxglove clients
+        view = start_dive(tmp_path, "view", "--key-file", str(key))
         with foxglove_client(view) as beside:
-            assert beside.pump(lambda: "/agent/SAMPLE" in beside.channels and "pause" in beside.services, 20)
+            assert beside.pump(lambda: {"/agent/SAMPLE", "/agent/EPISODE_END"} <= set(beside.channels) and
+                               "pause" in beside.services, 20)
             assert {p["name"]: p["value"] for p in beside.get_parameters(["gamma"])} == {"gamma": pytest.approx(0.9)}
+            view_ends = beside.subscribe("/agent/EPISODE_END")
+            assert beside.pump(lambda: bool(beside.messages.get(view_ends)), 5)
+            assert json.loads(beside.messages[view_ends][0])["episode"] == late_episodes[0]  # the run's first
         assert view.wait(10) == 130
     _, err = proc.communicate()
     assert proc.returncode == 130, err
