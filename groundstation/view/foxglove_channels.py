@@ -14,7 +14,7 @@ from groundstation.links.hub import MARKER_CONFIRMATION
 from groundstation.recording.recorder import body_json, dump_topic, event_topic, message_json, message_topic
 from groundstation.session.dumps import Dump, DumpAssembler
 from groundstation.session.events import LinkEvent, Received, Sent
-from groundstation.view.foxglove_history import ChannelHistory, FoxgloveHistoryConfig
+from groundstation.view.foxglove_history import Body, ChannelHistory, FoxgloveHistoryConfig
 from groundstation.view.foxglove_images import DumpImages
 from protocol import Message
 from protocol import messages as m
@@ -79,6 +79,9 @@ class FoxgloveChannels:
         self._rx: dict[type[Message], tuple[foxglove.Channel, str]] = {}  # and its topic
         self._tx: dict[type[Message], tuple[foxglove.Channel, str]] = {}
         self.history = ChannelHistory(history)
+        # whom each topic is sent to: clients whose history is sent; held while sending, so none comes between
+        self._publish = threading.Lock()
+        self._ready: dict[str, set[int]] = {}
         self._dumps = DumpAssembler()
         self.images = DumpImages(context)
         self._on_parameter = on_parameter
@@ -114,10 +117,7 @@ class FoxgloveChannels:
             found = self._rx[cls] = (self.channel(topic, schema_name, schema), topic)
         channel, topic = found
         # at --speed max thousands of SAMPLEs a second: encoded only for a subscriber, now or later (history)
-        body = functools.partial(message_json, msg, frame.seq, frame.flags, backfilled)
-        self.history.keep(topic, host_ns, body)
-        if channel.has_sinks():
-            channel.log(body(), log_time=host_ns)
+        self._send(channel, topic, host_ns, functools.partial(message_json, msg, frame.seq, frame.flags, backfilled))
         if isinstance(msg, m.ParamValue):
             self._dumps.saw_parameter(msg.name, msg.value)
             self.images.saw_parameter(msg.name, msg.value)
@@ -131,8 +131,7 @@ class FoxgloveChannels:
     def publish_dump(self, dump: Dump, host_ns: int) -> None:
         topic, schema_name, schema = dump_topic(dump.kind)
         body = body_json(dump.as_dict())
-        self.history.keep_bytes(topic, host_ns, body)
-        self.channel(topic, schema_name, schema).log(body, log_time=host_ns)
+        self._send(self.channel(topic, schema_name, schema), topic, host_ns, functools.partial(bytes, body))
         self.images.publish(dump, host_ns)
 
     @_publishing
@@ -144,30 +143,43 @@ class FoxgloveChannels:
             found = self._tx[cls] = (self.channel(topic, schema_name, schema), topic)
         channel, topic = found
         flags = cobs_decode(sent.wire[:-1])[1]  # as the recorder takes them: the frame's flags byte
-        body = functools.partial(message_json, sent.message, sent.seq, flags, False)
-        self.history.keep(topic, sent.host_time_ns, body)
-        if channel.has_sinks():
-            channel.log(body(), log_time=sent.host_time_ns)
+        self._send(channel, topic, sent.host_time_ns,
+                   functools.partial(message_json, sent.message, sent.seq, flags, False))
 
     @_publishing
     def on_event(self, event: LinkEvent) -> None:
         topic, schema_name, schema, body = event_topic(event)
-        encoded = body_json(body)
-        self.history.keep_bytes(topic, event.host_time_ns, encoded)
-        self.channel(topic, schema_name, schema).log(encoded, log_time=event.host_time_ns)
+        self._send(self.channel(topic, schema_name, schema), topic, event.host_time_ns,
+                   functools.partial(bytes, body_json(body)))
 
-    # ------------------------------------------------------------------ the server's side (a client subscribed)
+    def _send(self, channel: foxglove.Channel, topic: str, host_ns: int, body: Body) -> None:
+        """Kept for later subscribers, and sent to the clients whose replay is done (each to its own sink): never
+        broadcast, or a client that just subscribed would get live messages before, and again in, its history."""
+        with self._publish:
+            self.history.keep(topic, host_ns, body)
+            ready = self._ready.get(topic)
+            if ready:
+                data = body()
+                for sink_id in ready:
+                    channel.log(data, log_time=host_ns, sink_id=sink_id)
+
+    # ------------------------------------------------------------------ a client subscribed (FoxgloveLive's thread)
     @_publishing
-    def replay(self, topic: str, sink_id: int) -> None:
-        """`topic`'s history to the one client whose sink is `sink_id` (the SDK's client id): a client that
-        connects late sees the learning curve, the heatmaps and the last minutes whole. Sent from FoxgloveLive's
-        replay thread while live messages go on: one that arrives meanwhile may reach the client twice (live and
-        replayed, drawn again on the same spot), and a few live ones may come before the older replayed ones."""
+    def subscribed(self, topic: str, sink_id: int) -> None:
+        """`topic`'s history to the one client whose sink is `sink_id` (the SDK's client id), then its live
+        messages: a client that connects late sees the learning curve, the heatmaps and the last minutes whole,
+        in order and once. Live messages wait while it is sent (a few ms; at most max_per_topic messages)."""
         if self.images.replay(topic, sink_id):
-            return
-        channel = self._channels.get(topic)  # a dict read, atomic: no lock held while the SDK is called
+            return  # the images are broadcast: the newest one again, at worst twice, draws the same picture
+        channel = self._channels.get(topic)
         if channel is None:
             return
-        for host_ns, body in self.history.replay(topic):
-            channel.log(body, log_time=host_ns, sink_id=sink_id)
+        with self._publish:
+            for host_ns, body in self.history.replay(topic):
+                channel.log(body, log_time=host_ns, sink_id=sink_id)
+            self._ready.setdefault(topic, set()).add(sink_id)
+
+    def unsubscribed(self, topic: str, sink_id: int) -> None:
+        with self._publish:
+            self._ready.get(topic, set()).discard(sink_id)
 

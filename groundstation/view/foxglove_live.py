@@ -48,9 +48,12 @@ class _Listener(ServerListener):
 
     def on_subscribe(self, client: Client, channel: ChannelView) -> None:
         # the SDK gives each WebSocket client a sink of its own, whose id is the client's: the history to it alone,
-        # sent from a thread of ours: this callback runs inside the server, which a new channel being advertised
-        # from the session's thread at that moment may be waiting for (a replay here stalled the run)
-        self._live.replays.put((channel.topic, client.id))
+        # sent from a thread of ours, as this callback runs inside the server (which the session's thread may be
+        # waiting for while it advertises a new channel)
+        self._live.subscriptions.put((channel.topic, client.id, True))
+
+    def on_unsubscribe(self, client: Client, channel: ChannelView) -> None:
+        self._live.subscriptions.put((channel.topic, client.id, False))
 
     def on_get_parameters(self, client: Client, param_names: list[str],
                           request_id: str | None = None) -> list[foxglove.Parameter]:
@@ -74,7 +77,8 @@ class FoxgloveLive:
         self.markers = MarkerWatch()
         self.parameters = ParameterBridge(self.attached_session, self.warn)
         self.controls = Controls(self.attached_session, self.markers, self.warn)
-        self.replays: queue.SimpleQueue[tuple[str, int] | None] = queue.SimpleQueue()  # (topic, sink id); None: end
+        # (topic, sink id, subscribed or not), in the order the server saw them; None: the end
+        self.subscriptions: queue.SimpleQueue[tuple[str, int, bool] | None] = queue.SimpleQueue()
         try:
             self.server = foxglove.start_server(
                 name=name, host=HOST, port=port, context=self.context, server_listener=_Listener(self),
@@ -84,7 +88,7 @@ class FoxgloveLive:
             why = "is in use by another process" if "in use" in str(e) else f"cannot be served on ({e})"
             raise FoxglovePortError(f"port {port} {why}: choose another with --foxglove PORT") from None
         self.port = self.server.port
-        threading.Thread(target=self._replay, name="dive-foxglove-history", daemon=True).start()
+        threading.Thread(target=self._subscriptions, name="dive-foxglove-subscriptions", daemon=True).start()
         self._closed = threading.Event()
         self._say: Callable[[str], None] | None = None
 
@@ -137,9 +141,13 @@ class FoxgloveLive:
         if not self._closed.is_set():
             self.server.publish_status(line, foxglove.StatusLevel.Warning, _STATUS_ID)
 
-    def _replay(self) -> None:
-        while (asked := self.replays.get()) is not None:
-            self.channels.replay(*asked)
+    def _subscriptions(self) -> None:
+        while (change := self.subscriptions.get()) is not None:
+            topic, sink_id, subscribed = change
+            if subscribed:
+                self.channels.subscribed(topic, sink_id)
+            else:
+                self.channels.unsubscribed(topic, sink_id)
 
     def _parameter_changed(self, value: m.ParamValue) -> None:
         """Any PARAM_VALUE (this server's set, another tool's, the run's) updates the panels that show it."""
@@ -153,7 +161,7 @@ class FoxgloveLive:
 
     def close(self) -> None:
         self._closed.set()
-        self.replays.put(None)
+        self.subscriptions.put(None)
         session, self.session = self.session, None
         if session is not None:
             session.close()
