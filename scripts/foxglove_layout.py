@@ -17,24 +17,36 @@ from typing import Any
 OUT = Path(__file__).resolve().parent.parent / "docs" / "foxglove" / "diving-agent-layout.json"
 LIVE_OUT = OUT.with_name("live-layout.json")
 BOUNDS_TOPIC = "/studio_script/depth_bounds"
-# A Foxglove user script: the learning region's edges from each EPISODE_START (z positive down).
-BOUNDS_SCRIPT = f"""// Learning-region bounds for the depth plot, from each episode's start message.
+# A Foxglove user script: the learning region's edges from each EPISODE_START, as z up = -depth like the plot.
+BOUNDS_SCRIPT = f"""// Learning-region bounds for the depth plot (z up = -depth), from each episode's start message.
 import {{ Input }} from "./types";
 
 export const inputs = ["/agent/EPISODE_START"];
 export const output = "{BOUNDS_TOPIC}";
 
-type Bounds = {{ target_m: number; shallow_edge_m: number; deep_edge_m: number }};
+type Bounds = {{ target_z_m: number; shallow_edge_z_m: number; deep_edge_z_m: number }};
 
 export default function script(event: Input<"/agent/EPISODE_START">): Bounds {{
   const start = event.message as any;
   return {{
-    target_m: start.target_depth_m,
-    shallow_edge_m: start.target_depth_m - start.z_tol_m,
-    deep_edge_m: start.target_depth_m + start.z_tol_m,
+    target_z_m: -start.target_depth_m,
+    shallow_edge_z_m: -(start.target_depth_m - start.z_tol_m),
+    deep_edge_z_m: -(start.target_depth_m + start.z_tol_m),
   }};
 }}
 """
+# Foxglove's Plot panel cannot flip its y axis: depth is plotted as z up = -depth (the message path's math modifier
+# .@negative), so deeper is drawn lower, as the Rerun view and the value/policy images draw it.
+DEPTH_TITLE = "Depth drawn downward: z up = -depth [m] (surface 0) with the learning region"
+
+
+def _depth_plot() -> dict[str, Any]:
+    return _plot(DEPTH_TITLE, [
+        ("/agent/SAMPLE.depth_m.@negative", "z = -depth"),
+        (f"{BOUNDS_TOPIC}.target_z_m", "target"),
+        (f"{BOUNDS_TOPIC}.shallow_edge_z_m", "shallow edge"),
+        (f"{BOUNDS_TOPIC}.deep_edge_z_m", "deep edge"),
+    ])
 
 
 def _plot(title: str, paths: list[tuple[str, str]], x_axis: str = "timestamp", **extra: Any) -> dict[str, Any]:
@@ -63,12 +75,7 @@ def row(first: Node, second: Node, split: int) -> dict[str, Any]:
 
 def layout() -> dict[str, Any]:
     panels = {
-        "Plot!depth": _plot("Depth [m] (down is deeper) with the learning region", [
-            ("/agent/SAMPLE.depth_m", "depth"),
-            (f"{BOUNDS_TOPIC}.target_m", "target"),
-            (f"{BOUNDS_TOPIC}.shallow_edge_m", "shallow edge"),
-            (f"{BOUNDS_TOPIC}.deep_edge_m", "deep edge"),
-        ]),
+        "Plot!depth": _depth_plot(),
         "Plot!velocity": _plot("Velocity [m/s] (observer estimate)", [("/agent/SAMPLE.velocity_mps", "velocity")]),
         "Plot!actuator": _plot("Actuator gear angle [deg]", [
             ("/agent/SAMPLE.actuator_deg", "angle"), ("/agent/SAMPLE.actuator_cmd_deg", "command")]),
@@ -117,12 +124,7 @@ def live_layout() -> dict[str, Any]:
     from protocol import Mode
 
     panels: dict[str, Any] = {
-        "Plot!depth": _plot("Depth [m] (down is deeper) with the learning region", [
-            ("/agent/SAMPLE.depth_m", "depth"),
-            (f"{BOUNDS_TOPIC}.target_m", "target"),
-            (f"{BOUNDS_TOPIC}.shallow_edge_m", "shallow edge"),
-            (f"{BOUNDS_TOPIC}.deep_edge_m", "deep edge"),
-        ]),
+        "Plot!depth": _depth_plot(),
         "Plot!battery": _plot("Battery [mV]", [("/agent/HEARTBEAT.battery_mv", "battery")]),
         "Indicator!mode": {"path": "/agent/HEARTBEAT.mode", "style": "background", "fallbackColor": "#333333",
                            "fallbackLabel": "no heartbeat yet",

@@ -336,6 +336,12 @@ def _view_in_foxglove(url: str, port: int, viewer: Viewer | None, rrd: Path | No
                 if live.address:
                     typer.echo(f"Rerun web viewer: {live.address}")
                 session.add_listener(live)
+            if session.link.url.startswith("hub://"):
+                from protocol import messages as m
+
+                # the run's episode table, last dumps and recent telemetry (run/history.py), kept for Foxglove's
+                # late clients as for the Rerun view: the learning curve and the heatmaps whole from the start
+                session.command(m.LogRequest(first_sample=0, end_sample=0xFFFFFFFF))
             hello = session.agent_hello
             typer.echo(f"serving {one_line(hello.name) if hello else 'the agent'} at {one_line(session.link.url)} "
                        f"to Foxglove on {fox.address}")

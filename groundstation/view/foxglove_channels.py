@@ -14,6 +14,7 @@ from groundstation.links.hub import MARKER_CONFIRMATION
 from groundstation.recording.recorder import body_json, dump_topic, event_topic, message_json, message_topic
 from groundstation.session.dumps import Dump, DumpAssembler
 from groundstation.session.events import LinkEvent, Received, Sent
+from groundstation.view.foxglove_history import Body, ChannelHistory, FoxgloveHistoryConfig
 from groundstation.view.foxglove_images import DumpImages
 from protocol import Message
 from protocol import messages as m
@@ -63,17 +64,24 @@ def _publishing(method: _Method) -> _Method:
 class FoxgloveChannels:
     """A session listener: each frame, command and event published on the channel the recording would write it to
     (`/agent/SAMPLE`, `/ground/CMD_PAUSE`, `/link`, `/event`, `/marker`, `/dump/VALUES`), and each completed value
-    or policy dump also drawn as an image. A channel is encoded only while a client subscribes to it. On `dive run`
-    it listens to the run's own session: the very frames, commands and events (alarms) the recorder writes."""
+    or policy dump also drawn as an image. A channel is encoded only while a client subscribes to it; what it would
+    have carried is kept (bounded: foxglove_history.py) and sent to each client that subscribes later, to it alone.
+    On `dive run` it listens to the run's own session: the very frames, commands and events (alarms) the recorder
+    writes."""
 
     def __init__(self, context: foxglove.Context,
                  on_parameter: Callable[[m.ParamValue], None] | None = None,
-                 on_failure: Callable[[str], None] | None = None) -> None:
+                 on_failure: Callable[[str], None] | None = None,
+                 history: FoxgloveHistoryConfig | None = None) -> None:
         self._context = context
         self._lock = threading.Lock()  # channels are made from the session's reader thread and from services
         self._channels: dict[str, foxglove.Channel] = {}
-        self._rx: dict[type[Message], foxglove.Channel] = {}
-        self._tx: dict[type[Message], foxglove.Channel] = {}
+        self._rx: dict[type[Message], tuple[foxglove.Channel, str]] = {}  # and its topic
+        self._tx: dict[type[Message], tuple[foxglove.Channel, str]] = {}
+        self.history = ChannelHistory(history)
+        # whom each topic is sent to: clients whose history is sent; held while sending, so none comes between
+        self._publish = threading.Lock()
+        self._ready: dict[str, set[int]] = {}
         self._dumps = DumpAssembler()
         self.images = DumpImages(context)
         self._on_parameter = on_parameter
@@ -103,11 +111,13 @@ class FoxgloveChannels:
             return  # from after the run's end: not in the decoded recording either (Session.request_backfill)
         msg = frame.message
         cls = msg.__class__
-        channel = self._rx.get(cls)
-        if channel is None:
-            channel = self._rx[cls] = self.channel(*message_topic("/agent", cls))
-        if channel.has_sinks():  # at --speed max thousands of SAMPLEs a second: encoded only for a subscriber
-            channel.log(message_json(msg, frame.seq, frame.flags, backfilled), log_time=host_ns)
+        found = self._rx.get(cls)
+        if found is None:
+            topic, schema_name, schema = message_topic("/agent", cls)
+            found = self._rx[cls] = (self.channel(topic, schema_name, schema), topic)
+        channel, topic = found
+        # at --speed max thousands of SAMPLEs a second: encoded only for a subscriber, now or later (history)
+        self._send(channel, topic, host_ns, functools.partial(message_json, msg, frame.seq, frame.flags, backfilled))
         if isinstance(msg, m.ParamValue):
             self._dumps.saw_parameter(msg.name, msg.value)
             self.images.saw_parameter(msg.name, msg.value)
@@ -119,20 +129,57 @@ class FoxgloveChannels:
                 self.publish_dump(dump, host_ns)
 
     def publish_dump(self, dump: Dump, host_ns: int) -> None:
-        self.channel(*dump_topic(dump.kind)).log(body_json(dump.as_dict()), log_time=host_ns)
+        topic, schema_name, schema = dump_topic(dump.kind)
+        body = body_json(dump.as_dict())
+        self._send(self.channel(topic, schema_name, schema), topic, host_ns, functools.partial(bytes, body))
         self.images.publish(dump, host_ns)
 
     @_publishing
     def on_sent(self, sent: Sent) -> None:
         cls = sent.message.__class__
-        channel = self._tx.get(cls)
-        if channel is None:
-            channel = self._tx[cls] = self.channel(*message_topic("/ground", cls))
-        if channel.has_sinks():
-            flags = cobs_decode(sent.wire[:-1])[1]  # as the recorder takes them: the frame's flags byte
-            channel.log(message_json(sent.message, sent.seq, flags, False), log_time=sent.host_time_ns)
+        found = self._tx.get(cls)
+        if found is None:
+            topic, schema_name, schema = message_topic("/ground", cls)
+            found = self._tx[cls] = (self.channel(topic, schema_name, schema), topic)
+        channel, topic = found
+        flags = cobs_decode(sent.wire[:-1])[1]  # as the recorder takes them: the frame's flags byte
+        self._send(channel, topic, sent.host_time_ns,
+                   functools.partial(message_json, sent.message, sent.seq, flags, False))
 
     @_publishing
     def on_event(self, event: LinkEvent) -> None:
         topic, schema_name, schema, body = event_topic(event)
-        self.channel(topic, schema_name, schema).log(body_json(body), log_time=event.host_time_ns)
+        self._send(self.channel(topic, schema_name, schema), topic, event.host_time_ns,
+                   functools.partial(bytes, body_json(body)))
+
+    def _send(self, channel: foxglove.Channel, topic: str, host_ns: int, body: Body) -> None:
+        """Kept for later subscribers, and sent to the clients whose replay is done (each to its own sink): never
+        broadcast, or a client that just subscribed would get live messages before, and again in, its history."""
+        with self._publish:
+            self.history.keep(topic, host_ns, body)
+            ready = self._ready.get(topic)
+            if ready:
+                data = body()
+                for sink_id in ready:
+                    channel.log(data, log_time=host_ns, sink_id=sink_id)
+
+    # ------------------------------------------------------------------ a client subscribed (FoxgloveLive's thread)
+    @_publishing
+    def subscribed(self, topic: str, sink_id: int) -> None:
+        """`topic`'s history to the one client whose sink is `sink_id` (the SDK's client id), then its live
+        messages: a client that connects late sees the learning curve, the heatmaps and the last minutes whole,
+        in order and once. Live messages wait while it is sent (a few ms; at most max_per_topic messages)."""
+        if self.images.replay(topic, sink_id):
+            return  # the images are broadcast: the newest one again, at worst twice, draws the same picture
+        channel = self._channels.get(topic)
+        if channel is None:
+            return
+        with self._publish:
+            for host_ns, body in self.history.replay(topic):
+                channel.log(body, log_time=host_ns, sink_id=sink_id)
+            self._ready.setdefault(topic, set()).add(sink_id)
+
+    def unsubscribed(self, topic: str, sink_id: int) -> None:
+        with self._publish:
+            self._ready.get(topic, set()).discard(sink_id)
+

@@ -32,6 +32,7 @@ class DumpImages:
         self._grid = dict(DEFAULT_GRID)  # the agent's values replace the defaults as its PARAM_VALUEs arrive
         self._untried: NDArray[np.bool_] | None = None  # from the latest POLICY dump: cells the agent never left
         self._values: Dump | None = None  # the latest VALUES dump, drawn again when its episode's POLICY comes
+        self._last: dict[str, tuple[RawImage, int]] = {}  # topic -> its newest image and time, for late subscribers
         self.published = 0
 
     def saw_parameter(self, name: str, value: float) -> None:
@@ -64,6 +65,18 @@ class DumpImages:
         pixels = scaled(cells)
         height, width = pixels.shape[:2]
         stamp = Timestamp(sec=host_ns // 1_000_000_000, nsec=host_ns % 1_000_000_000)
-        channel.log(RawImage(timestamp=stamp, frame_id=f"episode {episode}", width=width, height=height,
-                             encoding="rgb8", step=3 * width, data=pixels.tobytes()), log_time=host_ns)
+        image = RawImage(timestamp=stamp, frame_id=f"episode {episode}", width=width, height=height,
+                         encoding="rgb8", step=3 * width, data=pixels.tobytes())
+        self._last[channel.topic()] = (image, host_ns)
+        channel.log(image, log_time=host_ns)
         self.published += 1
+
+    def replay(self, topic: str, sink_id: int) -> bool:
+        """The newest image of `topic` to one client (foxglove_channels.replay); whether `topic` is an image's."""
+        channels = {VALUE_TOPIC: self._value, POLICY_TOPIC: self._policy}
+        if topic not in channels:
+            return False
+        last = self._last.get(topic)
+        if last is not None:
+            channels[topic].log(last[0], log_time=last[1], sink_id=sink_id)
+        return True

@@ -9,11 +9,12 @@ On `dive run` the channels are published from the run's own session (FoxgloveCha
 
 from __future__ import annotations
 
+import queue
 import threading
 from collections.abc import Callable
 
 import foxglove
-from foxglove.websocket import Capability, Client, ServerListener
+from foxglove.websocket import Capability, ChannelView, Client, ServerListener
 
 from groundstation.errors import GroundStationError
 from groundstation.links import make_link
@@ -22,6 +23,7 @@ from groundstation.session.events import SessionListener
 from groundstation.session.params import Parameter
 from groundstation.view.errors import ViewError
 from groundstation.view.foxglove_channels import FoxgloveChannels, MarkerWatch
+from groundstation.view.foxglove_history import CLIENT_BACKLOG
 from groundstation.view.foxglove_params import ParameterBridge, to_foxglove
 from groundstation.view.foxglove_services import Controls
 from groundstation.view.options import FOXGLOVE_DEFAULT_PORT
@@ -38,10 +40,20 @@ class FoxglovePortError(ViewError):
 
 
 class _Listener(ServerListener):
-    """The server's callbacks: parameters through the bridge; the rest are ServerListener's (which do nothing)."""
+    """The server's callbacks: history to a new subscriber, parameters through the bridge; the rest are
+    ServerListener's (which do nothing)."""
 
     def __init__(self, live: FoxgloveLive) -> None:
         self._live = live
+
+    def on_subscribe(self, client: Client, channel: ChannelView) -> None:
+        # the SDK gives each WebSocket client a sink of its own, whose id is the client's: the history to it alone,
+        # sent from a thread of ours, as this callback runs inside the server (which the session's thread may be
+        # waiting for while it advertises a new channel)
+        self._live.subscriptions.put((channel.topic, client.id, True))
+
+    def on_unsubscribe(self, client: Client, channel: ChannelView) -> None:
+        self._live.subscriptions.put((channel.topic, client.id, False))
 
     def on_get_parameters(self, client: Client, param_names: list[str],
                           request_id: str | None = None) -> list[foxglove.Parameter]:
@@ -65,15 +77,18 @@ class FoxgloveLive:
         self.markers = MarkerWatch()
         self.parameters = ParameterBridge(self.attached_session, self.warn)
         self.controls = Controls(self.attached_session, self.markers, self.warn)
+        # (topic, sink id, subscribed or not), in the order the server saw them; None: the end
+        self.subscriptions: queue.SimpleQueue[tuple[str, int, bool] | None] = queue.SimpleQueue()
         try:
             self.server = foxglove.start_server(
                 name=name, host=HOST, port=port, context=self.context, server_listener=_Listener(self),
                 capabilities=[Capability.Parameters, Capability.Services], supported_encodings=["json"],
-                services=self.controls.services())
+                services=self.controls.services(), message_backlog_size=CLIENT_BACKLOG)
         except RuntimeError as e:  # the SDK's FoxgloveError: "Failed to bind port: Address already in use ..."
             why = "is in use by another process" if "in use" in str(e) else f"cannot be served on ({e})"
             raise FoxglovePortError(f"port {port} {why}: choose another with --foxglove PORT") from None
         self.port = self.server.port
+        threading.Thread(target=self._subscriptions, name="dive-foxglove-subscriptions", daemon=True).start()
         self._closed = threading.Event()
         self._say: Callable[[str], None] | None = None
 
@@ -126,6 +141,14 @@ class FoxgloveLive:
         if not self._closed.is_set():
             self.server.publish_status(line, foxglove.StatusLevel.Warning, _STATUS_ID)
 
+    def _subscriptions(self) -> None:
+        while (change := self.subscriptions.get()) is not None:
+            topic, sink_id, subscribed = change
+            if subscribed:
+                self.channels.subscribed(topic, sink_id)
+            else:
+                self.channels.unsubscribed(topic, sink_id)
+
     def _parameter_changed(self, value: m.ParamValue) -> None:
         """Any PARAM_VALUE (this server's set, another tool's, the run's) updates the panels that show it."""
         if self._attached.is_set():  # attach() publishes the whole table once
@@ -138,6 +161,7 @@ class FoxgloveLive:
 
     def close(self) -> None:
         self._closed.set()
+        self.subscriptions.put(None)
         session, self.session = self.session, None
         if session is not None:
             session.close()

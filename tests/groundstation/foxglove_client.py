@@ -25,6 +25,7 @@ class FoxgloveClient:
     channels: dict[str, dict[str, Any]] = field(default_factory=dict)  # topic -> advertised channel
     services: dict[str, dict[str, Any]] = field(default_factory=dict)  # name -> advertised service
     messages: dict[int, list[bytes]] = field(default_factory=dict)  # subscription id -> payloads
+    log_times: dict[int, list[int]] = field(default_factory=dict)  # subscription id -> their log times (ns)
     responses: dict[int, bytes] = field(default_factory=dict)  # call id -> response payload
     failures: dict[int, str] = field(default_factory=dict)  # call id -> serviceCallFailure message
     parameter_replies: dict[str, list[dict[str, Any]]] = field(default_factory=dict)  # request id -> parameters
@@ -61,8 +62,9 @@ class FoxgloveClient:
     def _take(self, frame: str | bytes) -> None:
         if isinstance(frame, bytes):
             if frame[0] == MESSAGE_DATA:
-                subscription, _ = struct.unpack_from("<IQ", frame, 1)
+                subscription, log_time = struct.unpack_from("<IQ", frame, 1)
                 self.messages.setdefault(subscription, []).append(frame[13:])
+                self.log_times.setdefault(subscription, []).append(log_time)
             elif frame[0] == SERVICE_CALL_RESPONSE:
                 _, call, length = struct.unpack_from("<III", frame, 1)
                 self.responses[call] = frame[13 + length:]

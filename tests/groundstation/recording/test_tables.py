@@ -109,7 +109,7 @@ def _layout_references(layout: dict) -> set[tuple[str, str]]:
         for value in [p["value"] for p in config.get("paths", [])] + [config.get("topicPath", "")]:
             if not value:
                 continue
-            topic, _, field = value.partition(".")
+            topic, _, field = re.sub(r"\.@\w+$", "", value).partition(".")  # a math modifier (.@negative) off
             if topic not in outputs:
                 wanted.add((topic, field))
     return wanted

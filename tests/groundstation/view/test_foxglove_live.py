@@ -4,6 +4,7 @@ speaking Foxglove's WebSocket protocol as the Foxglove app does: channels, param
 from __future__ import annotations
 
 import json
+import os
 import re
 import socket
 import struct
@@ -20,6 +21,7 @@ from groundstation.recording.recorder import message_schema
 from groundstation.view.foxglove_images import POLICY_TOPIC, VALUE_TOPIC
 from groundstation.view.foxglove_services import REQUESTS
 from groundstation.view.options import with_flag_value
+from protocol import FrameFlag
 from protocol import messages as m
 from protocol.parameters import PARAM_COUNT
 from protocol.registry import message_classes
@@ -49,9 +51,20 @@ def foxglove_client(proc: subprocess.Popen[str]) -> Iterator[FoxgloveClient]:
         interrupt(proc)
 
 
+def write_key(path: Path) -> Path:
+    path.write_text(os.urandom(32).hex() + "\n")
+    path.chmod(0o600)
+    return path
+
+
 @pytest.mark.slow
-def test_foxglove_watches_sets_and_commands_a_running_run(tmp_path: Path) -> None:
-    proc = start_dive(tmp_path, "run", FAST_SIM, "--out", str(tmp_path / "rec"))
+def test_foxglove_watches_sets_and_commands_a_running_keyed_run(tmp_path: Path) -> None:
+    """A keyed run (the agent refuses unsigned commands): Foxglove's parameters and services reach it signed with
+    the run's key, and `dive view --foxglove --key-file` beside it signs its own (the agent refuses even a
+    PARAM_LIST unsigned, so its Parameters panel filled is the proof)."""
+    key = write_key(tmp_path / "agent.key")
+    proc = start_dive(tmp_path, "run", f"{FAST_SIM}&key_file={key}", "--key-file", str(key),
+                      "--out", str(tmp_path / "rec"))
     with foxglove_client(proc) as fox:
         assert fox.ws.subprotocol == SUBPROTOCOL
         # the server advertises its channels once the run's agent is up (a first start compiles the simulator)
@@ -67,7 +80,6 @@ def test_foxglove_watches_sets_and_commands_a_running_run(tmp_path: Path) -> Non
         assert fox.pump(lambda: len(fox.messages.get(samples, [])) >= 5, 10)
         assert {"depth_m", "mode", "_seq"} <= set(json.loads(fox.messages[samples][0]))
         assert set(fox.services) == {"surface", "hover", "start", "stop", "pause", "resume", "target", "mark", "dump"}
-        view = start_dive(tmp_path, "view")  # attaches to the run's hub: started now, looked at below
 
         # the Parameters panel: the agent's table; the value it already has changes nothing
         table = {p["name"]: p["value"] for p in fox.get_parameters([])}
@@ -100,6 +112,7 @@ def test_foxglove_watches_sets_and_commands_a_running_run(tmp_path: Path) -> Non
         assert "exceeds" in fox.call("mark", {"text": "x" * 100_000})["failure"]  # longer than a frame holds
         surfaced = fox.call("surface")
         assert surfaced["accepted"] and surfaced["mode"] in ("SURFACING", "IDLE"), surfaced
+        view = start_dive(tmp_path, "view", "--key-file", str(key))  # after an episode ended: looked at below
 
         # at the surface a learner restart is allowed, once confirmed by setting the same value again
         assert fox.pump(lambda: bool(fox.messages.get(beats)) and json.loads(fox.messages[beats][-1])["mode"] == 0,
@@ -110,10 +123,28 @@ def test_foxglove_watches_sets_and_commands_a_running_run(tmp_path: Path) -> Non
         started = fox.call("start")  # handed back to the run, which learns on
         assert started["accepted"] and started["mode"] in ("LEARNING", "RECOVERING"), started
 
-        # the view's own server, on the run's hub: the same channels and the agent's parameters
+        # a client that connects late is sent, on each channel it subscribes to and to it alone, what it missed:
+        # the episodes from the first, the last minutes of samples
+        seen = len(fox.messages[samples])
+        seen_sample = json.loads(fox.messages[samples][-1])["sample"]
+        with FoxgloveClient.connected(fox.ws.remote_address[1]) as late:
+            assert late.pump(lambda: {"/agent/EPISODE_END", "/agent/SAMPLE"} <= set(late.channels), 5)
+            ends, late_samples = late.subscribe("/agent/EPISODE_END"), late.subscribe("/agent/SAMPLE")
+            assert late.pump(lambda: bool(late.messages.get(ends)) and any(
+                json.loads(body)["sample"] < seen_sample for body in late.messages.get(late_samples, [])), 5)
+            late_episodes = [json.loads(body)["episode"] for body in late.messages[ends]]
+        fox.pump(lambda: False, 0.3)  # what reached the first client meanwhile: live samples only, none replayed
+        assert all(json.loads(body)["sample"] > seen_sample for body in fox.messages[samples][seen:])
+
+        # the view's own server, attached to the run's hub after its first episode: the same channels, the agent's
+        # parameters, and the run's history, which the view asks the hub for and keeps for its Foxglove clients
         with foxglove_client(view) as beside:
-            assert beside.pump(lambda: "/agent/SAMPLE" in beside.channels and "pause" in beside.services, 20)
+            assert beside.pump(lambda: {"/agent/SAMPLE", "/agent/EPISODE_END"} <= set(beside.channels) and
+                               "pause" in beside.services, 20)
             assert {p["name"]: p["value"] for p in beside.get_parameters(["gamma"])} == {"gamma": pytest.approx(0.9)}
+            view_ends = beside.subscribe("/agent/EPISODE_END")
+            assert beside.pump(lambda: any(json.loads(body)["episode"] == late_episodes[0]  # the run's first
+                                           for body in beside.messages.get(view_ends, [])), 5)
         assert view.wait(10) == 130
     _, err = proc.communicate()
     assert proc.returncode == 130, err
@@ -124,9 +155,13 @@ def test_foxglove_watches_sets_and_commands_a_running_run(tmp_path: Path) -> Non
                                       "/marker"}).messages
     gamma_sets = [msg.json()["value"] for msg in sent
                   if msg.topic == "/ground/PARAM_SET" and msg.json()["name"] == "gamma"]
+    first_episodes = [msg.json()["episode"] for msg in read_recording(recording, {"/agent/EPISODE_END"}).messages]
+    assert late_episodes[:len(first_episodes)] == first_episodes[:len(late_episodes)]  # from the run's first on
     assert gamma_sets == [pytest.approx(0.9)]  # the equal value, the refused and the unconfirmed sets: never sent
     assert [msg.json()["text"] for msg in sent if msg.topic == "/marker"] == ["from foxglove"]
-    assert sum(msg.topic == "/ground/CMD_PAUSE" for msg in sent) == 1
+    assert [bool(msg.json()["_flags"] & FrameFlag.SIGNED) for msg in sent if msg.topic == "/ground/CMD_PAUSE"] == \
+        [True]  # Foxglove's pause, signed
+    assert all(msg.json()["_flags"] & FrameFlag.SIGNED for msg in sent if msg.topic != "/marker")
     assert [msg.json()["target_depth_m"] for msg in sent if msg.topic == "/ground/CMD_SET_TARGET"] == \
         [pytest.approx(0.5)]
 
@@ -151,7 +186,7 @@ def test_foxglove_without_a_port_takes_the_default() -> None:
 
 
 def test_the_live_layout_is_current_and_shows_what_the_server_offers() -> None:
-    from scripts.foxglove_layout import BOUNDS_TOPIC, LIVE_OUT, live_layout
+    from scripts.foxglove_layout import BOUNDS_SCRIPT, BOUNDS_TOPIC, LIVE_OUT, live_layout
 
     shipped = json.loads(LIVE_OUT.read_text())
     assert shipped == live_layout(), "docs/foxglove/live-layout.json is stale: run python scripts/foxglove_layout.py"
@@ -164,8 +199,11 @@ def test_the_live_layout_is_current_and_shows_what_the_server_offers() -> None:
     messages = {cls.DEFINITION.name: cls for cls in message_classes().values()}
     paths = [path["value"] for config in panels.values() for path in config.get("paths", [])]
     paths.append(panels["Indicator!mode"]["path"])
+    # depth drawn downward, as the Rerun view draws it: Foxglove's Plot cannot flip an axis, so z up = -depth
+    assert [p["value"] for p in panels["Plot!depth"]["paths"]][0] == "/agent/SAMPLE.depth_m.@negative"
+    assert "z up = -depth" in panels["Plot!depth"]["title"] and "-start.target_depth_m" in BOUNDS_SCRIPT
     for path in paths:  # every field plotted is in the schema of the channel the server publishes
-        topic, field = path.rsplit(".", 1)
+        topic, field = re.sub(r"\.@\w+$", "", path).rsplit(".", 1)  # a math modifier (.@negative) off
         if topic == BOUNDS_TOPIC:
             continue  # the layout's own user script
         name = topic.removeprefix("/agent/")
@@ -237,3 +275,54 @@ def test_publishing_that_fails_stops_publishing_not_the_run() -> None:
     for _ in range(3):
         channels.on_event(LinkEvent(EventKind.MARKER, time.time_ns(), "x", {"text": "x"}))  # raises nothing
     assert said == ["Foxglove stopped publishing: RuntimeError: the SDK gave up"]
+
+
+def test_a_late_subscriber_gets_its_channels_history_alone_and_bounded() -> None:
+    """The run's server as `dive run` has it (no agent needed: frames fed as its session would): a client that
+    subscribes late is sent what it missed, in order and to it alone; the client subscribed before gets nothing
+    twice. Larger than the SDK's default per-client queue (1024), which would drop the oldest."""
+    from groundstation.session.dumps import Dump
+    from groundstation.view.foxglove_live import FoxgloveLive
+    from protocol import DumpKind
+    from tests.groundstation.recording_fixtures import received, sample
+
+    live = FoxgloveLive(0)
+    try:
+        with FoxgloveClient.connected(live.port) as early:
+            live.channels.on_received(received(sample(0), 1))
+            assert early.pump(lambda: "/agent/SAMPLE" in early.channels, 5)
+            first = early.subscribe("/agent/SAMPLE")
+            assert early.pump(lambda: len(early.messages.get(first, [])) == 1, 5)  # its own history: sample 0
+            for i in range(1, 3000):
+                live.channels.on_received(received(sample(i), i + 1))
+            with FoxgloveClient.connected(live.port) as late:
+                assert late.pump(lambda: "/agent/SAMPLE" in late.channels, 5)
+                subscription = late.subscribe("/agent/SAMPLE")
+                assert late.pump(lambda: len(late.messages.get(subscription, [])) >= 3000, 10)
+                assert [json.loads(body)["sample"] for body in late.messages[subscription]] == list(range(3000))
+            early.pump(lambda: False, 0.3)
+            assert [json.loads(body)["sample"] for body in early.messages[first]] == list(range(3000))
+        # the newest value and policy images, drawn before the client came
+        live.channels.publish_dump(Dump(2, DumpKind.POLICY, 7, bytes([0, 1, 255] * 33 + [0, 0])), 123_456_789)
+        with FoxgloveClient.connected(live.port) as viewer:
+            assert viewer.pump(lambda: {POLICY_TOPIC, "/dump/POLICY"} <= set(viewer.channels), 5)
+            images, dumps = viewer.subscribe(POLICY_TOPIC), viewer.subscribe("/dump/POLICY")
+            assert viewer.pump(lambda: bool(viewer.messages.get(images)) and bool(viewer.messages.get(dumps)), 5)
+            assert viewer.log_times[images] == viewer.log_times[dumps] == [123_456_789]
+    finally:
+        live.close()
+
+
+def test_the_history_keeps_the_last_minutes_every_episode_and_the_newest_dump() -> None:
+    from groundstation.view.foxglove_history import ChannelHistory, FoxgloveHistoryConfig
+
+    history = ChannelHistory(FoxgloveHistoryConfig(window_s=60.0, max_per_topic=100, max_whole=1000))
+    for second in range(200):  # one message a second of each
+        for topic in ("/agent/SAMPLE", "/agent/EPISODE_END", "/dump/POLICY"):
+            history.keep_bytes(topic, second * 1_000_000_000, b"%d" % second)
+    assert [int(body) for _, body in history.replay("/agent/SAMPLE")] == list(range(139, 200))  # last minute
+    assert len(history.replay("/agent/EPISODE_END")) == 200  # the learning curve whole
+    assert history.replay("/dump/POLICY") == [(199_000_000_000, b"199")]
+    for i in range(300):  # at --speed max a minute holds more than max_per_topic: the newest are kept
+        history.keep_bytes("/agent/HEARTBEAT", 300_000_000_000 + i, b"x")
+    assert len(history.replay("/agent/HEARTBEAT")) == 100 and history.replay("/nothing") == []
