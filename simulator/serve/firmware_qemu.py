@@ -2,7 +2,7 @@
 
 The whole agent runs inside QEMU: the core, the learner, and the C port of the plant and sensor that
 stand in for the water (firmware/boards/qemu). Its link is the board's UART0, which QEMU serves on a
-loopback port; the relay (qemu_relay.py) puts it on the address a ground station connects to and tells
+Unix socket; the relay (qemu_relay.py) puts it on the address a ground station connects to and tells
 the board about each new client on UART2. With --pty, QEMU's own pseudo-terminal is the link.
 Agent time is the emulated plant's time: at speed "max" the agent runs as fast as the emulated CPU
 goes; a speed factor paces it against QEMU's real clock.
@@ -21,6 +21,7 @@ import signal
 import socket
 import struct
 import subprocess
+import tempfile
 import threading
 import time
 from dataclasses import dataclass
@@ -48,7 +49,6 @@ PLANT_FIELDS = (
     "pressure_bias_pa", "pressure_drift_pa_per_s", "pressure_lag_s", "pressure_noise_corr_s",
     "depth_scale_error",
 )
-LOOPBACK = "127.0.0.1"  # QEMU's own UART sockets, behind the relay
 START_TIMEOUT_S = 20.0  # QEMU up and its port listening
 _PTY_LINE = re.compile(r"char device redirected to (\S+) \(label serial0\)")
 
@@ -109,13 +109,6 @@ def build_elf(build_dir: Path | None = None, arenas: str = "") -> Path:
     return out / "agent.elf"
 
 
-def free_port(host: str) -> int:
-    """A port the OS calls free now (QEMU binds it a moment later)."""
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
-        s.bind((host, 0))
-        return int(s.getsockname()[1])
-
-
 def _bootargs(config: QemuConfig) -> list[str]:
     seed = config.seed if config.seed is not None else int.from_bytes(os.urandom(8), "little")
     speed_milli = 0 if config.speed is None else max(1, round(config.speed * 1000))
@@ -146,7 +139,13 @@ class QemuAgent:
         self.address = ""
         self._process: subprocess.Popen[bytes] | None = None
         self._stderr_lines: list[str] = []
-        self._qemu_ports: tuple[int, int] = (0, 0)  # UART0 (link) and UART2 (link events) on loopback
+        # QEMU serves UART0 (the link) and UART2 (link events) on Unix sockets in a folder of ours (mode 0700), not
+        # on loopback TCP: no other user of the machine reaches the board, and the kernel cannot grow the buffer
+        # between QEMU and the relay to megabytes as it does a TCP socket's (QEMU's own, which we cannot size).
+        # A Unix socket's is wmem_default of skb memory, and QEMU writes the UART's bytes one by one: a few hundred
+        # bytes wait there at most, so at speed max the firmware runs only as fast as the ground reads (qemu_relay.py).
+        self._uart_dir: tempfile.TemporaryDirectory[str] | None = None
+        self._uart_paths: tuple[Path, ...] = ()
         self._sockets: list[socket.socket] = []
         self._relay: LinkRelay | None = None
 
@@ -159,8 +158,9 @@ class QemuAgent:
         if c.pty:
             serials = ["pty", diag, "null"]
         else:
-            self._qemu_ports = (free_port(LOOPBACK), free_port(LOOPBACK))
-            serials = [f"tcp:{LOOPBACK}:{p},server=on,wait=off" for p in self._qemu_ports]
+            self._uart_dir = tempfile.TemporaryDirectory(prefix="dive-qemu-")
+            self._uart_paths = tuple(Path(self._uart_dir.name) / name for name in ("link", "events"))
+            serials = [f"unix:{path},server=on,wait=off" for path in self._uart_paths]
             serials.insert(1, diag)
         cmd = [binary, "-M", MACHINE, "-nographic", "-monitor", "none", "-kernel", str(elf), *_bootargs(c)]
         for serial in serials:
@@ -211,13 +211,15 @@ class QemuAgent:
 
     def _connect_uarts(self) -> bool:
         """Connect to QEMU's UART0 and UART2 sockets (kept for the whole run); False while not listening."""
-        while len(self._sockets) < len(self._qemu_ports):
+        while len(self._sockets) < len(self._uart_paths):
+            s = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+            s.settimeout(0.5)
             try:
-                s = socket.create_connection((LOOPBACK, self._qemu_ports[len(self._sockets)]), timeout=0.5)
+                s.connect(str(self._uart_paths[len(self._sockets)]))
             except OSError:
+                s.close()
                 return False
             s.settimeout(None)
-            s.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
             self._sockets.append(s)
         return True
 
@@ -241,6 +243,9 @@ class QemuAgent:
         for s in self._sockets:
             s.close()
         self._sockets = []
+        if self._uart_dir is not None:
+            self._uart_dir.cleanup()
+            self._uart_dir = None
         process, self._process = self._process, None
         if process is None:
             return
