@@ -1,6 +1,6 @@
 """The TCP front of the emulated agent: clients connect here, bytes pass unchanged to QEMU's UART0.
 
-QEMU serves the board's UART on a Unix socket of its own, but a UART has no carrier line: the firmware
+QEMU has the board's UART on a socket we hand it (firmware_qemu.uart_pair), but a UART has no carrier line: the firmware
 cannot see a TCP client come or go, and SPEC.md 1.1 wants a HELLO on every new TCP connection. The relay
 keeps one connection to QEMU's UART0 for the whole run and, for every new client, writes one byte to the
 board's UART2 (its link-event line), on which the firmware calls agent_link_up(). As the virtual agent's
@@ -25,8 +25,8 @@ BURST_MAX_BYTES = 4096
 # while its socket refuses bytes), so every buffer between it and the ground is agent time it may run ahead of the
 # ground, at ~1 kB per agent second. Left to the kernel, the TCP buffers on loopback grew to a megabyte and more
 # (ten minutes of agent time) that a slow ground (a loaded machine) then saw late and commanded late (issue 30:
-# `dive fit --excite` overran the agent's max_dive_s). So QEMU's side is a Unix socket (firmware_qemu.py), this
-# relay holds one burst, and the client's socket few unsent bytes (limit_unsent): the backlog stays in the
+# `dive fit --excite` overran the agent's max_dive_s). So QEMU's socket is one we size (firmware_qemu.uart_pair),
+# this relay holds one burst, and the client's socket few unsent bytes (limit_unsent): the backlog stays in the
 # firmware, which waits, and speed max is bounded by the ground's reading.
 LINK_UP = b"\x01"
 

@@ -16,15 +16,15 @@ import pytest
 
 from groundstation.links.tcp import RECEIVE_BUFFER_BYTES
 from protocol import FrameEncoder, FrameFlag, StreamDecoder, messages
-from simulator.serve.firmware_qemu import QemuAgent, QemuConfig, build_elf
+from simulator.serve.firmware_qemu import UART_BUFFER_BYTES, QemuAgent, QemuConfig, build_elf
 from simulator.serve.qemu_relay import BURST_MAX_BYTES
 from simulator.serve.transport import UNSENT_BYTES
 
 PAUSE_S = 1.5
-# What may wait between the firmware and a ground that stopped reading: the ground's receive buffer (Linux doubles
-# it), the relay's unsent bytes and one burst in its hands, a few hundred bytes in QEMU's Unix socket; with room
-# for what arrives while the test drains. Before the fix, over a megabyte (~1 kB is one agent second hovering).
-MAY_WAIT_BYTES = 2 * RECEIVE_BUFFER_BYTES + 4 * UNSENT_BYTES + BURST_MAX_BYTES
+# What may wait between the firmware and a ground that stopped reading (Linux doubles each buffer): QEMU's UART
+# socket and ours, the relay's unsent bytes and one burst in its hands, the ground's receive buffer. Before the fix,
+# a 1.5 s pause piled up 180 kB, and over a megabyte given longer (~1 kB is one agent second hovering).
+MAY_WAIT_BYTES = 2 * (2 * UART_BUFFER_BYTES + UNSENT_BYTES + RECEIVE_BUFFER_BYTES) + BURST_MAX_BYTES
 
 
 def _read(sock: socket.socket, decoder: StreamDecoder, seconds: float, latest: int) -> tuple[int, int]:
