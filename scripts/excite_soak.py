@@ -30,19 +30,22 @@ from protocol import Mode
 
 def dive_agent_s(paths: list[Path]) -> float:
     """Agent seconds from the first HOVER sample to the first SURFACING one (live samples, every part)."""
-    first_hover = first_surfacing = None
+    first_hover = first_surfacing = last_hover = None
     for path in paths:
         for _, _, data in iter_topic_data(path, {SAMPLE_TOPIC}):
             body = json.loads(data)
             if body.get("_backfilled"):
                 continue
-            if body["mode"] == Mode.HOVER and first_hover is None:
-                first_hover = body["t_us"]
+            if body["mode"] == Mode.HOVER:
+                first_hover = body["t_us"] if first_hover is None else first_hover
+                last_hover = body["t_us"]
             elif body["mode"] == Mode.SURFACING and first_hover is not None and first_surfacing is None:
                 first_surfacing = body["t_us"]
-    if first_hover is None or first_surfacing is None:
+    if first_hover is None:
         return float("nan")
-    return (first_surfacing - first_hover) / 1e6
+    # No SURFACING sample arrived before the link closed (the agent that far ahead): at least the last HOVER one.
+    end = first_surfacing if first_surfacing is not None else (last_hover or first_hover)
+    return (end - first_hover) / 1e6
 
 
 def main() -> None:
