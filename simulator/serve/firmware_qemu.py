@@ -165,7 +165,7 @@ class QemuAgent:
         self.elf = elf
         self.address = ""
         self._process: subprocess.Popen[bytes] | None = None
-        self._stderr_lines: list[str] = []
+        self._output_lines: list[str] = []
         # UART0 (the link) and UART2 (link events) reach QEMU as sockets we made and hand it (see uart_pair).
         self._sockets: list[socket.socket] = []
         self._relay: LinkRelay | None = None
@@ -193,15 +193,17 @@ class QemuAgent:
         if c.icount:
             cmd += ["-icount", "shift=0"]
         try:
-            self._process = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
-                                             stderr=subprocess.PIPE, pass_fds=[x.fileno() for x in theirs])
+            # One pipe for both: QEMU 7 says where the pty is on stdout ("char device redirected to ..."), its
+            # errors on stderr; no UART goes to stdio here.
+            self._process = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                                             stderr=subprocess.STDOUT, pass_fds=[x.fileno() for x in theirs])
         except OSError as e:
             self.stop()
             raise QemuError(f"cannot start {binary}: {e}") from e
         finally:
             for qemu_end in theirs:
                 qemu_end.close()  # QEMU has its copy
-        threading.Thread(target=self._read_stderr, daemon=True).start()
+        threading.Thread(target=self._read_output, daemon=True).start()
         self._wait_ready()
         if not c.pty:
             link, events = self._sockets
@@ -213,12 +215,12 @@ class QemuAgent:
             self.address = self._relay.address
         return self.address
 
-    def _read_stderr(self) -> None:
+    def _read_output(self) -> None:
         process = self._process
-        assert process is not None and process.stderr is not None
-        for raw in process.stderr:
+        assert process is not None and process.stdout is not None
+        for raw in process.stdout:
             line = raw.decode(errors="replace").strip()
-            self._stderr_lines.append(line)
+            self._output_lines.append(line)
             found = _PTY_LINE.search(line)
             if found:
                 self.address = found.group(1)
@@ -227,7 +229,7 @@ class QemuAgent:
         deadline = time.monotonic() + START_TIMEOUT_S
         while time.monotonic() < deadline:
             if self._process is not None and self._process.poll() is not None:
-                why = self._stderr_lines[-1] if self._stderr_lines else f"exit code {self._process.returncode}"
+                why = self._output_lines[-1] if self._output_lines else f"exit code {self._process.returncode}"
                 raise QemuError(f"QEMU stopped at start: {why}")
             if self.config.pty:
                 if self.address:

@@ -1,4 +1,4 @@
-"""At speed max the emulated agent runs only as fast as its ground reads: nothing buffers minutes of agent time.
+"""The emulated agent's link: at speed max the board runs only as fast as its ground reads; --pty serves it too.
 
 Issue 30's bug: the kernel's TCP buffers between QEMU, the relay and the ground grew to over a megabyte on
 loopback (ten minutes of agent time), so a ground slowed by a loaded machine saw the agent late and commanded it
@@ -7,10 +7,12 @@ late, and `dive fit --excite` overran the agent's max_dive_s.
 
 from __future__ import annotations
 
+import os
 import select
 import shutil
 import socket
 import time
+import tty
 
 import pytest
 
@@ -65,3 +67,24 @@ def test_agent_waits_for_a_ground_that_stops_reading() -> None:
     assert t1 > t0 >= 0 and read > 0, "no SAMPLE while hovering"
     assert piled <= MAY_WAIT_BYTES, f"{piled} bytes ({(t2 - t1) / 1e6:.1f} agent s) piled up in a {PAUSE_S:g} s " \
                                     f"pause ({read} bytes, {(t1 - t0) / 1e6:.1f} agent s while reading)"
+
+
+def test_pty_link_serves_the_board() -> None:
+    """--pty: QEMU's own pseudo-terminal is the link (QEMU 7 names it on stdout, which was not read)."""
+    for tool in ("arm-none-eabi-gcc", "qemu-system-arm"):
+        if shutil.which(tool) is None:
+            pytest.skip(f"{tool} not found: the QEMU tests need it")
+    with QemuAgent(QemuConfig(seed=5, pty=True), build_elf()) as agent:
+        assert agent.address.startswith("/dev/")
+        fd = os.open(agent.address, os.O_RDWR | os.O_NOCTTY)
+        try:
+            tty.setraw(fd)
+            decoder = StreamDecoder()
+            found: list[object] = []
+            deadline = time.monotonic() + 10.0
+            while not any(isinstance(x, messages.Hello) for x in found) and time.monotonic() < deadline:
+                if select.select([fd], [], [], 0.2)[0]:
+                    found += [frame.message for frame in decoder.feed(os.read(fd, 4096))]
+        finally:
+            os.close(fd)
+    assert any(isinstance(x, messages.Hello) for x in found), f"no HELLO in {len(found)} frames"
