@@ -42,8 +42,9 @@ class ExciteConfig:
         """The agent's own dive limit: the manoeuvre's agent time thrice, and a minute.
 
         A hold ends when the ground station has seen hold_s of agent time, but an agent faster than real time
-        (a simulator at --speed max) runs ahead by what the link buffers, tens of seconds on a busy machine:
-        each hold is then that much longer in agent time.
+        (a simulator at --speed max) runs ahead by what the link buffers and what it flies while the command is on
+        its way: each hold is that much longer in agent time. Our agents wait for a ground that reads slowly
+        (flow control), so that is a few kB, seconds of agent time, whatever the machine's load.
         """
         return 3.0 * len(self.depths_m) * self.hold_s + 60.0
 

@@ -1,8 +1,8 @@
 """The C firmware on an emulated Cortex-M4 (QEMU mps2-an386): `dive sim --firmware qemu`.
 
 The whole agent runs inside QEMU: the core, the learner, and the C port of the plant and sensor that
-stand in for the water (firmware/boards/qemu). Its link is the board's UART0, which QEMU serves on a
-loopback port; the relay (qemu_relay.py) puts it on the address a ground station connects to and tells
+stand in for the water (firmware/boards/qemu). Its link is the board's UART0, a loopback TCP socket we
+hand QEMU; the relay (qemu_relay.py) puts it on the address a ground station connects to and tells
 the board about each new client on UART2. With --pty, QEMU's own pseudo-terminal is the link.
 Agent time is the emulated plant's time: at speed "max" the agent runs as fast as the emulated CPU
 goes; a speed factor paces it against QEMU's real clock.
@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import os
 import re
+import select
 import shutil
 import signal
 import socket
@@ -48,7 +49,7 @@ PLANT_FIELDS = (
     "pressure_bias_pa", "pressure_drift_pa_per_s", "pressure_lag_s", "pressure_noise_corr_s",
     "depth_scale_error",
 )
-LOOPBACK = "127.0.0.1"  # QEMU's own UART sockets, behind the relay
+UART_BUFFER_BYTES = 16 * 1024  # QEMU's UART sockets' send buffer, ours to receive (Linux doubles both; see uart_pair)
 START_TIMEOUT_S = 20.0  # QEMU up and its port listening
 _PTY_LINE = re.compile(r"char device redirected to (\S+) \(label serial0\)")
 
@@ -109,11 +110,30 @@ def build_elf(build_dir: Path | None = None, arenas: str = "") -> Path:
     return out / "agent.elf"
 
 
-def free_port(host: str) -> int:
-    """A port the OS calls free now (QEMU binds it a moment later)."""
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
-        s.bind((host, 0))
-        return int(s.getsockname()[1])
+def uart_pair() -> tuple[socket.socket, socket.socket]:
+    """A connected loopback TCP pair: (ours, QEMU's end to hand it by fd), both with small fixed buffers.
+
+    Flow control at speed max (qemu_relay.py): QEMU's end holds at most UART_BUFFER_BYTES unsent, so the firmware
+    waits once we stop reading. Served by QEMU itself (-serial tcp:...,server=on) the socket was QEMU's to size,
+    and Linux autotuned its send buffer to a megabyte and more on loopback: ten minutes of agent time. 16 KiB:
+    4 KiB (each of QEMU's one-byte writes is a segment of its own until the queue backs up) ran the firmware at a
+    tenth of its speed, a Unix socket (a few hundred bytes of one-byte writes) at about two thirds. The listener
+    lives a moment on loopback only, and a connection from anyone but us is refused.
+    """
+    with socket.create_server(("127.0.0.1", 0)) as listener:
+        listener.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, UART_BUFFER_BYTES)
+        ours = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+        ours.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, UART_BUFFER_BYTES)  # before the handshake (window)
+        ours.connect(listener.getsockname())
+        while True:
+            qemu_end, peer = listener.accept()
+            if peer == ours.getsockname():
+                break
+            qemu_end.close()
+    for s in (ours, qemu_end):
+        s.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+    qemu_end.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, UART_BUFFER_BYTES)  # and no autotuning
+    return ours, qemu_end
 
 
 def _bootargs(config: QemuConfig) -> list[str]:
@@ -145,8 +165,8 @@ class QemuAgent:
         self.elf = elf
         self.address = ""
         self._process: subprocess.Popen[bytes] | None = None
-        self._stderr_lines: list[str] = []
-        self._qemu_ports: tuple[int, int] = (0, 0)  # UART0 (link) and UART2 (link events) on loopback
+        self._output_lines: list[str] = []
+        # UART0 (the link) and UART2 (link events) reach QEMU as sockets we made and hand it (see uart_pair).
         self._sockets: list[socket.socket] = []
         self._relay: LinkRelay | None = None
 
@@ -156,23 +176,34 @@ class QemuAgent:
         elf = self.elf if self.elf is not None else build_elf()
         c = self.config
         diag = f"file:{c.diag_path}" if c.diag_path is not None else "null"
+        theirs: list[socket.socket] = []
         if c.pty:
             serials = ["pty", diag, "null"]
         else:
-            self._qemu_ports = (free_port(LOOPBACK), free_port(LOOPBACK))
-            serials = [f"tcp:{LOOPBACK}:{p},server=on,wait=off" for p in self._qemu_ports]
+            pairs = [uart_pair(), uart_pair()]
+            self._sockets = [ours for ours, _ in pairs]
+            theirs = [qemu_end for _, qemu_end in pairs]
+            serials = [f"chardev:uart{i}" for i in range(len(theirs))]
             serials.insert(1, diag)
         cmd = [binary, "-M", MACHINE, "-nographic", "-monitor", "none", "-kernel", str(elf), *_bootargs(c)]
+        for i, qemu_end in enumerate(theirs):
+            cmd += ["-chardev", f"socket,id=uart{i},fd={qemu_end.fileno()},server=off"]
         for serial in serials:
             cmd += ["-serial", serial]
         if c.icount:
             cmd += ["-icount", "shift=0"]
         try:
-            self._process = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
-                                             stderr=subprocess.PIPE)
+            # One pipe for both: QEMU 7 says where the pty is on stdout ("char device redirected to ..."), its
+            # errors on stderr; no UART goes to stdio here.
+            self._process = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                                             stderr=subprocess.STDOUT, pass_fds=[x.fileno() for x in theirs])
         except OSError as e:
+            self.stop()
             raise QemuError(f"cannot start {binary}: {e}") from e
-        threading.Thread(target=self._read_stderr, daemon=True).start()
+        finally:
+            for qemu_end in theirs:
+                qemu_end.close()  # QEMU has its copy
+        threading.Thread(target=self._read_output, daemon=True).start()
         self._wait_ready()
         if not c.pty:
             link, events = self._sockets
@@ -184,12 +215,12 @@ class QemuAgent:
             self.address = self._relay.address
         return self.address
 
-    def _read_stderr(self) -> None:
+    def _read_output(self) -> None:
         process = self._process
-        assert process is not None and process.stderr is not None
-        for raw in process.stderr:
+        assert process is not None and process.stdout is not None
+        for raw in process.stdout:
             line = raw.decode(errors="replace").strip()
-            self._stderr_lines.append(line)
+            self._output_lines.append(line)
             found = _PTY_LINE.search(line)
             if found:
                 self.address = found.group(1)
@@ -198,28 +229,20 @@ class QemuAgent:
         deadline = time.monotonic() + START_TIMEOUT_S
         while time.monotonic() < deadline:
             if self._process is not None and self._process.poll() is not None:
-                why = self._stderr_lines[-1] if self._stderr_lines else f"exit code {self._process.returncode}"
+                why = self._output_lines[-1] if self._output_lines else f"exit code {self._process.returncode}"
                 raise QemuError(f"QEMU stopped at start: {why}")
             if self.config.pty:
                 if self.address:
                     return
-            elif self._connect_uarts():
+            elif self._link_ready():
                 return
             time.sleep(0.05)
         self.stop()
         raise QemuError(f"QEMU's link was not up within {START_TIMEOUT_S:.0f} s")
 
-    def _connect_uarts(self) -> bool:
-        """Connect to QEMU's UART0 and UART2 sockets (kept for the whole run); False while not listening."""
-        while len(self._sockets) < len(self._qemu_ports):
-            try:
-                s = socket.create_connection((LOOPBACK, self._qemu_ports[len(self._sockets)]), timeout=0.5)
-            except OSError:
-                return False
-            s.settimeout(None)
-            s.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-            self._sockets.append(s)
-        return True
+    def _link_ready(self) -> bool:
+        """True once QEMU runs the firmware: its first bytes (HELLO) wait on the link, for the relay to read."""
+        return bool(select.select([self._sockets[0]], [], [], 0.0)[0])
 
     @property
     def running(self) -> bool:

@@ -1,6 +1,6 @@
 """The TCP front of the emulated agent: clients connect here, bytes pass unchanged to QEMU's UART0.
 
-QEMU serves the board's UART on a loopback port of its own, but a UART has no carrier line: the firmware
+QEMU has the board's UART on a socket we hand it (firmware_qemu.uart_pair), but a UART has no carrier line: the firmware
 cannot see a TCP client come or go, and SPEC.md 1.1 wants a HELLO on every new TCP connection. The relay
 keeps one connection to QEMU's UART0 for the whole run and, for every new client, writes one byte to the
 board's UART2 (its link-event line), on which the firmware calls agent_link_up(). As the virtual agent's
@@ -13,12 +13,21 @@ import select
 import socket
 import threading
 
+from simulator.serve.transport import limit_unsent
+
 _CHUNK = 4096
 # QEMU writes the UART's bytes to its socket one by one as the firmware sends them. Bytes that follow
 # within this time are forwarded together, so a burst (an ACK and the reply behind it) reaches the client
 # in one segment, as from the Python agent's server, instead of being cut wherever a recv() happened to wake.
 _BURST_S = 0.002
-_BURST_MAX_BYTES = 16384
+BURST_MAX_BYTES = 4096
+# Flow control at speed max: the firmware runs only while its UART can send (it waits on TX_FULL, which QEMU holds
+# while its socket refuses bytes), so every buffer between it and the ground is agent time it may run ahead of the
+# ground, at ~1 kB per agent second. Left to the kernel, the TCP buffers on loopback grew to a megabyte and more
+# (ten minutes of agent time) that a slow ground (a loaded machine) then saw late and commanded late (issue 30:
+# `dive fit --excite` overran the agent's max_dive_s). So QEMU's socket is one we size (firmware_qemu.uart_pair),
+# this relay holds one burst, and the client's socket few unsent bytes (limit_unsent): the backlog stays in the
+# firmware, which waits, and speed max is bounded by the ground's reading.
 LINK_UP = b"\x01"
 
 
@@ -45,6 +54,7 @@ class LinkRelay:
             except OSError:
                 return
             client.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+            limit_unsent(client)
             with self._lock:
                 old, self._client = self._client, client
                 self._aligned = False
@@ -77,7 +87,7 @@ class LinkRelay:
         while not self._closed.is_set():
             try:
                 data = self._link.recv(_CHUNK)
-                while data and len(data) < _BURST_MAX_BYTES and select.select([self._link], [], [], _BURST_S)[0]:
+                while data and len(data) < BURST_MAX_BYTES and select.select([self._link], [], [], _BURST_S)[0]:
                     more = self._link.recv(_CHUNK)
                     if not more:
                         break

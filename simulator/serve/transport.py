@@ -24,6 +24,15 @@ UNSENT_BYTES = 4 * 1024
 SEND_BUFFER_BYTES = 4 * 1024  # where TCP_NOTSENT_LOWAT does not exist: the send buffer itself, as small
 
 
+def limit_unsent(sock: socket.socket) -> None:
+    """Let the kernel hold few unsent bytes for this client (UNSENT_BYTES), so a slow reader makes us wait."""
+    notsent_lowat = getattr(socket, "TCP_NOTSENT_LOWAT", None)
+    if notsent_lowat is not None:
+        sock.setsockopt(socket.IPPROTO_TCP, notsent_lowat, UNSENT_BYTES)
+    else:
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, SEND_BUFFER_BYTES)
+
+
 def tell_replaced(old: socket.socket, notice: bytes) -> None:
     """Send the old client the replaced notice, then end our side with a FIN, not a reset: a socket closed with
     unread bytes in it resets the connection, and a reset makes Linux drop what the peer has not read yet."""
@@ -167,11 +176,7 @@ class TcpTransport(Transport):
         self.drop_client()
         sock.setblocking(False)
         sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-        notsent_lowat = getattr(socket, "TCP_NOTSENT_LOWAT", None)
-        if notsent_lowat is not None:
-            sock.setsockopt(socket.IPPROTO_TCP, notsent_lowat, UNSENT_BYTES)
-        else:
-            sock.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, SEND_BUFFER_BYTES)
+        limit_unsent(sock)
         self.client = sock
         self.selector.register(sock, selectors.EVENT_READ, self._ready)
         self.on_connect()
