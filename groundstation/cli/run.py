@@ -110,13 +110,15 @@ def run_command(
                        history=HistoryConfig(window_s=history_minutes * 60.0),
                        alarms=AlarmConfig(link_lost_s=alarm_link_lost, silent_s=alarm_link_lost, depth_m=alarm_depth))
     stop, signalled = threading.Event(), list[str]()
-    with stop_on_signals(stop, signalled), view_cli.closing_foxglove(fox), view_cli.closing_view(view, signalled), \
-            RunDisplay(err, episodes, f"connecting to {url}", virtual=url.startswith("sim://")) as display:
-        show = display.show if fox is None else _attaching(display.show, fox, key)
-        # Foxglove publishes from the run's own session: the frames, commands and alarms the recording gets
-        result = run(config, show, stop=stop, listeners=[*([view] if view is not None else []),
-                                                         *([fox.channels] if fox is not None else [])])
-        for path in result.paths:  # before a served web viewer waits: the path is printed however the run ends
+    with stop_on_signals(stop, signalled), view_cli.closing_foxglove(fox), view_cli.closing_view(view, signalled):
+        with RunDisplay(err, episodes, f"connecting to {url}", virtual=url.startswith("sim://")) as display:
+            show = display.show if fox is None else _attaching(display.show, fox, key)
+            # Foxglove publishes from the run's own session: the frames, commands and alarms the recording gets
+            result = run(config, show, stop=stop, listeners=[*([view] if view is not None else []),
+                                                             *([fox.channels] if fox is not None else [])])
+        # After the status line has ended (a path written under a live display was glued to its last line), before
+        # a served web viewer waits: the path is printed however the run ends.
+        for path in result.paths:
             typer.echo(printable(path))
     if result.paths:
         # A split recording: all its parts (zero-padded, so the shell's order is part order), not the last one alone

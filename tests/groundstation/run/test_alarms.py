@@ -4,6 +4,7 @@ the agent frozen with SIGSTOP; the alarms printed and recorded as events in the 
 from __future__ import annotations
 
 import json
+import re
 import signal
 import subprocess
 import sys
@@ -97,3 +98,7 @@ def test_on_a_terminal_the_status_line_stays_live_under_the_episode_lines(tmp_pa
     assert run.returncode == 0, text
     assert "episode 1 of 2: " in text and "episode 2 of 2: " in text  # the episode lines, printed above
     assert "LEARNING | episode " in text and " V | depth " in text and "rtt " in text  # the live status line
+    # the recording's path comes on a line of its own once the status line has ended, not glued to its last line
+    lines = [re.sub(r"\x1b\[[0-9;?]*[A-Za-z]", "", line).strip() for line in re.split(r"[\r\n]+", text)]
+    recorded = sorted((tmp_path / "rec").glob("*.mcap"))
+    assert recorded and str(recorded[0]) in lines, lines[-8:]
