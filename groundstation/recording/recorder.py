@@ -212,10 +212,17 @@ class Recorder:
     def on_unused(self, received: Received) -> None:
         """A frame the session received but did not use (a SAMPLE or episode frame it already held, an impossible
         SAMPLE, the same frame twice): its raw bytes on /raw/rx_unused, so /raw/rx and it together are every frame
-        the link delivered, in order, and its seq gaps can be recounted exactly. Before the file opens: none come."""
-        w = self._writer
-        if w is None:
+        the link delivered, in order, and its seq gaps can be recounted exactly. Before the file opens (frames before
+        the agent's HELLO): kept, and written at its HELLO; never, if no compatible HELLO comes (the session gives
+        up within its hello timeout, so they are few)."""
+        if self._writer is None:
+            self._early.append(("unused", received))
             return
+        self._write_unused(received)
+
+    def _write_unused(self, received: Received) -> None:
+        w = self._writer
+        assert w is not None
         if self._raw_unused is None:
             self._raw_unused = w.channel(RAW_RX_UNUSED_TOPIC, RAW_ENCODING)
         w.write(self._raw_unused, received.frame.inner, received.host_time_ns, received.agent_time_ns)
@@ -314,6 +321,8 @@ class Recorder:
         for kind, item in early:
             if kind == "rx":
                 self._write_received(item)
+            elif kind == "unused":
+                self._write_unused(item)
             elif kind == "tx":
                 self._write_sent(item)
             else:

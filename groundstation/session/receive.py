@@ -209,15 +209,16 @@ class ReceiveLoop(SessionCore):
             agent_ns = self.clock.to_host_ns(t_us) if isinstance(t_us, int) and t_us else None
             received = Received(frame, host_ns, agent_ns, backfilled, after_end)
             self.listeners.received(received)
-        elif not deliver:
+        else:
             self._unused(frame, host_ns, backfilled)
 
     def _unused(self, frame: Frame, host_ns: int, backfilled: bool) -> None:
         """A frame decoded (its seq counted) but not used: a replay of a sample already held (a LOG_REQUEST range
-        holds them between its holes), an impossible SAMPLE, the same frame twice. Its raw bytes still go to the
-        recorder, so that the recording keeps every frame whose seq the loss count saw."""
-        if self.agent_hello is not None:
-            self.listeners.unused(Received(frame, host_ns, None, backfilled))
+        holds them between its holes), an impossible SAMPLE, the same frame twice, or one that came before the
+        agent's first HELLO (its HELLO on connecting lost: the frames before the answer to ours, whose seq gaps the
+        loss count saw too). Its raw bytes still go to the recorder, so that the recording keeps every frame whose
+        seq the loss count saw; the recorder writes those from before the HELLO only once a compatible one came."""
+        self.listeners.unused(Received(frame, host_ns, None, backfilled))
 
     def _on_ack(self, ack: m.Ack) -> None:
         pending = self._pending.acknowledge(ack)

@@ -60,7 +60,7 @@ class FakeAgent:
         self.live = True  # False: SAMPLE and episode frames go to the on-board log only (a radio blackout)
         self._t0 = time.monotonic()
         self._conn: socket.socket | None = None
-        self._lock = threading.Lock()
+        self._lock = threading.RLock()
         self._last_wire = b""
         self._stop = threading.Event()
         self.server = socket.create_server(("127.0.0.1", 0))
@@ -115,11 +115,11 @@ class FakeAgent:
                 conn, _ = self.server.accept()
             except (TimeoutError, OSError):
                 continue
-            with self._lock:
+            with self._lock:  # the HELLO first, before any HEARTBEAT of the producer (re-entrant: _send takes it)
                 self._conn = conn
                 self.connections += 1
-            if self.hello_on_accept:
-                self._send_hello()
+                if self.hello_on_accept:
+                    self._send_hello()
             threading.Thread(target=self._read, args=(conn,), daemon=True).start()
 
     def _read(self, conn: socket.socket) -> None:

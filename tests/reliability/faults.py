@@ -27,6 +27,7 @@ class FaultRun:
     path: Path
     connections: list[list[int]]  # per ground connection: the agent seqs received, in order
     hellos: list[int]  # where in connections[0] the agent's HELLOs are (each resets sequence tracking, SPEC s. 1)
+    unused: list[int]  # where in connections[0] the frames from /raw/rx_unused are
 
     @property
     def final_link(self) -> dict[str, Any]:
@@ -44,25 +45,28 @@ def run_against_faults(tmp_path: Path, faults: list[str], speed: str = "max", ep
     files = sorted(out.glob("*.mcap"))
     assert done.returncode == 0 and len(files) == 1, done.stderr
     assert "Traceback" not in done.stderr
-    connections, hellos = _rx_by_connection(files[0])
-    return FaultRun(done, json.loads(report.read_text()), read(files[0]), files[0], connections, hellos)
+    connections, hellos, unused = _rx_by_connection(files[0])
+    return FaultRun(done, json.loads(report.read_text()), read(files[0]), files[0], connections, hellos, unused)
 
 
-def _rx_by_connection(path: Path) -> tuple[list[list[int]], list[int]]:
+def _rx_by_connection(path: Path) -> tuple[list[list[int]], list[int], list[int]]:
     """The seqs of every frame received, in file order (one list: the agent's connections are told apart by seq),
-    and the positions of the HELLOs among them. Every frame: /raw/rx and /raw/rx_unused, the frames the session
-    decoded (their seqs counted) but did not use, such as a LOG_REQUEST range's replays of samples it already held;
-    without them a loss just before such replays at a connection's end looked invisible, and the ground's exact
-    count read as 1-6 too many under heavy load."""
+    and the positions of the HELLOs and of the unused frames among them. Every frame: /raw/rx and /raw/rx_unused,
+    the frames the session decoded (their seqs counted) but did not use, such as a LOG_REQUEST range's replays of
+    samples it already held; without them a loss just before such replays at a connection's end looked invisible,
+    and the ground's exact count read as 1-6 too many under heavy load."""
     seqs: list[int] = []
     hellos: list[int] = []
+    unused: list[int] = []
     with path.open("rb") as f:
-        for _, _, message in make_reader(f).iter_messages(topics=["/raw/rx", RAW_RX_UNUSED_TOPIC],
-                                                          log_time_order=False):
+        for _, channel, message in make_reader(f).iter_messages(topics=["/raw/rx", RAW_RX_UNUSED_TOPIC],
+                                                                log_time_order=False):
             seqs.append(message.data[2] | message.data[3] << 8)
             if message.data[4] == HELLO_ID:
                 hellos.append(len(seqs) - 1)
-    return [seqs], hellos
+            if channel.topic == RAW_RX_UNUSED_TOPIC:
+                unused.append(len(seqs) - 1)
+    return [seqs], hellos, unused
 
 
 def _connection_spans(out: dict[str, Any]) -> list[tuple[int, int, int]]:
@@ -100,15 +104,67 @@ def visible_losses(run: FaultRun) -> int:
     """Frames the agent lost to faults that the ground could see as a seq gap: between two frames it received
     within the same connection (the ground starts counting afresh on every reconnect), the later one not a HELLO
     (any HELLO resets sequence tracking before it is counted, SPEC.md section 1)."""
+    return len(_visible_lost(run))
+
+
+def _visible_lost(run: FaultRun) -> set[int]:
+    """The lost frames visible_losses counts, as positions on the spans' axis."""
     out = run.report["out"]
     spans = _connection_spans(out)
     received = _positions(run.connections[0], spans)
     hello_at = {received[i] for i in run.hellos}
-    total = 0
+    visible = set()
     for (base, start, end), (_, *lost) in zip(spans, out["lost_by_connection"], strict=True):
         mine = sorted(p for p in received if p is not None and start <= p < end)
         for p in (start + ((seq - base) & 0xFFFF) for seq in lost):
             index = bisect_right(mine, p)
             if 0 < index < len(mine) and mine[index] not in hello_at:
-                total += 1
-    return total
+                visible.add(p)
+    return visible
+
+
+def _recounted_lost(run: FaultRun) -> set[int]:
+    """The seq gaps the ground's decoder counts on the frames the recording holds, in their order (as positions on
+    the spans' axis): afresh on each connection and at each HELLO; a late one among them is taken back."""
+    spans = _connection_spans(run.report["out"])
+    received = _positions(run.connections[0], spans)
+    hellos = set(run.hellos)
+    counted: set[int] = set()
+    expected: int | None = None
+    connection = -1
+    for i, p in enumerate(received):
+        if p is None:
+            continue
+        k = next(k for k, (_, start, end) in enumerate(spans) if start <= p < end)
+        if k != connection or i in hellos:
+            connection, expected = k, None
+        if expected is not None and p > expected:
+            counted.update(range(expected, p))
+        elif expected is not None and p < expected:
+            counted.discard(p)
+            continue
+        expected = p + 1
+    return counted
+
+
+def loss_mismatch(run: FaultRun) -> str:
+    """Why the ground's loss count and visible_losses differ: both figures, the gaps the ground counts on the
+    recorded frames (the same count unless it decoded frames the recording lacks), which lost seqs one side has
+    and the other not, and the recorded seqs around the first of those (H: a HELLO, u: from /raw/rx_unused)."""
+    link = run.final_link
+    visible, recounted = _visible_lost(run), _recounted_lost(run)
+    spans = _connection_spans(run.report["out"])
+    received = _positions(run.connections[0], spans)
+    only_ground, only_visible = sorted(recounted - visible), sorted(visible - recounted)
+    lines = [f"ground rx_lost {link['rx_lost']} (rx_frames {link['rx_frames']}), visible {len(visible)}, "
+             f"recounted on the {len(received)} recorded frames {len(recounted)}; "
+             f"connections (base, start, end) {spans}",
+             f"counted not visible {only_ground[:20]}, visible not counted {only_visible[:20]}"]
+    first = min(only_ground[:1] + only_visible[:1], default=None)
+    if first is not None:
+        at = min(range(len(received)), key=lambda i: abs((received[i] or 0) - first))
+        hellos, unused = set(run.hellos), set(run.unused)
+        around = [f"{received[i]}{'H' if i in hellos else ''}{'u' if i in unused else ''}"
+                  for i in range(max(0, at - 12), min(len(received), at + 12))]
+        lines.append(f"recorded positions around {first}: {' '.join(around)}")
+    return "\n".join(lines)

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.reliability.faults import run_against_faults, visible_losses
+from tests.reliability.faults import loss_mismatch, run_against_faults, visible_losses
 from tests.reliability.recordings import assert_complete
 
 ALL_AT_ONCE = ["--drop", "0.05", "--corrupt", "0.01", "--delay", "200", "--disconnect-every", "20",
@@ -37,7 +37,7 @@ def test_the_main_job_survives_the_fault_and_records_every_sample(case: str, tmp
     faults, speed = CASES[case]
     run = run_against_faults(tmp_path, faults, speed=speed, episodes=2)
     link, injected = run.final_link, run.report["out"]
-    assert link["rx_lost"] == visible_losses(run)
+    assert link["rx_lost"] == visible_losses(run), loss_mismatch(run)
     if "--drop" in faults or "--corrupt" in faults or "--blackout-below" in faults:
         assert link["rx_lost"] > 0, "the fault was injected and seen"
     if "--corrupt" in faults:
