@@ -12,7 +12,7 @@ import typer
 
 from groundstation.cli.common import UrlArg, agent_session, one_line_errors, out, split_url
 from groundstation.cli.validate import UsageError
-from groundstation.errors import CommandError, GroundStationError
+from groundstation.errors import CommandError, CommandMayHaveRun, GroundStationError
 from groundstation.session.keys import KeyFileOption
 
 if TYPE_CHECKING:
@@ -86,6 +86,8 @@ def send_control(s: Session, message: Message) -> str:
     name = message.DEFINITION.name
     try:
         ack = s.command(message)
+    except CommandMayHaveRun as e:  # not a refusal: the first try may have run (SPEC.md s. 5); the mode tells
+        return f"{e} ({s.link.url})"
     except CommandError as e:
         raise refused(name, e, known_mode(s)) from None
     reason = f" ({ack.reason})" if ack.reason else ""
@@ -93,7 +95,7 @@ def send_control(s: Session, message: Message) -> str:
 
 
 def _run(url: str | None, key_file: Path | None, message: Message, then: str = "") -> None:
-    with agent_session(url, key_file) as s:
+    with agent_session(url, key_file, reconnect=True) as s:
         out.print(send_control(s, message) + then, soft_wrap=True, highlight=False)
 
 
@@ -142,7 +144,7 @@ def resume(url: UrlArg = None, key_file: KeyFileOption = None) -> None:
     """Continue learning after `dive pause` (CMD_START from PAUSED)."""
     from protocol import messages as m
 
-    with agent_session(url, key_file) as s:
+    with agent_session(url, key_file, reconnect=True) as s:
         mode = known_mode(s)
         if mode != "PAUSED":
             raise GroundStationError(f"the agent is {mode}, not paused: dive start starts learning")
@@ -188,7 +190,7 @@ def surface(url: UrlArg = None, key_file: KeyFileOption = None) -> None:
     """Emergency surface: maximum volume now, in any mode."""
     from protocol import messages as m
 
-    with agent_session(url, key_file) as s:
+    with agent_session(url, key_file, reconnect=True) as s:
         s.command(m.Surface())
         out.print(f"surfacing ({s.link.url}): the agent is {wait_for_mode(s)}; dive start starts learning again",
                   soft_wrap=True, highlight=False)
@@ -203,9 +205,12 @@ def hover(args: Annotated[list[str], typer.Argument(
     from protocol import messages as m
 
     url, depth = _depth(args, "dive hover [URL] DEPTH", HOVER_RANGE_M, "hover depth")
-    with agent_session(url, key_file) as s:
+    with agent_session(url, key_file, reconnect=True) as s:
         try:
             s.command(m.Hover(depth_m=depth))
+        except CommandMayHaveRun as e:
+            out.print(f"{e} ({s.link.url})", soft_wrap=True, highlight=False)
+            return
         except CommandError as e:
             raise refused("CMD_HOVER", e, known_mode(s)) from None
         out.print(f"hovering at {depth:g} m ({s.link.url}): the agent is {wait_for_mode(s)}; dive start starts "
