@@ -8,6 +8,7 @@ import os
 import select
 import selectors
 import socket
+import threading
 import time
 import tty
 from abc import ABC, abstractmethod
@@ -41,6 +42,25 @@ def tell_replaced(old: socket.socket, notice: bytes) -> None:
         old.shutdown(socket.SHUT_WR)
     old.setblocking(False)
     drain()
+    # The old ground may still be writing (a command sent as the new one connected): a byte of it arriving after
+    # the drain and before our close would make the close a reset, and the notice would be lost with it (the
+    # takeover test's "the run did not end": it reconnected and took the link back). A copy of the socket stays
+    # open, read to the old ground's own close (it closes on the notice) or for at most LINGER_S; the caller's
+    # close() of `old` then ends nothing.
+    with contextlib.suppress(OSError):
+        lingering = old.dup()
+        threading.Thread(target=_read_to_close, args=(lingering,), name="replaced-linger", daemon=True).start()
+
+
+def _read_to_close(sock: socket.socket) -> None:
+    """Read and drop what a replaced client still sends until it closes (or LINGER_S), then close."""
+    deadline = time.monotonic() + LINGER_S
+    with contextlib.suppress(OSError), sock:
+        sock.setblocking(True)
+        while (left := deadline - time.monotonic()) > 0:
+            sock.settimeout(left)
+            if not sock.recv(READ_BYTES):
+                return
 
 
 class TransportError(SimulatorError, OSError):
@@ -132,6 +152,7 @@ class Transport(ABC):
 
 
 REPLACED_NOTICE_WAIT_S = 1.0
+LINGER_S = 5.0  # a replaced client's close is awaited this long before ours
 
 
 class TcpTransport(Transport):
