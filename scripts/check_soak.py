@@ -120,8 +120,8 @@ def main() -> None:
                     for check_id, detail in fails:
                         tally.failures[check_id] += 1
                         tally.details.append(f"{url}: {check_id}: {detail}")
-                    bar.console.print(f"{url}: {'passed' if passed else 'FAILED ' + ', '.join(c for c, _ in fails)}"
-                                      f" in {took:.0f} s", markup=False, highlight=False)
+                    said = "passed" if passed else "FAILED " + "; ".join(f"{c}: {d}" for c, d in fails)
+                    bar.console.print(f"{url}: {said} in {took:.0f} s", markup=False, highlight=False)
                     bar.advance(task)
     table = Table(title=f"dive check x {args.runs} per cell" + (", keyed" if args.key else ""))
     for column in ("agent", "speed", "pacing", "runs", "passes", "false failures", "checks that failed",
