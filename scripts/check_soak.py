@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from rich.console import Console
-from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TaskID, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -86,6 +86,26 @@ def run_once(url: str, key_file: Path | None) -> tuple[bool, float, list[tuple[s
     return not fails, took, fails
 
 
+def soak(grid: list[tuple[str, str, str]], tallies: dict[tuple[str, str, str], Tally], runs: int, seed: int,
+         key_file: Path | None, bar: Progress, task: TaskID) -> None:
+    """`runs` rounds over the grid, each cell once a round; every run's outcome into its cell's tally."""
+    for k in range(runs):
+        for cell in grid:  # interleaved: a load spike hits every cell alike
+            url = agent_url(cell[0], cell[1], seed + k, cell[2])
+            tally = tallies[cell]
+            bar.update(task, description=url)
+            passed, took, fails = run_once(url, key_file)
+            tally.runs += 1
+            tally.passed += passed
+            tally.seconds.append(took)
+            for check_id, detail in fails:
+                tally.failures[check_id] += 1
+                tally.details.append(f"{url}: {check_id}: {detail}")
+            said = "passed" if passed else "FAILED " + "; ".join(f"{c}: {d}" for c, d in fails)
+            bar.console.print(f"{url}: {said} in {took:.0f} s", markup=False, highlight=False)
+            bar.advance(task)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("-n", "--runs", type=int, default=20, help="runs per cell (default 20)")
@@ -98,6 +118,7 @@ def main() -> None:
     args = parser.parse_args()
     console = Console()
     grid = cells(args.firmwares, args.speeds, args.pacings)
+    interrupted = False
     tallies = {cell: Tally(agent_url(cell[0], cell[1], 0, cell[2]), *cell) for cell in grid}
     with tempfile.TemporaryDirectory() as tmp:
         key_file = None
@@ -108,22 +129,13 @@ def main() -> None:
         with Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
                       console=console) as bar:
             task = bar.add_task("dive check", total=len(grid) * args.runs)
-            for k in range(args.runs):
-                for cell in grid:  # interleaved: a load spike hits every cell alike
-                    url = agent_url(cell[0], cell[1], args.seed + k, cell[2])
-                    tally = tallies[cell]
-                    bar.update(task, description=url)
-                    passed, took, fails = run_once(url, key_file)
-                    tally.runs += 1
-                    tally.passed += passed
-                    tally.seconds.append(took)
-                    for check_id, detail in fails:
-                        tally.failures[check_id] += 1
-                        tally.details.append(f"{url}: {check_id}: {detail}")
-                    said = "passed" if passed else "FAILED " + "; ".join(f"{c}: {d}" for c, d in fails)
-                    bar.console.print(f"{url}: {said} in {took:.0f} s", markup=False, highlight=False)
-                    bar.advance(task)
-    table = Table(title=f"dive check x {args.runs} per cell" + (", keyed" if args.key else ""))
+            try:
+                soak(grid, tallies, args.runs, args.seed, key_file, bar, task)
+            except KeyboardInterrupt:  # Ctrl-C: the table of the runs that ended, the run under way dropped
+                interrupted = True
+    title = f"dive check x {args.runs} per cell" + (", keyed" if args.key else "")
+    table = Table(title=title + (f" (interrupted after {sum(t.runs for t in tallies.values())} runs)"
+                                 if interrupted else ""))
     for column in ("agent", "speed", "pacing", "runs", "passes", "false failures", "checks that failed",
                    "s per run (median)"):
         table.add_column(column)
