@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import signal
 import subprocess
 import sys
 import tempfile
@@ -129,9 +130,12 @@ def main() -> None:
         with Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
                       console=console) as bar:
             task = bar.add_task("dive check", total=len(grid) * args.runs)
+            # SIGTERM too (`kill PID`: a soak run in the background, where SIGINT is ignored) ends it with the table
+            signal.signal(signal.SIGINT, signal.default_int_handler)
+            signal.signal(signal.SIGTERM, signal.default_int_handler)
             try:
                 soak(grid, tallies, args.runs, args.seed, key_file, bar, task)
-            except KeyboardInterrupt:  # Ctrl-C: the table of the runs that ended, the run under way dropped
+            except KeyboardInterrupt:  # Ctrl-C or SIGTERM: the table of the runs that ended, the run under way dropped
                 interrupted = True
     title = f"dive check x {args.runs} per cell" + (", keyed" if args.key else "")
     table = Table(title=title + (f" (interrupted after {sum(t.runs for t in tallies.values())} runs)"
