@@ -111,6 +111,11 @@ class SessionCore:
         ack_timeout_s = self._ack_timeout_s()
         with self._send_lock:
             encoded = self.encoder.encode(message)
+            if isinstance(message, m.Hello):
+                # Counted under the send lock, with the bytes: a command's bytes then leave wholly before or after
+                # this HELLO, and its written_in says which (counted outside, a command written just before it
+                # could be filed under the new session, and its retry after the HELLO not read as crossing it).
+                self._session_starts += 1
             pending = None
             if message.DEFINITION.needs_ack:
                 pending = PendingCommand(message, encoded.seq, encoded.wire, now, now + ack_timeout_s)
@@ -160,7 +165,6 @@ class SessionCore:
         return max(self.config.ack_timeout_s, 3 * rtt) if rtt is not None else self.config.ack_timeout_s
 
     def _send_hello(self) -> None:
-        self._session_starts += 1  # before the bytes leave: a retry sent after them belongs to the new session
         self._hello_resend_s = time.monotonic() + HELLO_RESEND_S
         self._hello_tries += 1
         self.send(ground_hello(self.config.node_id, self._boot_id))
