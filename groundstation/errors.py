@@ -35,6 +35,15 @@ class CommandTimeout(CommandError, TimeoutError):
     """No ACK after every retry."""
 
 
+class CommandMayHaveRun(CommandError):
+    """A retry that crossed a session's start was refused in a way that shows the first try may have run (SPEC.md
+    s. 5): not a plain refusal. `mode` is the agent's mode from its next SAMPLE or HEARTBEAT after the NACK."""
+
+    def __init__(self, message: str, result: int, mode: str) -> None:
+        super().__init__(message, result)
+        self.mode = mode
+
+
 class ParameterError(GroundStationError, ValueError):
     """An unknown parameter name or a value outside its range."""
 

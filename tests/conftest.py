@@ -5,6 +5,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
+# Imported here, whole, before any test starts a thread: protocol.compiled imports numpy on a daemon thread, and a
+# pytest.approx meeting numpy half-imported in sys.modules fails ("partially initialized module 'numpy'"; 3 of 3
+# runs of test_session.py's first test under load).
+import numpy  # noqa: F401
 import pytest
 
 

@@ -195,7 +195,9 @@ def each_episode(probe: Probe) -> str:
             got = probe.messages(m.DumpChunk, end[0])
             return sum(len(c.data) for c in got) >= size
 
-        probe.wait(both, end[0], probe.timeouts.reply_s + size / BYTES_PER_S)
+        # Not a reply's time: the agent may plan first (the C firmware sends them once its value iteration, run in
+        # slices through the next recovery, is done: seconds at --speed 1), so as long as a mode change may take.
+        probe.wait(both, end[0], probe.timeouts.mode_s + size / BYTES_PER_S)
         kinds_seen = [c.kind for c in probe.messages(m.DumpChunk, end[0])]
         order = [k for i, k in enumerate(kinds_seen) if i == 0 or kinds_seen[i - 1] != k]
         expect(order[:2] == [int(DumpKind.VALUES), int(DumpKind.POLICY)],

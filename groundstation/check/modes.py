@@ -178,12 +178,17 @@ def idle_refusals(probe: Probe) -> str:
     return "CMD_PAUSE refused, CMD_STOP accepted, still IDLE"
 
 
+SHORT_EPISODE_S = 2.0
+
+
 @check("modes.start_max_episodes", SECTION, """CMD_START max_episodes: the episode budget of this start; 0 means
        "the max_episodes parameter", whose 0 is "no limit". Each EPISODE_END that is not aborted uses one; when the
        budget is used up the agent surfaces.""", motion=True)
 def start_max_episodes(probe: Probe) -> str:
     reach(probe, ID)
-    with overridden(probe, {"max_episodes": 1.0}):
+    # An episode that holds the depth lasts success_time_s (300 s of agent time: five minutes at --speed 1, past
+    # the wait below): made short, the one episode ends within seconds however well the agent has learned.
+    with overridden(probe, {"max_episodes": 1.0, "success_time_s": SHORT_EPISODE_S}):
         started = probe.accepted(m.StartLearning(max_episodes=0), "CMD_START 0 with max_episodes = 1")
         # From the ACK on: at full speed the one episode can be over within the read that brought the ACK, so
         # the frames read with it count (waiting from the end of what was read missed it: no EPISODE_END in 60 s).

@@ -55,14 +55,17 @@ def hostile_data_reason(error: RecursionError | OverflowError) -> str:
 
 
 @contextmanager
-def agent_session(url: str | None, key_file: Path | None = None) -> Iterator[Session]:
-    """A session with *the* agent: the URL given, else $DIVE_URL, else the running `dive run` (never a new sim)."""
+def agent_session(url: str | None, key_file: Path | None = None, reconnect: bool = False) -> Iterator[Session]:
+    """A session with *the* agent: the URL given, else $DIVE_URL, else the running `dive run` (never a new sim).
+
+    `reconnect`: a command whose link drops before its ACK is sent again on a new connection (the controls: an
+    operator's `dive surface` must not fail because the radio blinked; SPEC.md s. 5 says how to read its answer)."""
     from groundstation.links import make_link
     from groundstation.links.runs import attach_url
     from groundstation.session.agent_session import Session, SessionConfig
 
     session = Session(make_link(attach_url(url)),
-                      SessionConfig(reconnect=False, backfill=False, key=resolve_key(key_file)))
+                      SessionConfig(reconnect=reconnect, backfill=False, key=resolve_key(key_file)))
     with session:
         yield session
 

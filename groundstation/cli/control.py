@@ -23,7 +23,7 @@ if TYPE_CHECKING:
 
 
 def _run(url: str | None, key_file: Path | None, act: Callable[[Session], Answer]) -> None:
-    with agent_session(url, key_file) as s:
+    with agent_session(url, key_file, reconnect=True) as s:
         out.print(act(s).raise_if_refused().line, soft_wrap=True, highlight=False)
 
 

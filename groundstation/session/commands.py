@@ -5,7 +5,7 @@ from __future__ import annotations
 import threading
 from dataclasses import dataclass, field
 
-from groundstation.errors import CommandError
+from groundstation.errors import CommandError, CommandMayHaveRun
 from protocol import AckResult, Message
 from protocol import messages as m
 
@@ -54,6 +54,9 @@ class PendingCommand:
     attempts: int = 1
     give_up_s: float | None = None  # retried (same seq) until then, however many tries; None: `retries` tries
     ack: m.Ack | None = None
+    written_in: int = -1  # the session (count of ground HELLOs) its bytes last left in; -1: never written
+    crossed: bool = False  # a retry went out in a later session than an earlier try: the agent may have run it
+    mode_mark: int = 0  # the count of mode reports (SAMPLE, HEARTBEAT) when its ACK came
     done: Latch = field(default_factory=Latch)
 
 
@@ -77,13 +80,14 @@ class PendingCommands:
         with self._lock:
             return [p for p in self._by_seq.values() if p.ack is None and now_s >= p.deadline_s]
 
-    def acknowledge(self, ack: m.Ack) -> PendingCommand | None:
+    def acknowledge(self, ack: m.Ack, mode_mark: int = 0) -> PendingCommand | None:
         """The command this ACK answers, now done; None for a stray or repeated ACK."""
         with self._lock:
             pending = self._by_seq.get(ack.cmd_seq)
             if pending is None or pending.message.MSG_ID != ack.cmd_msg_id or pending.ack is not None:
                 return None
             pending.ack = ack
+            pending.mode_mark = mode_mark
             del self._by_seq[ack.cmd_seq]
         pending.done.set()
         return pending
@@ -96,13 +100,28 @@ class PendingCommands:
             pending.done.set()
 
 
+# NACKs a retry across a session's start may get because its first try ran (SPEC.md s. 5: "a repeated CMD_START or
+# CMD_PAUSE is NOT_ALLOWED_IN_MODE because the first moved the agent").
+MAYBE_RAN = frozenset({int(AckResult.NOT_ALLOWED_IN_MODE)})
+
+
+def result_name(result: int) -> str:
+    try:
+        return AckResult(result).name
+    except ValueError:
+        return f"result {result}"
+
+
 def refusal(name: str, ack: m.Ack) -> CommandError | None:
     """The error for a NACK, naming the result and the agent's reason; None for an ACK that accepts."""
     if ack.result == AckResult.ACCEPTED:
         return None
-    try:
-        why = AckResult(ack.result).name
-    except ValueError:
-        why = f"result {ack.result}"
+    why = result_name(ack.result)
     reason = f" ({ack.reason})" if ack.reason else ""
     return CommandError(f"{name} refused by the agent: {why}{reason}", ack.result)
+
+
+def may_have_run(name: str, ack: m.Ack, mode: str) -> CommandMayHaveRun:
+    """The report for a NACK of a retry that crossed a session's start: maybe done, and the mode to judge by."""
+    return CommandMayHaveRun(f"{name} may have run: the link dropped before its ACK and its retry after the reconnect "
+                             f"was answered {result_name(ack.result)}; the agent is {mode}", ack.result, mode)

@@ -6,7 +6,7 @@ import time
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
-from groundstation.errors import CommandError, GroundStationError
+from groundstation.errors import CommandError, CommandMayHaveRun, GroundStationError
 from protocol import AckResult, Mode, messages
 
 if TYPE_CHECKING:
@@ -17,6 +17,7 @@ HOVER_RANGE_M = (0.0, 2.5)  # SPEC: CMD_HOVER; the agent refuses other depths to
 TARGET_RANGE_M = (0.05, 2.5)  # SPEC section 13: target_depth_m
 MODE_WAIT_S = 3.0  # the agent's next HEARTBEAT (1 Hz of agent time) says the mode the command left it in
 NOT_SENT = "NOT_SENT"  # an Answer's result when the ground refused before sending (resume of an agent not paused)
+MAY_HAVE_RUN = "MAY_HAVE_RUN"  # a retry across a reconnect refused in a way that shows the first try may have run
 
 # What to do instead, by (command, the agent's mode) for a NOT_ALLOWED_IN_MODE (SPEC.md section 6's matrix).
 _LEARNING_NOW = "it is learning: pause first (dive pause holds the depth) or surface first: dive surface"
@@ -54,13 +55,18 @@ class Answer:
     def accepted(self) -> bool:
         return self.result == AckResult.ACCEPTED.name
 
+    @property
+    def refused(self) -> bool:
+        """Refused for sure: neither accepted nor possibly run (SPEC.md s. 5: the mode in the line tells which)."""
+        return not self.accepted and self.result != MAY_HAVE_RUN
+
     def as_dict(self) -> dict[str, Any]:
         return {"command": self.command, "accepted": self.accepted, "result": self.result, "reason": self.reason,
                 "mode": self.mode, "message": self.line}
 
     def raise_if_refused(self) -> Answer:
         """The answer, or its line as an error (the CLI's exit 1) when the command was refused."""
-        if not self.accepted:
+        if self.refused:
             raise GroundStationError(self.line)
         return self
 
@@ -109,6 +115,8 @@ def control(s: Session, message: Message, then: str = "", accepted_line: str = "
     name = message.DEFINITION.name
     try:
         ack = s.command(message)
+    except CommandMayHaveRun as e:  # not a refusal: the first try may have run (SPEC.md s. 5); the mode tells
+        return Answer(name, MAY_HAVE_RUN, "", e.mode, f"{e} ({s.link.url})")
     except CommandError as e:
         if e.result is None:
             raise  # no ACK came: nothing to answer with

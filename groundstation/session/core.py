@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 from groundstation.errors import CommandError, CommandTimeout, LinkError
 from groundstation.links import Link
 from groundstation.session.clock import ClockModel
-from groundstation.session.commands import PendingCommand, PendingCommands, refusal
+from groundstation.session.commands import MAYBE_RAN, PendingCommand, PendingCommands, may_have_run, refusal
 from groundstation.session.dumps import DumpTracker
 from groundstation.session.events import EventKind, LinkEvent, Listeners, Sent, SessionListener
 from groundstation.session.exactness import RecentFrames, SampleIndexCheck
@@ -24,7 +24,7 @@ from groundstation.session.gaps import BackfillPlanner
 from groundstation.session.hello import ground_hello
 from groundstation.session.params import ParamTable
 from groundstation.session.stats import LinkStats
-from protocol import AckResult, FrameEncoder, Message, Signer, StreamDecoder
+from protocol import AckResult, FrameEncoder, Message, Mode, Signer, StreamDecoder
 from protocol import messages as m
 from protocol.signing import RESYNC_NAME, resync_nonce
 
@@ -47,6 +47,7 @@ class SessionConfig:
 
 
 HELLO_RESEND_S = 1.0  # an unanswered HELLO is sent again after this long (the agent answers every HELLO)
+MODE_WAIT_S = 3.0  # for the agent's next SAMPLE or HEARTBEAT (1 Hz of agent time) after a "maybe run" NACK
 HELLO_TRIES = 5  # HELLOs unanswered on one connection after a reconnect: that connection is dropped for a new one
 
 
@@ -69,6 +70,9 @@ class SessionCore:
         self.dumps = DumpTracker()
         self.agent_hello: m.Hello | None = None
         self.last_heartbeat: m.Heartbeat | None = None
+        self.agent_mode: int | None = None  # from the newest live SAMPLE or HEARTBEAT
+        self._mode_updates = 0  # how many of those came: a wait for "the mode after this ACK" counts on it
+        self._session_starts = 0  # ground HELLOs sent: each starts a session and empties the agent's ACK memory
         self.link_up = False
         self._boot_id = int.from_bytes(os.urandom(4), "little")
         self._start_s = time.monotonic()
@@ -109,6 +113,11 @@ class SessionCore:
         ack_timeout_s = self._ack_timeout_s()
         with self._send_lock:
             encoded = self.encoder.encode(message)
+            if isinstance(message, m.Hello):
+                # Counted under the send lock, with the bytes: a command's bytes then leave wholly before or after
+                # this HELLO, and its written_in says which (counted outside, a command written just before it
+                # could be filed under the new session, and its retry after the HELLO not read as crossing it).
+                self._session_starts += 1
             pending = None
             if message.DEFINITION.needs_ack:
                 pending = PendingCommand(message, encoded.seq, encoded.wire, now, now + ack_timeout_s)
@@ -117,6 +126,8 @@ class SessionCore:
                 self._pending.add(pending)
             try:
                 self._write(message, encoded.seq, encoded.wire)
+                if pending is not None:
+                    pending.written_in = self._session_starts
             except LinkError:
                 # A command sent while the link is down (it drops often under water) stays pending: the reader
                 # re-sends it once the session has reconnected. Without reconnect there is nobody to do so.
@@ -133,6 +144,8 @@ class SessionCore:
                 raise LinkError(f"{name}: the session is closed")
             self.stats.command_timeouts += 1
             raise CommandTimeout(f"{name}: no ACK from the agent after {pending.attempts} tries")
+        if pending.crossed and pending.ack.result in MAYBE_RAN:
+            raise may_have_run(name, pending.ack, self._mode_after(pending.mode_mark))
         refused = refusal(name, pending.ack)
         if refused is not None:
             nonce = self._resync_nonce(message, pending.ack)
@@ -162,6 +175,16 @@ class SessionCore:
         self._emit(LinkEvent(EventKind.ERROR, time.time_ns(),
                              "the agent refused our signatures' timestamps (a ground with a clock far off signed "
                              "first): re-synced its signing clock to ours", {"reason": ack.reason}))
+
+    def _mode_after(self, mark: int) -> str:
+        """The agent's mode from its first SAMPLE or HEARTBEAT after `mark` (the newest known if none comes)."""
+        deadline = time.monotonic() + MODE_WAIT_S
+        while self._mode_updates <= mark and not self._stop.is_set() and time.monotonic() < deadline:
+            time.sleep(0.02)
+        mode = self.agent_mode
+        if mode is None:
+            return "in an unknown mode"
+        return Mode(mode).name if mode in Mode._value2member_map_ else f"in mode {mode}"
 
     # ------------------------------------------------------------------ helpers
     def _ack_timeout_s(self) -> float:

@@ -121,7 +121,11 @@ class ReceiveLoop(SessionCore):
             pending.deadline_s = now_s + self._ack_timeout_s()
             with self._send_lock:  # the same seq (re-signed if signing): the agent ACKs again without re-executing
                 pending.wire = self.encoder.retry(pending.wire)
+                # ... unless a session started since a try left: its ACK memory is empty (SPEC.md s. 5)
+                if 0 <= pending.written_in != self._session_starts:
+                    pending.crossed = True
                 self._write(pending.message, pending.seq, pending.wire, retry=True)
+                pending.written_in = self._session_starts
 
     def _publish_backfill(self) -> None:
         """What request_backfill() waits on, computed here on the reader thread that owns the planner."""
@@ -152,6 +156,8 @@ class ReceiveLoop(SessionCore):
             deliver = new  # a sample already held (live and replayed both came) is recorded once
             if backfilled and new:
                 self.stats.backfilled += 1
+            if not backfilled:
+                self._saw_mode(msg.mode)
         elif isinstance(msg, _SEQUENCED):
             (self.backfill.episodes.starts if isinstance(msg, m.EpisodeStart) else self.backfill.episodes.ends).add(
                 msg.episode)
@@ -168,6 +174,7 @@ class ReceiveLoop(SessionCore):
                 return  # another agent: nothing of it reaches the recording
         elif isinstance(msg, m.Heartbeat):
             self.last_heartbeat = msg
+            self._saw_mode(msg.mode)
             self.backfill.saw_log_window(msg.log_first_sample, msg.log_next_sample)
             # what the planner believes of the claim, not the claim: a next index near 2^32 must not make every
             # index below it possible. Not known_end: the run's end caps that, and the true SAMPLEs the agent sends
@@ -220,8 +227,13 @@ class ReceiveLoop(SessionCore):
         seq the loss count saw; the recorder writes those from before the HELLO only once a compatible one came."""
         self.listeners.unused(Received(frame, host_ns, None, backfilled))
 
+    def _saw_mode(self, mode: int) -> None:
+        # no lock and no notify on this hot path (every SAMPLE): the rare waiter polls (SessionCore._mode_after)
+        self.agent_mode = mode
+        self._mode_updates += 1
+
     def _on_ack(self, ack: m.Ack) -> None:
-        pending = self._pending.acknowledge(ack)
+        pending = self._pending.acknowledge(ack, self._mode_updates)
         if pending is None:
             return
         rtt_s = time.monotonic() - pending.first_sent_s

@@ -4,7 +4,7 @@ QEMU has the board's UART on a socket we hand it (firmware_qemu.uart_pair), but 
 cannot see a TCP client come or go, and SPEC.md 1.1 wants a HELLO on every new TCP connection. The relay
 keeps one connection to QEMU's UART0 for the whole run and, for every new client, writes one byte to the
 board's UART2 (its link-event line), on which the firmware calls agent_link_up(). As the virtual agent's
-server does, a second client replaces the first.
+server does, a second client replaces the first, which is told so (SPEC.md s.4, *A link taken by another ground*).
 """
 
 from __future__ import annotations
@@ -13,6 +13,9 @@ import select
 import socket
 import threading
 
+from protocol import FrameEncoder, Severity
+from protocol import messages as m
+from protocol.enums import LINK_TAKEN_TEXT
 from simulator.serve.transport import limit_unsent
 
 _CHUNK = 4096
@@ -29,6 +32,8 @@ BURST_MAX_BYTES = 4096
 # this relay holds one burst, and the client's socket few unsent bytes (limit_unsent): the backlog stays in the
 # firmware, which waits, and speed max is bounded by the ground's reading.
 LINK_UP = b"\x01"
+NOTICE_WAIT_S = 1.0  # for room in a slow reader's buffer for the notice
+LINGER_S = 5.0  # a replaced client is read (and ignored) until it closes, at most this long: no reset loses the notice
 
 
 class LinkRelay:
@@ -59,7 +64,7 @@ class LinkRelay:
                 old, self._client = self._client, client
                 self._aligned = False
             if old is not None:
-                _close(old)
+                _tell_replaced(old)
             try:
                 self._events.sendall(LINK_UP)
             except OSError:
@@ -74,6 +79,10 @@ class LinkRelay:
                 data = b""
             if not data:
                 break
+            with self._lock:
+                current = self._client is client
+            if not current:
+                continue  # a replaced client's bytes go nowhere; it is read until it closes (_tell_replaced)
             try:
                 self._link.sendall(data)
             except OSError:
@@ -121,6 +130,20 @@ class LinkRelay:
             client, self._client = self._client, None
         if client is not None:
             _close(client)
+
+
+def _tell_replaced(old: socket.socket) -> None:
+    """The "link taken" TEXT to a replaced client, then our FIN; its reader thread reads on until it closes (or
+    LINGER_S), so that our close is no reset that would discard the TEXT unread. The relay does not know the
+    agent's time: t_us is 0 (a ground acts on the text)."""
+    notice = FrameEncoder().encode(m.Text(t_us=0, severity=int(Severity.WARNING), text=LINK_TAKEN_TEXT)).wire
+    try:
+        old.settimeout(NOTICE_WAIT_S)
+        old.sendall(b"\x00" + notice)  # 0x00 first: ends a partial frame sent before it
+        old.shutdown(socket.SHUT_WR)
+        old.settimeout(LINGER_S)
+    except OSError:
+        _close(old)
 
 
 def _close(s: socket.socket) -> None:

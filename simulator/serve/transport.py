@@ -8,6 +8,7 @@ import os
 import select
 import selectors
 import socket
+import threading
 import time
 import tty
 from abc import ABC, abstractmethod
@@ -50,6 +51,25 @@ def tell_replaced(old: socket.socket, notice: bytes) -> None:
         old.shutdown(socket.SHUT_WR)
     old.setblocking(False)
     drain()
+    # The old ground may still be writing (a command sent as the new one connected): a byte of it arriving after
+    # the drain and before our close would make the close a reset, and the notice would be lost with it (the
+    # takeover test's "the run did not end": it reconnected and took the link back). A copy of the socket stays
+    # open, read to the old ground's own close (it closes on the notice) or for at most LINGER_S; the caller's
+    # close() of `old` then ends nothing.
+    with contextlib.suppress(OSError):
+        lingering = old.dup()
+        threading.Thread(target=_read_to_close, args=(lingering,), name="replaced-linger", daemon=True).start()
+
+
+def _read_to_close(sock: socket.socket) -> None:
+    """Read and drop what a replaced client still sends until it closes (or LINGER_S), then close."""
+    deadline = time.monotonic() + LINGER_S
+    with contextlib.suppress(OSError), sock:
+        sock.setblocking(True)
+        while (left := deadline - time.monotonic()) > 0:
+            sock.settimeout(left)
+            if not sock.recv(READ_BYTES):
+                return
 
 
 class TransportError(SimulatorError, OSError):
@@ -141,8 +161,7 @@ class Transport(ABC):
 
 
 REPLACED_NOTICE_WAIT_S = 1.0
-# How long a replaced client's socket stays open after the notice, read and discarded, unless it closes first.
-RETIRED_OPEN_S = 5.0
+LINGER_S = 5.0  # a replaced client's close is awaited this long before ours
 
 
 class TcpTransport(Transport):
@@ -158,7 +177,6 @@ class TcpTransport(Transport):
         bound_host, bound_port = self.listener.getsockname()[:2]
         self.address = f"tcp://{bound_host}:{bound_port}"
         self.client: socket.socket | None = None
-        self._retired: dict[socket.socket, float] = {}  # replaced clients' sockets -> when to close them anyway
         selector.register(self.listener, selectors.EVENT_READ, self._accept)
 
     @property
@@ -172,7 +190,6 @@ class TcpTransport(Transport):
             return
         if self.client is not None:  # say why before closing: the old ground then stops instead of fighting back
             self._tell_replaced(self.client)
-            self._retire()
         self.drop_client()
         sock.setblocking(False)
         sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
@@ -183,39 +200,6 @@ class TcpTransport(Transport):
 
     def _tell_replaced(self, old: socket.socket) -> None:
         tell_replaced(old, self.on_replaced())
-
-    def _retire(self) -> None:
-        """Stop serving the replaced client, but keep its socket open, reading and discarding, until it closes or
-        RETIRED_OPEN_S pass. Closed at once, what the old ground still sends (a heartbeat, a parameter request while
-        it connects) is answered with a reset, and a reset makes Linux drop the notice it has not read yet: it would
-        see only a broken link, reconnect and take the link back from the new ground."""
-        old = self.client
-        assert old is not None
-        self.client = None
-        self.outbuf.clear()
-        self._retired[old] = time.monotonic() + RETIRED_OPEN_S
-        self.selector.modify(old, selectors.EVENT_READ, lambda _mask: self._read_retired(old))
-        self.on_disconnect()
-
-    def _read_retired(self, old: socket.socket) -> None:
-        try:
-            data = old.recv(READ_BYTES)
-        except (BlockingIOError, InterruptedError):
-            return
-        except OSError:
-            data = b""
-        if not data:
-            self._close_retired(old)
-
-    def _close_retired(self, old: socket.socket) -> None:
-        del self._retired[old]
-        self.selector.unregister(old)
-        old.close()
-
-    def poll(self) -> None:
-        now = time.monotonic()
-        for old in [old for old, until in self._retired.items() if until < now]:
-            self._close_retired(old)
 
     def _ready(self, mask: int) -> None:
         if mask & selectors.EVENT_READ:
@@ -260,8 +244,6 @@ class TcpTransport(Transport):
 
     def close(self) -> None:
         self.drop_client()
-        for old in list(self._retired):
-            self._close_retired(old)
         self.selector.unregister(self.listener)
         self.listener.close()
 

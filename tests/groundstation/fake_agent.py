@@ -57,6 +57,8 @@ class FakeAgent:
         self.log_requests = 0
         self.timesync_origins: list[int] = []  # the origin of every TIMESYNC request received
         self.lying_timesyncs = 0  # answer this many TIMESYNC requests with receive = transmit = 2^64-1
+        self.mode_checks = False  # True: CMD_START while learning is NOT_ALLOWED_IN_MODE (SPEC.md s. 6)
+        self.drop_before_ack = ""  # the next command of this name runs, then the link drops before its ACK leaves
         self.live = True  # False: SAMPLE and episode frames go to the on-board log only (a radio blackout)
         self._t0 = time.monotonic()
         self._conn: socket.socket | None = None
@@ -118,6 +120,7 @@ class FakeAgent:
             with self._lock:  # the HELLO first, before any HEARTBEAT of the producer (re-entrant: _send takes it)
                 self._conn = conn
                 self.connections += 1
+                self.answered.clear()  # a new session: the ACK memory is emptied (SPEC.md 1.2 s. 5)
                 if self.hello_on_accept:
                     self._send_hello()
             threading.Thread(target=self._read, args=(conn,), daemon=True).start()
@@ -156,7 +159,8 @@ class FakeAgent:
                            boot_id=self.boot_id, name=self.name))
 
     def _handle(self, msg: Message, seq: int, flags: int) -> None:
-        if isinstance(msg, m.Hello):  # every ground HELLO is answered (SPEC.md 1.1)
+        if isinstance(msg, m.Hello):  # every ground HELLO is answered (SPEC.md 1.1) and starts a session (1.2)
+            self.answered.clear()
             if self.unanswered_hellos > 0:
                 self.unanswered_hellos -= 1
             else:
@@ -181,6 +185,10 @@ class FakeAgent:
                 return
         result, after = self._execute(msg)
         self.answered.append((msg.MSG_ID, seq, result))
+        if self.drop_before_ack == msg.DEFINITION.name:  # ran, but the link drops before the ACK leaves
+            self.drop_before_ack = ""
+            self.disconnect()
+            return
         self._send(m.Ack(cmd_msg_id=msg.MSG_ID, cmd_seq=seq, result=result, reason=self.nack_reason if result else ""))
         for reply, reply_flags in after:
             self._send(reply, reply_flags)
@@ -208,6 +216,8 @@ class FakeAgent:
                 self.params[name][1] = msg.value
             return 0, [(self._param(names.index(name), name), 0)]
         if isinstance(msg, m.StartLearning):
+            if self.mode_checks and self.learning:
+                return int(AckResult.NOT_ALLOWED_IN_MODE), []
             self.learning, self.max_episodes = True, msg.max_episodes + self.episode if msg.max_episodes else 0
             return 0, []
         if isinstance(msg, m.Stop | m.Surface):

@@ -6,7 +6,7 @@ import time
 
 import pytest
 
-from groundstation.errors import CommandError, IncompatibleAgentError, LinkError, ParameterError
+from groundstation.errors import CommandError, CommandMayHaveRun, IncompatibleAgentError, LinkError, ParameterError
 from groundstation.links import make_link
 from groundstation.session.agent_session import Session, SessionConfig
 from groundstation.session.clock import ClockModel
@@ -158,3 +158,20 @@ def test_sample_ranges_report_exact_gaps() -> None:
     assert not r.add(5)
     assert r.missing() == [(10, 11), (20, 25)]
     assert len(r) == 20 and 11 in r and 21 not in r
+
+
+def test_a_retry_across_a_session_start_refused_in_mode_is_reported_as_may_have_run(fake_agent: FakeAgent) -> None:
+    """SPEC.md 1.2 s. 5: CMD_START ran, the link dropped before its ACK; the retry after the reconnect meets an
+    emptied ACK memory and is NOT_ALLOWED_IN_MODE because the first moved the agent: "may have run", with the mode."""
+    fake_agent.mode_checks = True
+    with Session(make_link(fake_agent.url), SessionConfig(backoff_s=(0.05, 0.2), fetch_params=False)) as s:
+        fake_agent.drop_before_ack = "CMD_START"
+        with pytest.raises(CommandMayHaveRun, match=r"CMD_START may have run: .*NOT_ALLOWED_IN_MODE; "
+                                                    r"the agent is LEARNING") as caught:
+            s.command(m.StartLearning(max_episodes=0), timeout_s=10)
+        assert caught.value.mode == "LEARNING"
+        assert fake_agent.executed.count("CMD_START") == 2 and fake_agent.connections == 2
+        # without a session start in between, the same NACK is a plain refusal
+        with pytest.raises(CommandError, match="CMD_START refused by the agent: NOT_ALLOWED_IN_MODE") as plain:
+            s.command(m.StartLearning(max_episodes=0))
+        assert not isinstance(plain.value, CommandMayHaveRun)
