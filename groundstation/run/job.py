@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import Any
 from urllib.parse import parse_qsl, urlsplit
 
-from groundstation.errors import CommandError, GroundStationError, LinkError, RecordingExistsError
+from groundstation.errors import CommandError, CommandMayHaveRun, GroundStationError, LinkError, RecordingExistsError
 from groundstation.links import make_link
 from groundstation.links.hub_auth import new_token
 from groundstation.links.runs import RunInfo, announce, new_run, refuse_if_held, withdraw
@@ -149,7 +149,15 @@ class _AgentWatch:
             return
         # retried with the same seq (across reconnects) for up to START_WAIT_S: on a link that drops every second
         # four tries are not enough, and the agent's ACK memory makes a repeat harmless
-        self.session.command(m.StartLearning(max_episodes=self.episodes), timeout_s=self.START_WAIT_S)
+        try:
+            self.session.command(m.StartLearning(max_episodes=self.episodes), timeout_s=self.START_WAIT_S)
+        except CommandMayHaveRun as e:
+            # A retry across a session start (our HELLO repeated on a lossy link empties the agent's ACK memory) ran
+            # again and was refused because the first try had started it (SPEC.md s. 5): learning is what we asked.
+            if e.mode not in (Mode.LEARNING.name, Mode.RECOVERING.name):
+                raise
+            self.status.messages.append(f"CMD_START's first try ran (its retry crossed a reconnect): the agent is "
+                                        f"{e.mode}")
 
     def finished(self) -> bool:
         self.follow_operator()
