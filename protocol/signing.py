@@ -5,7 +5,6 @@ from __future__ import annotations
 import hashlib
 import hmac
 import re
-import secrets
 import time
 from collections import OrderedDict
 from collections.abc import Callable
@@ -98,6 +97,8 @@ def resync_nonce(reason: str) -> int | None:
 
 def new_nonce() -> int:
     """A fresh random re-sync nonce, never 0 (0 is what an unset field reads as)."""
+    import secrets  # here, not at the top: `dive --help` imports protocol and must stay quick (issue 14)
+
     return secrets.randbits(32) or 1
 
 
