@@ -1,12 +1,15 @@
 """`dive check` N times against each of our conformant agents; prints the false failures per cell (not a test).
 
     nice -n 5 .venv/bin/python scripts/check_soak.py [-n 20] [--speeds max,1] [--firmwares python,c,qemu]
-        [--pacings none,115200] [--key]
+        [--pacings none,115200] [--key] [--jobs N]
 
 Every run is a real `dive check sim://?...` (a fresh agent, its own seed) in a child process. The agents are
 conformant, so every FAIL is a false failure of `dive check` (issue 26: the goal is 0 in 20 runs of each cell of
 agent x speed x pacing). The QEMU build has no paced link (`dive sim --firmware qemu` refuses --baud: QEMU hands
 the UART's bytes to its socket as fast as the firmware writes them), so its paced cells are left out.
+
+A run at --speed 1 takes minutes of agent time and little CPU, so `--jobs N` runs N checks at once (each job its own
+key file: a ground's replay mark must not be shared by two grounds signing at the same time).
 """
 
 from __future__ import annotations
@@ -17,6 +20,7 @@ import signal
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from collections import Counter
 from dataclasses import dataclass, field
@@ -65,21 +69,33 @@ def cells(firmwares: str, speeds: str, pacings: str) -> list[tuple[str, str, str
     return [(fw, speed, pacing) for fw, speed, pacing in chosen if not (fw == "qemu" and pacing != UNPACED)]
 
 
+RUNNING: set[subprocess.Popen[str]] = set()  # the checks under way, killed when the soak is stopped
+RUNNING_LOCK = threading.Lock()
+
+
 def run_once(url: str, key_file: Path | None) -> tuple[bool, float, list[tuple[str, str]]]:
     """One `dive check URL --json`: (passed, seconds, [(check id, detail) of each FAIL])."""
     args = [sys.executable, "-c", DIVE, "check", url, "--json", "--allow-motion"]
     if key_file is not None:
         args += ["--key-file", str(key_file)]
     started = time.monotonic()
+    child = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)
+    with RUNNING_LOCK:
+        RUNNING.add(child)
     try:
-        done = subprocess.run(args, capture_output=True, text=True, cwd=ROOT, timeout=RUN_TIMEOUT_S)
+        stdout, stderr = child.communicate(timeout=RUN_TIMEOUT_S)
     except subprocess.TimeoutExpired:
+        child.kill()
+        child.communicate()
         return False, time.monotonic() - started, [("(run)", f"no report within {RUN_TIMEOUT_S:g} s")]
+    finally:
+        with RUNNING_LOCK:
+            RUNNING.discard(child)
     took = time.monotonic() - started
     try:
-        report = json.loads(done.stdout)
+        report = json.loads(stdout)
     except json.JSONDecodeError:
-        last = (done.stderr.strip().splitlines() or ["no output"])[-1]
+        last = (stderr.strip().splitlines() or ["no output"])[-1]
         return False, took, [("(run)", last)]
     fails = [(c["id"], c["detail"]) for c in report["checks"] if c["result"] == "FAIL"]
     if report.get("aborted"):
@@ -88,23 +104,48 @@ def run_once(url: str, key_file: Path | None) -> tuple[bool, float, list[tuple[s
 
 
 def soak(grid: list[tuple[str, str, str]], tallies: dict[tuple[str, str, str], Tally], runs: int, seed: int,
-         key_file: Path | None, bar: Progress, task: TaskID) -> None:
-    """`runs` rounds over the grid, each cell once a round; every run's outcome into its cell's tally."""
-    for k in range(runs):
-        for cell in grid:  # interleaved: a load spike hits every cell alike
-            url = agent_url(cell[0], cell[1], seed + k, cell[2])
-            tally = tallies[cell]
-            bar.update(task, description=url)
+         key_files: list[Path | None], bar: Progress, task: TaskID) -> None:
+    """`runs` rounds over the grid, each cell once a round, one job per key file; every run's outcome into its
+    cell's tally. Ctrl-C or SIGTERM kills the runs under way (dropped from the tally) and returns."""
+    queue = [(cell, seed + k) for k in range(runs) for cell in grid]  # interleaved: a load spike hits every cell
+    lock = threading.Lock()
+    stopping = threading.Event()
+
+    def job(key_file: Path | None) -> None:
+        while not stopping.is_set():
+            with lock:
+                if not queue:
+                    return
+                cell, run_seed = queue.pop(0)
+            url = agent_url(cell[0], cell[1], run_seed, cell[2])
             passed, took, fails = run_once(url, key_file)
-            tally.runs += 1
-            tally.passed += passed
-            tally.seconds.append(took)
-            for check_id, detail in fails:
-                tally.failures[check_id] += 1
-                tally.details.append(f"{url}: {check_id}: {detail}")
-            said = "passed" if passed else "FAILED " + "; ".join(f"{c}: {d}" for c, d in fails)
-            bar.console.print(f"{url}: {said} in {took:.0f} s", markup=False, highlight=False)
-            bar.advance(task)
+            if stopping.is_set():
+                return  # killed by the stop: not an outcome of the agent
+            with lock:
+                tally = tallies[cell]
+                tally.runs += 1
+                tally.passed += passed
+                tally.seconds.append(took)
+                for check_id, detail in fails:
+                    tally.failures[check_id] += 1
+                    tally.details.append(f"{url}: {check_id}: {detail}")
+                said = "passed" if passed else "FAILED " + "; ".join(f"{c}: {d}" for c, d in fails)
+                bar.console.print(f"{url}: {said} in {took:.0f} s", markup=False, highlight=False)
+                bar.advance(task)
+
+    workers = [threading.Thread(target=job, args=(key_file,), daemon=True) for key_file in key_files]
+    for worker in workers:
+        worker.start()
+    try:
+        for worker in workers:
+            while worker.is_alive():
+                worker.join(0.5)  # a timed join: the main thread must stay able to take SIGINT / SIGTERM
+    except KeyboardInterrupt:
+        stopping.set()
+        with RUNNING_LOCK:
+            for child in RUNNING:
+                child.kill()
+        raise
 
 
 def main() -> None:
@@ -116,17 +157,18 @@ def main() -> None:
                         help="comma-separated: none (unpaced) or a baud rate (default none,115200)")
     parser.add_argument("--key", action="store_true", help="give every agent a key (the signing checks run too)")
     parser.add_argument("--seed", type=int, default=1, help="seed of the first run; run k uses seed + k")
+    parser.add_argument("--jobs", type=int, default=1, help="checks run at once (default 1)")
     args = parser.parse_args()
     console = Console()
     grid = cells(args.firmwares, args.speeds, args.pacings)
     interrupted = False
     tallies = {cell: Tally(agent_url(cell[0], cell[1], 0, cell[2]), *cell) for cell in grid}
     with tempfile.TemporaryDirectory() as tmp:
-        key_file = None
+        key_files: list[Path | None] = [None] * max(1, args.jobs)
         if args.key:
             from groundstation.session.keys import write_key_file
 
-            key_file = write_key_file(Path(tmp) / "soak.key")
+            key_files = [write_key_file(Path(tmp) / f"soak-{j}.key") for j in range(len(key_files))]
         with Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
                       console=console) as bar:
             task = bar.add_task("dive check", total=len(grid) * args.runs)
@@ -134,7 +176,7 @@ def main() -> None:
             signal.signal(signal.SIGINT, signal.default_int_handler)
             signal.signal(signal.SIGTERM, signal.default_int_handler)
             try:
-                soak(grid, tallies, args.runs, args.seed, key_file, bar, task)
+                soak(grid, tallies, args.runs, args.seed, key_files, bar, task)
             except KeyboardInterrupt:  # Ctrl-C or SIGTERM: the table of the runs that ended, the run under way dropped
                 interrupted = True
     title = f"dive check x {args.runs} per cell" + (", keyed" if args.key else "")
