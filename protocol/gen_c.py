@@ -275,9 +275,26 @@ def _f32(value: float) -> str:
     return f"{text}f"
 
 
+def link_taken_header() -> str:
+    """link_taken_frame.h: the exact bytes the ESP8266 bridge, a byte pipe that builds no frame, sends a client a new
+    one replaces (protocol/link_taken.py, the one builder)."""
+    from protocol.link_taken import link_taken_notice  # the encoder: not loaded for the message tables alone
+
+    notice = link_taken_notice()
+    rows = [", ".join(f"0x{b:02X}" for b in notice[i:i + 12]) for i in range(0, len(notice), 12)]
+    return "\n".join([
+        BANNER, "#ifndef LINK_TAKEN_FRAME_H", "#define LINK_TAKEN_FRAME_H", "", "#include <stdint.h>", "",
+        "/* SPEC.md s.4, \"A link taken by another ground\": a 0x00 delimiter, then the TEXT frame (severity WARNING,",
+        f" * t_us 0, text \"{enums.LINK_TAKEN_TEXT}\"), COBS-encoded and ended by its 0x00. Written as they are. */",
+        f"#define LINK_TAKEN_FRAME_BYTES {len(notice)}u",
+        "static const uint8_t LINK_TAKEN_FRAME[LINK_TAKEN_FRAME_BYTES] = {",
+        *(f"    {row}," for row in rows), "};", "", "#endif", ""])
+
+
 def generated_files() -> dict[str, str]:
     """File name -> text of everything this module writes."""
-    files = {"proto_messages.h": messages_header(), "proto_messages.c": messages_source()}
+    files = {"proto_messages.h": messages_header(), "proto_messages.c": messages_source(),
+             "link_taken_frame.h": link_taken_header()}
     files["test/proto_fields.c"] = fields_source()
     params = _parameters_module()
     if params is not None:

@@ -24,16 +24,21 @@ if TYPE_CHECKING:
 @one_line_errors
 def status(url: UrlArg = None, key_file: KeyFileOption = None) -> None:
     """Show the agent's identity, mode, battery, on-board log and link quality."""
+    from groundstation.cli.status_episodes import StatusEpisodes
     from groundstation.session.status_line import AgentStatus, status_line
 
     with agent_session(url, key_file) as s:
         agent = AgentStatus()
-        s.add_listener(s.rx_listener(lambda received: agent.update(received.message)))
+        history = StatusEpisodes(agent)
+        s.add_listener(s.rx_listener(history.received))
         start = time.monotonic()
+        if s.link.url.startswith("hub://"):
+            history.ask(s)
         # a heartbeat comes every second; a SAMPLE (the depth) in IDLE too, but a quiet agent is not waited for long
         while (s.last_heartbeat is None and time.monotonic() < start + 2.5) or \
                 (agent.depth_m is None and time.monotonic() < start + 1.2):
             time.sleep(0.05)
+        history.wait(start + 3.0)
         hello, hb = s.agent_hello, s.last_heartbeat
         assert hello is not None
         out.print(f"agent {one_line(repr(hello.name))} id {hello.node_id:08x} firmware "
@@ -50,6 +55,8 @@ def status(url: UrlArg = None, key_file: KeyFileOption = None) -> None:
                   f"{snap['rx_rejects']} rejected" + (f", rtt {rtt:.1f} ms" if rtt is not None else ""))
         if agent.mode is None and hb is not None:
             agent.update(hb)  # the heartbeat came before the listener
+        if history.last_end is not None:
+            out.print(history.last_end_text(), highlight=False)
         out.print(f"status: {status_line(agent, snap, s.link_up)}", soft_wrap=True, highlight=False)
 
 

@@ -18,10 +18,16 @@ SLOW_START_NOTE = ("the virtual agent is starting: its first start compiles the 
                    "idle machine), later starts take seconds")
 
 
-def describe(s: RunStatus) -> str:
-    """The status line (mode, episode, successes, battery, depth, link), in markup for the live bar."""
+def _run_status_line(s: RunStatus) -> str:
+    """The status line (mode, episode, successes, battery, depth, link): the run counts every episode it saw end,
+    so its own count stands in until the agent's EPISODE_END says how many succeeded."""
     agent = replace(s.agent, successes=s.agent.successes if s.agent.successes is not None else s.successes)
-    line = in_markup(status_line(agent, s.link, s.link_up))
+    return status_line(agent, s.link, s.link_up)
+
+
+def describe(s: RunStatus) -> str:
+    """The status line in markup for the live bar."""
+    line = in_markup(_run_status_line(s))
     return line.replace("link down", "[red]link down[/]")
 
 
@@ -95,5 +101,4 @@ class RunDisplay:
                                   description=describe(status))
         elif status.agent.mode is not None and status.agent.mode != self._mode:
             self._mode = status.agent.mode  # not a terminal: the status line when the mode changes
-            printer.print(f"status: {status_line(status.agent, status.link, status.link_up)}", soft_wrap=True,
-                          highlight=False)
+            printer.print(f"status: {_run_status_line(status)}", soft_wrap=True, highlight=False)

@@ -19,6 +19,7 @@ import orjson
 
 from groundstation.errors import RecordingError, RecordingExistsError
 from groundstation.mcap_io import RAW_ENCODING, McapFileWriter, mcap_library_version
+from groundstation.recording.held_frames import EarlyFrames, UnusedFrames
 from groundstation.recording.safe_files import unused_name
 from groundstation.session.dumps import DumpAssembler
 from groundstation.session.events import EventKind, LinkEvent, Received, Sent
@@ -27,8 +28,6 @@ from protocol import DumpKind, Message, messages
 from protocol.cobs import cobs_decode
 from protocol.jsonschema import message_json_schema
 from protocol.registry import message_classes
-
-RAW_RX_UNUSED_TOPIC = "/raw/rx_unused"  # received frames the session did not use (Recorder.on_unused)
 
 ENVELOPE = {
     "_seq": {"type": "integer", "description": "frame sequence number", "minimum": 0, "maximum": 65535},
@@ -159,7 +158,7 @@ class Recorder:
         self._writer: McapFileWriter | None = None
         self._opened_s = 0.0
         self._lock = threading.Lock()
-        self._early: list[tuple[str, Any]] = []
+        self._early = EarlyFrames()
         self._agent_id = 0
         self._stamp = time.strftime("%Y%m%d-%H%M%S")
         self._hello: dict[str, Any] = {}
@@ -169,7 +168,7 @@ class Recorder:
         self._rx_channels: dict[type[Message], int] = {}
         self._tx_channels: dict[type[Message], int] = {}
         self._raw_rx = 0
-        self._raw_unused: int | None = None  # /raw/rx_unused of the open part, made at its first frame
+        self._unused: UnusedFrames | None = None  # /raw/rx_unused of the open part
         self._splits = self.config.splits
         self._base: Path | None = None  # the file name without its part number and suffix, fixed at the first file
         # Every part's session metadata carries it: readers tell the parts of one recording from other recordings.
@@ -204,40 +203,33 @@ class Recorder:
             self._agent_id = msg.node_id
             self._open()
         if self._writer is None:
-            self._early.append(("rx", received))
+            self._early.keep(self._write_received, received)
         elif self._splits:
             self._rotate_if_due()
 
     @_guarded
     def on_unused(self, received: Received) -> None:
-        """A frame the session received but did not use (a SAMPLE or episode frame it already held, an impossible
-        SAMPLE, the same frame twice): its raw bytes on /raw/rx_unused, so /raw/rx and it together are every frame
-        the link delivered, in order, and its seq gaps can be recounted exactly. Before the file opens (frames before
-        the agent's HELLO): kept, and written at its HELLO; never, if no compatible HELLO comes (the session gives
-        up within its hello timeout, so they are few)."""
+        """A frame the session received but did not use: raw, on /raw/rx_unused (held_frames.UnusedFrames)."""
         if self._writer is None:
-            self._early.append(("unused", received))
+            self._early.keep(self._write_unused, received)
             return
         self._write_unused(received)
 
     def _write_unused(self, received: Received) -> None:
-        w = self._writer
-        assert w is not None
-        if self._raw_unused is None:
-            self._raw_unused = w.channel(RAW_RX_UNUSED_TOPIC, RAW_ENCODING)
-        w.write(self._raw_unused, received.frame.inner, received.host_time_ns, received.agent_time_ns)
+        assert self._unused is not None
+        self._unused.write(received)
 
     @_guarded
     def on_sent(self, sent: Sent) -> None:
         if self._writer is None:
-            self._early.append(("tx", sent))
+            self._early.keep(self._write_sent, sent)
             return
         self._write_sent(sent)
 
     @_guarded
     def on_event(self, event: LinkEvent) -> None:
         if self._writer is None:
-            self._early.append(("event", event))
+            self._early.keep(self._write_event, event)
             return
         self._write_event(event)
 
@@ -302,7 +294,7 @@ class Recorder:
         path = self._writer.path
         self._rx_channels, self._tx_channels = {}, {}
         self._raw_rx = self._writer.channel("/raw/rx", RAW_ENCODING)
-        self._raw_unused = None
+        self._unused = UnusedFrames(self._writer)
         self.paths.append(path)
         self._opened_s = time.monotonic()
         w = self._writer
@@ -317,16 +309,7 @@ class Recorder:
                                "started_ns": str(time.time_ns())})
         if self._parameters:
             w.metadata("parameters", self._parameters)
-        early, self._early = self._early, []
-        for kind, item in early:
-            if kind == "rx":
-                self._write_received(item)
-            elif kind == "unused":
-                self._write_unused(item)
-            elif kind == "tx":
-                self._write_sent(item)
-            else:
-                self._write_event(item)
+        self._early.write_all()
         w.flush()  # header, metadata and the first frames on disk now, not after the first second
 
     def _rotate_if_due(self) -> None:

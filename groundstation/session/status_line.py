@@ -19,6 +19,9 @@ class AgentStatus:
     battery_mv: int | None = None
     depth_m: float | None = None
     uptime_ms: int | None = None
+    # Every EPISODE_END so far has reached this status (a tool given the run's episode table by its hub): no
+    # successes then means no episode has ended, not that none was seen while watching.
+    ends_known: bool = False
 
     def update(self, message: object) -> None:
         if isinstance(message, m.Heartbeat):
@@ -36,6 +39,15 @@ def mode_text(mode: int | None) -> str:
     return Mode(mode).name if mode in Mode._value2member_map_ else f"mode {mode}"
 
 
+def successes_text(agent: AgentStatus) -> str:
+    """`9 ok`, or what is known when no EPISODE_END (which carries the count) has come."""
+    if agent.successes is not None:
+        return f"{agent.successes} ok"
+    if agent.ends_known or agent.episode == 0:
+        return "no episode ended yet"
+    return "successes unknown (no episode ended while watching)"
+
+
 def status_line(agent: AgentStatus, link: dict[str, Any], link_up: bool = True) -> str:
     """One line: `LEARNING | episode 12 | 9 ok | 4.15 V | depth 0.41 m | rtt 25 ms, loss 0.0%`."""
     def known(value: object, text: str) -> str:
@@ -45,7 +57,7 @@ def status_line(agent: AgentStatus, link: dict[str, Any], link_up: bool = True) 
     quality = (f"rtt {rtt:.0f} ms, " if rtt is not None else "rtt -, ") + \
         f"loss {100 * float(link.get('loss_fraction', 0.0)):.1f}%"
     parts = [mode_text(agent.mode), f"episode {known(agent.episode, str(agent.episode))}",
-             f"{known(agent.successes, str(agent.successes))} ok",
+             successes_text(agent),
              known(agent.battery_mv, f"{(agent.battery_mv or 0) / 1000:.2f} V"),
              f"depth {known(agent.depth_m, f'{round(agent.depth_m or 0.0, 2) + 0.0:.2f} m')}",  # never -0.00
              quality if link_up else "link down"]

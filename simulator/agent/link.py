@@ -15,8 +15,6 @@ from protocol import (
     FrameEncoder,
     FrameFlag,
     NodeKind,
-    SignatureCheck,
-    SignatureVerifier,
     StreamDecoder,
     definitions_hash,
     messages,
@@ -24,12 +22,11 @@ from protocol import (
 from protocol.decoder import COMMAND_IDS_FROM, UndecodedCommand
 from protocol.frame import HEADER
 from protocol.registry import Message
-from protocol.signing import RESYNC_NAME, RESYNC_NONCE_FORMAT
 from simulator.agent import dumps as agent_dumps
 from simulator.agent.dumps import DumpStore
+from simulator.agent.link_signing import RESYNCED, UNVERIFIED_SURFACE, LinkSigning, is_resync
 from simulator.agent.log_ring import LogRing
 from simulator.agent.program import OnboardProgram, Verdict
-from simulator.agent.signing_mark import MarkFile
 from simulator.errors import ParamsError
 
 FIRMWARE_VERSION = (0, 1, 1)
@@ -37,16 +34,7 @@ ACK_MEMORY = 16  # SPEC s. 5: the last 16 (msg_id, seq, result) answered on thei
 HELLO_REPEAT_S = 1.0  # SPEC s. 4: HELLO once per second of link time until the ground is heard
 LOG_REPLAY_SAMPLES = 512  # SPEC s. 7: one LOG_REQUEST replays at most this many SAMPLE records
 _DUMP_KINDS = {int(k) for k in DumpKind}
-_SURFACE_ID = messages.Surface.MSG_ID
 _ACK_ID = messages.Ack.MSG_ID
-# The ACK reason of a CMD_SURFACE run without a valid signature or with a stale timestamp (SPEC 1.2 s. 12).
-UNVERIFIED_SURFACE = "surfacing without a valid signature: the fail-safe"
-RESYNCED = "re-synced: the signing estimate, link ids and mark start again from this frame's timestamp"
-
-
-def _is_resync(message: Message) -> bool:
-    """PARAM_SET of index -1 named `resync`: the signed re-sync of SPEC s. 12, not a parameter."""
-    return isinstance(message, messages.ParamSet) and message.index == -1 and message.name == RESYNC_NAME
 
 # A command's verdict and what follows its ACK: messages, or inner frames of the on-board log to replay.
 Outcome = tuple[Verdict, list[Message | bytes]]
@@ -67,11 +55,7 @@ class AgentLink:
         self.write = write
         self.link_clock_s = link_clock_s or self._agent_clock_s
         # With a key, commands must be signed (SPEC s. 12); refusals are counted in HEARTBEAT.signing_rejects.
-        self.verifier: SignatureVerifier | None = None
-        if key is not None:
-            marks = MarkFile(mark_file) if mark_file is not None else None
-            self.verifier = SignatureVerifier(key, floor=marks.read() if marks else -1,
-                                              persist=marks.write if marks else None)
+        self.signing = LinkSigning(key, mark_file) if key is not None else None
         self.signing_rejects = 0
         self.node_id = node_id
         self.boot_id = int.from_bytes(os.urandom(4), "little") or 1
@@ -230,10 +214,7 @@ class AgentLink:
 
     def _admitted(self, frame: Frame) -> bool:
         """A non-command frame counts as a sign of life: any, or with a key only a validly signed one."""
-        verifier = self.verifier
-        if verifier is None:
-            return True
-        return verifier.check(frame.inner, self.link_clock_s()) is SignatureCheck.VALID
+        return self.signing is None or self.signing.admits(frame, self.link_clock_s())
 
     def _handle(self, frame: Frame) -> None:
         message = frame.message
@@ -257,49 +238,40 @@ class AgentLink:
         CMD_SURFACE is exempt from the signature checks (SPEC 1.2 s. 12, emergencies): surfacing is the fail-safe
         state, so anyone may make the agent surface (nobody may make it dive). Its ACK says it ran unverified.
         """
-        message, verifier = frame.message, self.verifier
-        if verifier is None:  # without a key every frame counted in rx_frames is a sign of life (SPEC s. 4)
+        message, signing = frame.message, self.signing
+        if signing is None:  # without a key every frame counted in rx_frames is a sign of life (SPEC s. 4)
             self._alive()
         if isinstance(message, UndecodedCommand) and message.truncated:
             self._refuse(frame, "truncated signature")
             return
         unverified = ""
-        if verifier is not None:
-            check = verifier.authenticate(frame.inner)
-            if check is not SignatureCheck.VALID:
-                if frame.msg_id != _SURFACE_ID:
-                    self._refuse(frame, f"signature {check.name.lower().replace('_', ' ')}")
-                    return
-                unverified = check.name.lower().replace("_", " ")
+        if signing is not None:
+            refused, unverified = signing.authenticate(frame)
+            if refused:
+                self._refuse(frame, refused)
+                return
         answered = self._answered.get((frame.msg_id, frame.seq))
         if answered is not None:
             self._ack(frame, AckResult(answered[0]), answered[1])  # a retry: answer again, do not act again
             return
-        if verifier is not None and not unverified and _is_resync(message):
-            self._resync(frame)
-            return
-        if verifier is not None and not unverified:
-            check = verifier.admit(frame.inner, self.link_clock_s())
-            if check is SignatureCheck.VALID:
-                self._alive()
-            elif frame.msg_id != _SURFACE_ID:  # surfacing is always safe: CMD_SURFACE runs whatever its timestamp
-                # a refusal for the timestamp names the nonce a key holder re-syncs with (SPEC s. 12, "Re-sync")
-                self._refuse(frame, f"signature {check.name.lower().replace('_', ' ')}; "
-                                    + RESYNC_NONCE_FORMAT.format(verifier.nonce))
+        if signing is not None and not unverified:
+            if is_resync(message):
+                self._resync(frame, signing)
                 return
-            else:
-                unverified = check.name.lower().replace("_", " ")
+            refused, unverified = signing.admit(frame, self.link_clock_s())
+            if refused:
+                self._refuse(frame, refused)
+                return
+            if not unverified:
+                self._alive()
         self._execute(frame, f"{UNVERIFIED_SURFACE} ({unverified})" if unverified else "")
 
-    def _resync(self, frame: Frame) -> None:
-        """The signed re-sync (SPEC s. 12): authenticated already; with the current nonce, the replay state starts
-        again from this frame's timestamp (the timestamp checks are what it repairs, so they are not made)."""
-        verifier, message = self.verifier, frame.message
-        assert verifier is not None and isinstance(message, messages.ParamSet)
-        if message.value != verifier.nonce:  # a replayed or stale re-sync: each nonce re-syncs once
-            self._refuse(frame, "stale re-sync nonce; " + RESYNC_NONCE_FORMAT.format(verifier.nonce))
+    def _resync(self, frame: Frame, signing: LinkSigning) -> None:
+        """The signed re-sync (SPEC s. 12), authenticated already: ACCEPTED and remembered, or refused."""
+        refused = signing.resync(frame, self.link_clock_s())
+        if refused:
+            self._refuse(frame, refused)
             return
-        verifier.resync(frame.inner, self.link_clock_s())
         self._alive()
         self._remember(frame, AckResult.ACCEPTED, RESYNCED)
         self._ack(frame, AckResult.ACCEPTED, RESYNCED)

@@ -12,9 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from learning import LearnerConfig
-from protocol import FrameEncoder, Severity
-from protocol import messages as m
-from protocol.enums import LINK_TAKEN_TEXT
+from protocol.link_taken import link_taken_notice
 from simulator.agent.batch_kernel import SAMPLE_WIRE
 from simulator.agent.mission import MissionConfig
 from simulator.agent.onboard import OnboardAgent, PythonAgent
@@ -154,9 +152,8 @@ class AgentServer:
         self.agent.link_down()
 
     def _replaced_notice(self) -> bytes:
-        """The TEXT for a connection a new one replaces (SPEC.md s. 3), with a seq of its own: the old link ends."""
-        return FrameEncoder().encode(m.Text(t_us=self.agent.t_us, severity=int(Severity.WARNING),
-                                            text=LINK_TAKEN_TEXT)).wire
+        """The notice for a connection a new one replaces (SPEC.md s. 4), with a seq of its own: the old link ends."""
+        return link_taken_notice(self.agent.t_us)
 
     def _connected(self) -> None:
         self._connected_wall_s = time.monotonic()

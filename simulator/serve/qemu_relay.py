@@ -13,9 +13,7 @@ import select
 import socket
 import threading
 
-from protocol import FrameEncoder, Severity
-from protocol import messages as m
-from protocol.enums import LINK_TAKEN_TEXT
+from protocol.link_taken import link_taken_notice
 from simulator.serve.transport import limit_unsent
 
 _CHUNK = 4096
@@ -136,10 +134,9 @@ def _tell_replaced(old: socket.socket) -> None:
     """The "link taken" TEXT to a replaced client, then our FIN; its reader thread reads on until it closes (or
     LINGER_S), so that our close is no reset that would discard the TEXT unread. The relay does not know the
     agent's time: t_us is 0 (a ground acts on the text)."""
-    notice = FrameEncoder().encode(m.Text(t_us=0, severity=int(Severity.WARNING), text=LINK_TAKEN_TEXT)).wire
     try:
         old.settimeout(NOTICE_WAIT_S)
-        old.sendall(b"\x00" + notice)  # 0x00 first: ends a partial frame sent before it
+        old.sendall(link_taken_notice())
         old.shutdown(socket.SHUT_WR)
         old.settimeout(LINGER_S)
     except OSError:

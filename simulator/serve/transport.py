@@ -47,7 +47,7 @@ def tell_replaced(old: socket.socket, notice: bytes) -> None:
         # Waiting up to a second for room: a full send buffer (a slow reader) would otherwise swallow the notice,
         # and the old ground, seeing only the close, would reconnect and take the link back.
         old.settimeout(REPLACED_NOTICE_WAIT_S)
-        old.sendall(b"\x00" + notice)  # 0x00 first: ends a partial frame sent before it
+        old.sendall(notice)  # protocol.link_taken: 0x00 first, ending a partial frame sent before it
         old.shutdown(socket.SHUT_WR)
     old.setblocking(False)
     drain()

@@ -9,8 +9,8 @@ from learning import Learner, LearnerConfig, learner_preset
 from learning.config import kernel_spec, n_states
 from learning.model import ModelArrays, record_transition
 from learning.shared import FAR, allocate_arrays, cell_reward, compile_shared_rows, record_shared, type_of
-from simulator.gym.task import DivingEnv
 from simulator.parameters import preset
+from tests.simulator.python_trial import python_loop_trial
 
 # Every branch of the row builder: plain, 20 depth cells x 7 bins, 13 bins, velocity clipped instead of
 # terminal, the Dirichlet blend, the count bonus, R-MAX's known threshold.
@@ -129,21 +129,15 @@ def test_rows_of_random_models_are_bit_identical_to_the_plain_loop(name: str) ->
 
 
 def test_rows_of_a_real_hardware_trial_are_bit_identical_episode_by_episode() -> None:
-    # The hardware learner on the hardware preset (the study's seeding of trial 0 of seed 3): after every
-    # episode the rows the planner sweeps are the old ones, so the values, policy and the whole trial are.
+    # The hardware learner on the hardware preset (the study's seeding of trial 0 of seed 3), each episode cut at
+    # 60 s: after every episode the rows the planner sweeps are the old ones, so the values, policy and the whole
+    # trial are.
     config = CONFIGS["hardware"]
-    learner = Learner(config, np.random.default_rng([3, 0, 0]))
-    env = DivingEnv(preset("hardware"), config, np.random.default_rng([3, 0, 1]))
-    for _ in range(4):
-        _, info = env.reset()
-        state = info["state"]
-        while True:
-            action = learner.act(state)
-            _, reward, terminated, truncated, info = env.step(action)
-            learner.observe(state, action, reward, info["state"], info["cell"])
-            state = info["state"]
-            if terminated or truncated or env.time_s > 60.0:
-                break
+    totals: list[int] = []
+
+    def check(learner: Learner) -> None:
         assert_bit_identical(learner.arrays.model, config)
-        learner.end_episode()
-    assert learner.arrays.model.totals.sum() > 100  # it learned something to build rows from
+        totals.append(int(learner.arrays.model.totals.sum()))
+
+    python_loop_trial(preset("hardware"), config, seed=3, trial=0, episodes=4, max_episode_s=60.0, before_end=check)
+    assert len(totals) == 4 and totals[-1] > 100  # every episode checked, and it learned something to build rows from

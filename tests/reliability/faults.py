@@ -12,7 +12,7 @@ from typing import Any
 
 from mcap.reader import make_reader
 
-from groundstation.recording.recorder import RAW_RX_UNUSED_TOPIC
+from groundstation.recording.held_frames import RAW_RX_UNUSED_TOPIC
 from tests.reliability.recordings import Recording, dive, read
 from tests.simulator.agent_client import running
 

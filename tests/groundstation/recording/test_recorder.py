@@ -11,8 +11,9 @@ from mcap.reader import make_reader
 from groundstation.links.runs import find_run
 from groundstation.mcap_io import is_complete, read_recording, recover
 from groundstation.recording.export import export_csv, export_npz
+from groundstation.recording.held_frames import RAW_RX_UNUSED_TOPIC
 from groundstation.recording.info import summarize
-from groundstation.recording.recorder import RAW_RX_UNUSED_TOPIC, RecorderConfig
+from groundstation.recording.recorder import RecorderConfig
 from groundstation.run.job import RunConfig, run
 from groundstation.run.marker import send_marker
 from protocol import FrameFlag

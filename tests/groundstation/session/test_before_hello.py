@@ -12,7 +12,8 @@ from pathlib import Path
 from mcap.reader import make_reader
 
 from groundstation.links import make_link
-from groundstation.recording.recorder import RAW_RX_UNUSED_TOPIC, Recorder, RecorderConfig
+from groundstation.recording.held_frames import RAW_RX_UNUSED_TOPIC
+from groundstation.recording.recorder import Recorder, RecorderConfig
 from groundstation.session.agent_session import Session, SessionConfig
 from tests.groundstation.fake_agent import FakeAgent
 

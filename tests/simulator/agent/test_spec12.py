@@ -6,7 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from protocol import AckResult, FrameEncoder, FrameFlag, Mode, Signer, messages
-from simulator.agent.link import UNVERIFIED_SURFACE
+from simulator.agent.link_signing import UNVERIFIED_SURFACE
 from tests.simulator.agent_client import connected
 
 FAST = ("--tcp", "127.0.0.1:0", "--speed", "50", "--seed", "12")

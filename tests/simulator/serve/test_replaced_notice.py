@@ -17,7 +17,7 @@ def test_a_replaced_client_still_writing_reads_the_notice_and_a_clean_close() ->
         agent_side, _ = listener.accept()
         agent_side.setblocking(False)  # as the transport keeps its client
         with ground:
-            tell_replaced(agent_side, b"NOTICE")
+            tell_replaced(agent_side, b"\x00NOTICE")
             ground.sendall(b"a command sent as the other ground connected")
             ground.recv(1, socket.MSG_PEEK)  # the notice is there: the late bytes have reached the agent too
             agent_side.close()  # what the transport does right after telling
