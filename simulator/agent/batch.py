@@ -52,6 +52,7 @@ class StepBatcher:
     def run(self, max_steps: int, until_us: int) -> int:
         """Up to max_steps steps, each a program step and a link tick, until agent time reaches until_us."""
         program, link = self.program, self.link
+        program.finish_command()  # a learner restart a command asked for, before any batch uses the learner
         done = 0
         while done < max_steps and program.hw.t_us < until_us:
             mode = program.mode

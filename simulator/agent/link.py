@@ -286,6 +286,7 @@ class AgentLink:
     def _execute(self, frame: Frame, note: str = "") -> None:
         """Run a command and ACK it; `note` replaces an ACCEPTED's empty reason (an unverified CMD_SURFACE)."""
         handler = self._handlers.get(type(frame.message))
+        self._prog.finish_command()  # an earlier command of the same read (a learner restart) takes effect first
         replies: list[Message | bytes] = []
         self._deferred = []
         try:

@@ -96,6 +96,7 @@ class PythonAgent:
         self.link.receive(data)
 
     def service(self) -> None:
+        self.program.finish_command()  # after the server flushed the command's ACK (SPEC s. 5)
         self.link.service()
 
     def link_up(self) -> None:

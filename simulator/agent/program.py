@@ -107,11 +107,13 @@ class OnboardProgram:
         self._dive_start_us = 0
         self._hold_depth_m = 0.0  # recovery / hover / pause set point
         self._next_idle_sample_us = 0
+        self._restart_pending = ""  # the parameter whose change restarts the learner after the ACK, or ""
         self._reset_episode()
 
     # ------------------------------------------------------------------ main loop
     def step(self) -> None:
         """One control step of the current mode, then let its period of agent time pass."""
+        self.finish_command()  # a command run outside a link (no ACK to wait for) takes effect here at the latest
         mode = self.mode
         if mode == Mode.LEARNING:
             dt = self.params.control_period_s
@@ -382,11 +384,19 @@ class OnboardProgram:
         # SPEC 1.2 s. 13: a change is a different stored value; the current one again restarts nothing.
         if definition.learner and self.table.values[index] != old and new_config != self.config:
             self.config = new_config
-            self.learner = Learner(new_config, self.rng)
-            self._bind_learner(new_config)
-            self.down.model_changed()
-            self.successes = 0
-            self._reset_episode()
-            self.text(f"{definition.name} changed: learner restarted")
+            self._restart_pending = definition.name
         return OK
+
+    def finish_command(self) -> None:
+        """What a command caused that may take long, run once its ACK is out (SPEC s. 5: the ACK comes before
+        anything the command causes): a new learner compiles its kernels on first use, seconds on a cold cache."""
+        name, self._restart_pending = self._restart_pending, ""
+        if not name:
+            return
+        self.learner = Learner(self.config, self.rng)
+        self._bind_learner(self.config)
+        self.down.model_changed()
+        self.successes = 0
+        self._reset_episode()
+        self.text(f"{name} changed: learner restarted")
 
