@@ -47,6 +47,13 @@ class OnboardAgent(Protocol):
     def service(self) -> None:
         """Called every loop of the server, steps or not: the HELLO repeat until the ground is heard."""
 
+    @property
+    def work_after_ack(self) -> bool:
+        """A command was ACKed whose effect takes long (a learner restart): the server lets its ACK leave first."""
+
+    def finish_command(self) -> None:
+        """Run that effect now."""
+
     def link_up(self) -> None:
         """A new connection: sequence tracking restarts, HELLO goes out."""
 
@@ -96,8 +103,14 @@ class PythonAgent:
         self.link.receive(data)
 
     def service(self) -> None:
-        self.program.finish_command()  # after the server flushed the command's ACK (SPEC s. 5)
         self.link.service()
+
+    @property
+    def work_after_ack(self) -> bool:
+        return self.program.restart_pending
+
+    def finish_command(self) -> None:
+        self.program.finish_command()
 
     def link_up(self) -> None:
         self.link.on_connect()

@@ -113,7 +113,7 @@ class OnboardProgram:
     # ------------------------------------------------------------------ main loop
     def step(self) -> None:
         """One control step of the current mode, then let its period of agent time pass."""
-        self.finish_command()  # a command run outside a link (no ACK to wait for) takes effect here at the latest
+        self.finish_command()  # at the latest here (the server runs it once the ACK has left, see serve/loop.py)
         mode = self.mode
         if mode == Mode.LEARNING:
             dt = self.params.control_period_s
@@ -386,6 +386,10 @@ class OnboardProgram:
             self.config = new_config
             self._restart_pending = definition.name
         return OK
+
+    @property
+    def restart_pending(self) -> bool:
+        return bool(self._restart_pending)
 
     def finish_command(self) -> None:
         """What a command caused that may take long, run once its ACK is out (SPEC s. 5: the ACK comes before

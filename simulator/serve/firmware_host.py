@@ -246,6 +246,11 @@ class FirmwareAgent:
             self._lib.host_poll()
             self._drain()
 
+    work_after_ack = False  # the firmware's learner restart is a memset: it runs before the ACK is built
+
+    def finish_command(self) -> None:
+        pass
+
     def service(self) -> None:
         self._io.link_time_us = self._link_time_us()
         self._lib.host_poll()  # pending replies, the HELLO repeat until the ground is heard

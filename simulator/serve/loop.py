@@ -22,6 +22,7 @@ from simulator.serve.transport import Pacer, PtyTransport, TcpTransport, Transpo
 
 SLICE_S = 0.004  # longest the program runs before the sockets are served again
 MAX_WAIT_S = 0.02  # longest select() waits, so pty opens and delayed bytes are noticed
+ACK_DRAIN_S = 2.0  # a long command effect waits at most this for its ACK to leave (a paced link's queue)
 HIGH_WATER_BYTES = 256 * 1024  # real time drops frames above this (a UART FIFO does not wait for a slow reader)
 # --speed max runs the program only while the client takes what it sends: a few frames queued at most, so a
 # command's ACK is never behind seconds of backlog (flow control from the send side; issue 14).
@@ -94,6 +95,7 @@ class AgentServer:
         # printed its address) must still stop it, so serve_forever() does not set it again.
         self._running = True
         self._next_disconnect_us = self._disconnect_period_us()
+        self._ack_wait_until: float | None = None  # see _hold_for_ack
 
     @property
     def address(self) -> str:
@@ -215,6 +217,8 @@ class AgentServer:
             else:
                 due_us = agent0_us + int((now - wall0) * speed * 1e6)
                 blocked = False
+            if agent.work_after_ack:
+                blocked = self._hold_for_ack(now) or blocked
             deadline = now + SLICE_S
             steps = 0
             if self._batches is not None and not blocked:
@@ -236,6 +240,17 @@ class AgentServer:
                 # Cannot keep up with the requested speed: do not try to catch up in a burst later.
                 wall0, agent0_us = time.monotonic(), agent.t_us
             self._io(self._wait_s(speed, due_us))
+
+    def _hold_for_ack(self, now: float) -> bool:
+        """True while a command's ACK is still queued and the command's long effect (a learner restart, seconds of
+        compiling on a cold cache) must wait for it (SPEC s. 5: the ACK comes first); then runs the effect."""
+        if self._ack_wait_until is None:
+            self._ack_wait_until = now + ACK_DRAIN_S
+        if self.transport.outbuf and self.transport.connected and now < self._ack_wait_until:
+            return True
+        self._ack_wait_until = None
+        self.agent.finish_command()
+        return False
 
     def _run_batches(self, speed: float | None, due_us: int, deadline: float) -> int:
         """Compiled batches of steps until the slice ends, agent time is due or (--speed max) the queue is full.

@@ -26,7 +26,9 @@ def test_the_ack_leaves_before_the_learner_restarts() -> None:
     assert agent.program.learner is old_learner  # the ACK is out; the restart has not run yet
     assert agent.program.config.shared_model  # but the agent already answers with the new configuration
 
-    agent.service()  # the server's next turn, after it flushed the ACK
+    assert agent.work_after_ack  # what the server (serve/loop.py) waits on: it lets the ACK leave first
+    agent.finish_command()
+    assert not agent.work_after_ack
     assert agent.program.learner is not old_learner and agent.program.learner.config.shared_model
     texts = [f.message.text for f in received if isinstance(f.message, messages.Text)]
     assert "shared_model changed: learner restarted" in texts
