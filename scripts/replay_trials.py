@@ -168,7 +168,17 @@ def main() -> None:
             f"{np.mean(fail[:, R_FRACTION]):+.2f}" if len(fail) else "-",
             f"{np.mean(late[:, R_SWITCHES]):.2f}",
         )
-    Console().print(table)
+    console = Console()
+    console.print(table)
+    never = [t for t, row in enumerate(rows) if row["alc_stable_from"] is None]
+    late = records[never, -args.last:].reshape(-1, N_REC)
+    fail = late[late[:, R_END] != END_HELD]
+    console.print(
+        f"never stable: {len(never)} of {args.trials}; their late failures: {len(fail)} "
+        f"({int(np.sum(fail[:, R_END] == END_VELOCITY))} at the velocity edge), after a median "
+        f"{np.median(fail[:, R_STEPS]) * params.control_period_s if len(fail) else float('nan'):.0f} s of the episode; "
+        f"velocity error of the learner's input, RMS over all late episodes: "
+        f"{np.mean(records[:, -args.last:, R_VEL_RMS]) * 1000:.1f} mm/s", soft_wrap=True)
 
 
 if __name__ == "__main__":
