@@ -11,6 +11,7 @@ from learning import LearnerConfig, learner_preset
 from learning.errors import LearnerConfigError
 from simulator.gym.task import DivingEnv
 from simulator.parameters import preset, with_overrides
+from simulator.plant.observer import VelocityFilter
 
 FILTER = "shared-z20-bins7-filter-term100-vpen1"
 
@@ -45,3 +46,22 @@ def test_the_filter_is_off_by_default_and_excludes_the_depth_difference() -> Non
         replace(learner_preset(FILTER), velocity_diff_steps=8)
     with pytest.raises(LearnerConfigError, match="negative"):
         replace(learner_preset(FILTER), filter_bias_gain=-0.1)
+
+
+def test_the_agents_filter_is_the_study_kernels() -> None:
+    """simulator/agent's VelocityFilter gives the compiled episode's velocity on the same readings and commands."""
+    config = learner_preset(FILTER)
+    params = with_overrides(preset("hardware"), {"pressure_lag_s": 0.2})
+    env = DivingEnv(params, config)
+    obs, _ = env.reset(seed=4)
+    twin = VelocityFilter(config)
+    twin.reset(obs[0])
+    ends = 0
+    for k in range(600):
+        obs, _, terminated, truncated, _ = env.step((k // 15) % 2)
+        assert twin.update(obs[0], obs[2], params.control_period_s) == pytest.approx(obs[1], abs=1e-12), k
+        if terminated or truncated:
+            obs, _ = env.reset()
+            twin.reset(obs[0])
+            ends += 1
+    assert ends > 0
