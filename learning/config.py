@@ -63,6 +63,18 @@ class LearnerConfig:
     # the cell's centre (m/s -> reward per step, 0 = the paper's -|z|). It makes rushing at the region's
     # velocity edge cost what it risks (learning/shared.py, cell_reward).
     velocity_penalty: float = 0.0
+    # > 0: the velocity the learner sees comes from a filter on its measured depths that predicts with the
+    # gear angle it commands (the firmware knows it): states depth, velocity and an acceleration bias (a
+    # neutral point off by a few degrees), corrected each step by the depth innovation r with these gains
+    # (z += kz r, z' += kv r / dt, bias += kb r / dt^2). An 8-step difference lags the true velocity by
+    # ~0.35 s, and more behind a lagging port: the policy then brakes late and its swing grows until it
+    # leaves the region (docs/reproduction.md, "Why trials stay unstable"). 0 = off.
+    filter_depth_gain: float = 0.0
+    filter_velocity_gain: float = 0.0
+    filter_bias_gain: float = 0.0
+    # The filter's model, nominal figures (not the plant's): z'' = accel_per_deg (alpha - centre) - drag z'|z'|.
+    filter_accel_per_deg: float = 0.0
+    filter_drag_per_m: float = 0.0
 
     def __post_init__(self) -> None:
         if self.z_cells < 1 or self.zdot_cells < 1 or self.actuator_bins < 1:
@@ -84,6 +96,10 @@ class LearnerConfig:
             raise LearnerConfigError("dirichlet_weight, count_bonus and velocity_penalty must not be negative")
         if self.shared_model and self.sparse_slots > 255:
             raise LearnerConfigError("the shared model holds at most 255 offset slots per type")
+        if self.filter_depth_gain < 0 or self.filter_velocity_gain < 0 or self.filter_bias_gain < 0:
+            raise LearnerConfigError("filter gains must not be negative")
+        if self.filter_depth_gain > 0 and self.velocity_diff_steps > 0:
+            raise LearnerConfigError("choose the velocity filter or the depth difference, not both")
         if self.max_sweeps < 1:
             raise LearnerConfigError("max_sweeps must be >= 1")
         if n_states(self) > 65535:

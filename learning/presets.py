@@ -38,6 +38,16 @@ _PRESETS: dict[str, LearnerConfig] = {
     "shared-z20-bins7-diff8-term100-vpen1": replace(
         _SHARED, z_cells=20, actuator_bins=7, velocity_diff_steps=8, terminal_reward=-100.0, velocity_penalty=1.0
     ),
+    # Issue 29: the same with the velocity from a filter that predicts with the commanded gear angle instead of
+    # the 8-step difference, whose lag made late episodes swing out of the region on a lagging or noisier
+    # depth (docs/reproduction.md, "Why trials stay unstable"). Gains: the fading-memory g-h-k filter at
+    # theta = 0.8 (g = 1 - theta^3, h = 1.5 (1 - theta^2)(1 - theta), k = (1 - theta)^3 / 2); model: the
+    # hardware preset's nominal z'' per degree (-rho g dV / alpha_max / (m + m_a)) and drag k / (m + m_a).
+    "shared-z20-bins7-filter-term100-vpen1": replace(
+        _SHARED, z_cells=20, actuator_bins=7, terminal_reward=-100.0, velocity_penalty=1.0,
+        filter_depth_gain=0.488, filter_velocity_gain=0.108, filter_bias_gain=0.004,
+        filter_accel_per_deg=-0.0022734, filter_drag_per_m=2.0864,
+    ),
     # Per-state counts as well, the shared histogram their Dirichlet prior worth 10 transitions: keeps
     # working where dynamics depend on depth.
     "shared-dirichlet": replace(_SHARED, dirichlet_weight=10.0),
@@ -67,6 +77,7 @@ DESCRIPTIONS: dict[str, str] = {
     "shared-bins13-diff4": "13 bins, 4-step depth diff",
     "shared-bins7-diff8-term100-vpen1": "7 bins, 8-step diff, -100 end",
     "shared-z20-bins7-diff8-term100-vpen1": "the same, 20 depth cells",
+    "shared-z20-bins7-filter-term100-vpen1": "hardware, velocity from a filter",
     "shared-dirichlet": "shared as per-state prior",
     "shared-epsilon": "shared + paper's exploration",
     "shared-bonus": "shared + MBIE-EB count bonus",

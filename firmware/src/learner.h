@@ -50,6 +50,12 @@ typedef struct {
     float    count_bonus;              /* shared model: beta / sqrt(n) added to a pair's reward (0 = off) */
     uint8_t  vel_diff_steps;           /* the agent's velocity input: k-step depth difference (0 = observer) */
     float    vel_penalty;              /* shared model: a cell's reward also loses this x |its velocity centre| (s) */
+    /* The velocity filter (observer.h vfilter_*; 0 depth gain = off, vel_diff_steps or the observer instead). */
+    float    filter_depth_gain;
+    float    filter_velocity_gain;
+    float    filter_bias_gain;
+    float    filter_accel_per_deg;     /* m/s^2 per deg of command above the window's centre */
+    float    filter_drag_per_m;        /* 1/m */
 } learner_config_t;
 
 /* The defaults of learning/config.py LearnerConfig (the paper's simulation values). */

@@ -63,6 +63,7 @@ typedef struct {
     uint32_t plan_waits;     /* recovery steps settled but waiting for planning to finish */
     uint32_t forced_plans;   /* episode starts that had to finish planning in one step (a late step) */
     smo_state_t observer;
+    vfilter_state_t vfilter;  /* the learner's velocity filter (learner_config_t filter_*) */
     recovery_state_t recovery;
     rng_t rng;
 } modes_t;
@@ -102,6 +103,16 @@ static uint32_t vel_diff_steps(void) { return (uint32_t)params_get(PARAM_VEL_DIF
 static void depth_ring_reset(void) {
     for (uint32_t i = 0; i < CFG_VEL_DIFF_MAX_STEPS; i++) { g.depth_ring[i] = g.depth_m; }
     g.ring_pos = 0;
+}
+
+static bool vfilter_on(void) { return learner_config()->filter_depth_gain > 0.0f; }
+
+/* The learner's velocity from its filter, which predicts with the command of the last period. */
+static float filtered_velocity(void) {
+    const learner_config_t *c = learner_config();
+    vfilter_gains_t gains = {c->filter_depth_gain, c->filter_velocity_gain, c->filter_bias_gain,
+                             c->filter_accel_per_deg, c->filter_drag_per_m};
+    return vfilter_update(&g.vfilter, &gains, g.depth_m, g.cmd_deg - g.center_deg, g.last_dt_s);
 }
 
 /* The learner's velocity (z_t - z_{t-k}) / (k dt) over its own measured depths. */
@@ -224,6 +235,10 @@ static void begin_episode(float center_deg) {
     reset_episode();
     depth_ring_reset();
     if (vel_diff_steps() > 0u) { g.velocity_mps = 0.0f; }  /* as simulator/onboard.py: a flat history */
+    if (vfilter_on()) {
+        vfilter_start(&g.vfilter, g.depth_m, 0.0f);  /* handed over at rest, as simulator/plant/episode.py */
+        g.velocity_mps = 0.0f;
+    }
     g.episode = learner_episode() + 1u;
     g.center_deg = center_deg;
     set_cmd(center_deg);
@@ -242,7 +257,11 @@ static void begin_episode(float center_deg) {
 static void learning_step(void) {
     measure();
     uint32_t k = vel_diff_steps();
-    if (k > 0u) { g.velocity_mps = depth_difference(k); }
+    if (k > 0u) {
+        g.velocity_mps = depth_difference(k);
+    } else if (vfilter_on()) {
+        g.velocity_mps = filtered_velocity();
+    }
     uint16_t state = state_now();
     float reward = 0.0f;
     if (g.prev_state >= 0) {
@@ -408,6 +427,7 @@ static void restart_learner(const char *why) {
     learner_config_t c;
     params_learner_config(&c);
     (void)learner_configure(&c);  /* checked against the arena before the value was accepted */
+    memset(&g.vfilter, 0, sizeof g.vfilter);  /* a new learner learns its bias afresh */
     g.successes = 0;
     g.dumps_after_planning = false;
     dumps_model_changed();

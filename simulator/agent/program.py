@@ -42,7 +42,7 @@ from simulator.agent.mission import MissionConfig
 from simulator.agent.params_table import ParamTable, Scope, check_ram
 from simulator.errors import ParamsError
 from simulator.parameters import PlantParams
-from simulator.plant.observer import DepthDifference, SlidingModeObserver
+from simulator.plant.observer import DepthDifference, SlidingModeObserver, VelocityFilter
 from simulator.plant.recovery import RecoveryController
 
 Verdict = tuple[AckResult, str]
@@ -153,6 +153,7 @@ class OnboardProgram:
         self._depth_difference = (
             DepthDifference(config.velocity_diff_steps) if config.velocity_diff_steps else None
         )
+        self._velocity_filter = VelocityFilter(config) if config.filter_depth_gain > 0.0 else None
 
     @property
     def t_us(self) -> int:
@@ -252,6 +253,9 @@ class OnboardProgram:
         if self._depth_difference is not None:
             self._depth_difference.reset(self.depth_m)
             self.velocity_mps = 0.0
+        if self._velocity_filter is not None:
+            self._velocity_filter.reset(self.depth_m)
+            self.velocity_mps = 0.0
         start_state = self._state()
         self.text(f"mode {self.mode.name} -> LEARNING: episode {self.episode}")
         self.mode = Mode.LEARNING
@@ -266,6 +270,9 @@ class OnboardProgram:
         self._measure(dt)
         if self._depth_difference is not None:
             self.velocity_mps = self._depth_difference.update(self.depth_m, dt)
+        elif self._velocity_filter is not None:
+            offset_deg = self.hw.actuator_cmd_deg - self._center_deg  # the command of the period just ended
+            self.velocity_mps = self._velocity_filter.update(self.depth_m, offset_deg, dt)
         state = self._state()
         reward = 0.0
         if self._prev_state >= 0:

@@ -18,6 +18,8 @@ from simulator.plant.episode import (
     E_CENTER,
     E_CMD,
     E_DEPTH_MEAS,
+    E_FILT_V,
+    E_FILT_Z,
     E_OBS_X1,
     E_OBS_X2,
     E_PLANT_END,
@@ -91,6 +93,7 @@ class DivingEnv:
         # The agent has measured this depth and believes this velocity: so does its observer, and its depth history.
         e[E_OBS_X1], e[E_OBS_X2], e[E_DEPTH_MEAS], e[E_VEL_EST] = depth, velocity, depth, velocity
         e[E_RING:E_RING + MAX_VELOCITY_DIFF_STEPS] = depth
+        e[E_FILT_Z], e[E_FILT_V] = depth, velocity
         return int(episode_state_kernel(e, self.params.target_depth_m, self._spec, self._lspec))
 
     def step(self, action: int) -> tuple[NDArray[np.float64], float, bool, bool, dict[str, Any]]:

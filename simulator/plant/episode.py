@@ -30,7 +30,10 @@ E_RECOVERY_S = E_CMD + 10  # time the recovery controller needed before this epi
 E_STARTED = E_CMD + 11  # 1 after the first reset (the plant state carries over between episodes)
 E_RING_POS = E_CMD + 12  # next slot of the depth ring (the learner's own k-step depth difference)
 E_RING = E_CMD + 13  # measured depths of the last MAX_VELOCITY_DIFF_STEPS control steps
-ENV_SIZE = E_RING + MAX_VELOCITY_DIFF_STEPS
+E_FILT_Z = E_RING + MAX_VELOCITY_DIFF_STEPS  # the learner's velocity filter: depth, m
+E_FILT_V = E_FILT_Z + 1  # velocity, m/s
+E_FILT_B = E_FILT_Z + 2  # acceleration bias, m/s^2
+ENV_SIZE = E_FILT_Z + 3
 _MAX_RECOVERY_ATTEMPTS = 20
 
 
@@ -124,6 +127,11 @@ def episode_reset_kernel(
         env[E_RING:E_RING + MAX_VELOCITY_DIFF_STEPS] = env[E_DEPTH_MEAS]
         env[E_RING_POS] = 0.0
         env[E_VEL_EST] = 0.0
+    if lspec.filter_depth_gain > 0.0:
+        # Handed over at rest at the measured depth; the bias learnt so far carries over (the same gear).
+        env[E_FILT_Z] = env[E_DEPTH_MEAS]
+        env[E_FILT_V] = 0.0
+        env[E_VEL_EST] = 0.0
     return _state(env, target_depth_m, spec, lspec)
 
 
@@ -136,6 +144,23 @@ def _depth_difference(env: NDArray[np.float64], spec: KernelSpec, lspec: KernelS
     env[E_RING + pos] = env[E_DEPTH_MEAS]
     env[E_RING_POS] = float((pos + 1) % MAX_VELOCITY_DIFF_STEPS)
     env[E_VEL_EST] = (env[E_DEPTH_MEAS] - oldest) / (k * spec.control_period_s)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _velocity_filter(env: NDArray[np.float64], spec: KernelSpec, lspec: KernelSpec) -> None:
+    """The learner's velocity from its depth filter (LearnerConfig.filter_depth_gain): predict one control
+    period with the commanded gear angle's acceleration, then correct with the measured depth."""
+    dt = spec.control_period_s
+    v = env[E_FILT_V]
+    acc = (lspec.filter_accel_per_deg * (env[E_CMD] - env[E_CENTER]) - lspec.filter_drag_per_m * v * abs(v)
+           + env[E_FILT_B])
+    z = env[E_FILT_Z] + dt * v + 0.5 * dt * dt * acc
+    v += dt * acc
+    r = env[E_DEPTH_MEAS] - z
+    env[E_FILT_Z] = z + lspec.filter_depth_gain * r
+    env[E_FILT_V] = v + lspec.filter_velocity_gain * r / dt
+    env[E_FILT_B] += lspec.filter_bias_gain * r / (dt * dt)
+    env[E_VEL_EST] = env[E_FILT_V]
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -183,6 +208,8 @@ def episode_step_kernel(
     measure_kernel(env, spec.control_period_s, spec, rng_state)
     if lspec.velocity_diff_steps > 0:
         _depth_difference(env, spec, lspec)
+    elif lspec.filter_depth_gain > 0.0:
+        _velocity_filter(env, spec, lspec)
     next_state = _state(env, target_depth_m, spec, lspec)
     reward = reward_kernel(env[E_DEPTH_MEAS], target_depth_m, next_state, lspec)
     terminal = lspec.z_cells * lspec.zdot_cells * lspec.actuator_bins

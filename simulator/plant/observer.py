@@ -6,6 +6,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from learning.config import LearnerConfig
 from learning.spec import KernelSpec, direct_entry
 from simulator.parameters import PlantParams, kernel_params
 
@@ -79,3 +80,28 @@ class DepthDifference:
         self._ring[self._pos] = depth_m
         self._pos = (self._pos + 1) % self._steps
         return (depth_m - oldest) / (self._steps * dt_s)
+
+
+class VelocityFilter:
+    """The learner's velocity filter (LearnerConfig.filter_*): the agent's twin of the study kernel's
+    (simulator/plant/episode.py _velocity_filter, which keeps the same three numbers in its environment array)."""
+
+    def __init__(self, config: LearnerConfig) -> None:
+        self._c = config
+        self.depth_m = self.velocity_mps = self.bias_mps2 = 0.0
+
+    def reset(self, depth_m: float, velocity_mps: float = 0.0) -> None:
+        """An episode starts here; the acceleration bias learnt so far is kept (the same gear)."""
+        self.depth_m, self.velocity_mps = depth_m, velocity_mps
+
+    def update(self, depth_m: float, cmd_offset_deg: float, dt_s: float) -> float:
+        """One period of dt_s with the command cmd_offset_deg from the window's centre, then the reading depth_m."""
+        c, v = self._c, self.velocity_mps
+        acc = c.filter_accel_per_deg * cmd_offset_deg - c.filter_drag_per_m * v * abs(v) + self.bias_mps2
+        z = self.depth_m + dt_s * v + 0.5 * dt_s * dt_s * acc
+        v += dt_s * acc
+        r = depth_m - z
+        self.depth_m = z + c.filter_depth_gain * r
+        self.velocity_mps = v + c.filter_velocity_gain * r / dt_s
+        self.bias_mps2 += c.filter_bias_gain * r / (dt_s * dt_s)
+        return self.velocity_mps

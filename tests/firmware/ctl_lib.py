@@ -28,6 +28,15 @@ class SmoGains(ctypes.Structure):
     _fields_ = [("rho_mps", ctypes.c_float), ("tau_s", ctypes.c_float), ("phi_m", ctypes.c_float)]
 
 
+class VfilterState(ctypes.Structure):
+    _fields_ = [("z_m", ctypes.c_float), ("v_mps", ctypes.c_float), ("bias_mps2", ctypes.c_float)]
+
+
+class VfilterGains(ctypes.Structure):
+    _fields_ = [(name, ctypes.c_float) for name in (
+        "depth_gain", "velocity_gain", "bias_gain", "accel_per_deg", "drag_per_m")]
+
+
 class RecoveryParams(ctypes.Structure):
     _fields_ = [(name, ctypes.c_float) for name in (
         "lambda_per_s", "phi_mps", "gain_deg", "avg_time_s", "settle_depth_m", "settle_velocity_mps",
@@ -52,6 +61,9 @@ class LearnerConfigC(ctypes.Structure):
         ("alg4_printed", ctypes.c_bool), ("max_sweeps", ctypes.c_uint32),
         ("shared_model", ctypes.c_bool), ("ties_per_step", ctypes.c_bool), ("dirichlet_w", ctypes.c_float),
         ("count_bonus", ctypes.c_float), ("vel_diff_steps", ctypes.c_uint8), ("vel_penalty", ctypes.c_float),
+        ("filter_depth_gain", ctypes.c_float), ("filter_velocity_gain", ctypes.c_float),
+        ("filter_bias_gain", ctypes.c_float), ("filter_accel_per_deg", ctypes.c_float),
+        ("filter_drag_per_m", ctypes.c_float),
     ]
 
 
@@ -106,6 +118,9 @@ _SIGNATURES: dict[str, tuple[object, list[object]]] = {
     "smo_reset": (None, [ctypes.POINTER(SmoState), ctypes.c_float]),
     "smo_update": (ctypes.c_float, [ctypes.POINTER(SmoState), ctypes.POINTER(SmoGains), ctypes.c_float,
                                     ctypes.c_float]),
+    "vfilter_start": (None, [ctypes.POINTER(VfilterState), ctypes.c_float, ctypes.c_float]),
+    "vfilter_update": (ctypes.c_float, [ctypes.POINTER(VfilterState), ctypes.POINTER(VfilterGains), ctypes.c_float,
+                                        ctypes.c_float, ctypes.c_float]),
     "recovery_init": (None, [ctypes.POINTER(RecoveryState), ctypes.c_float]),
     "recovery_restart": (None, [ctypes.POINTER(RecoveryState)]),
     "recovery_step": (ctypes.c_float, [
