@@ -1,5 +1,5 @@
 """Wall time of the compiled study next to a plain per-step Python loop of the same learner and plant; and the
-shared learners' CPU per trial-episode next to the same study with an older commit's planning (the anchor)."""
+shared learners' CPU per trial-episode next to the same study on an older commit's whole tree (the anchor)."""
 
 from __future__ import annotations
 
@@ -7,20 +7,19 @@ import argparse
 import sys
 import time
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # the tests' reference trial, run from anywhere
 
-import simulator.study.runner as runner  # noqa: E402
-from benchmarks.planning_anchor import anchor_kernels  # noqa: E402
+from benchmarks.study_anchor import ROOT, source_tree, study_cpu  # noqa: E402
 from learning import learner_preset  # noqa: E402
 from simulator.parameters import preset  # noqa: E402
-from simulator.study.runner import StudyResult, run_study  # noqa: E402
+from simulator.study.runner import run_study  # noqa: E402
 from tests.simulator.python_trial import python_loop_trial  # noqa: E402
 
-ANCHOR = "693fc12"  # main before issue 29's faster planning (item 6)
+ANCHOR = "a0a1fc7"  # main when issue 29 item 6's trial-kernel work began (693fc12, before its planning work, gives
+# other hardware-preset bits: the plant's state grew since)
 GOAL = 3.0  # issue 29 item 6: the shared learners' studies 3x faster
 
 
@@ -33,49 +32,25 @@ def python_loop(preset_name: str, learner: str, trial: int, episodes: int, seed:
     return time.perf_counter() - start, round(sum(durations) / params.control_period_s)
 
 
-def _cpu_per_trial_episode(preset_name: str, learner: str, trials: int, episodes: int, seed: int,
-                           run_trials: Any) -> tuple[float, StudyResult]:
-    """CPU ms per trial-episode of a study whose trials run in run_trials (today's or the anchor's)."""
-    saved = runner.run_trials
-    runner.run_trials = run_trials
-    try:
-        start = time.process_time()
-        result = run_study(preset(preset_name), learner_preset(learner), trials, episodes, seed)
-        return (time.process_time() - start) / (trials * episodes) * 1e3, result
-    finally:
-        runner.run_trials = saved
-
-
-def _same(a: StudyResult, b: StudyResult) -> bool:
-    """Every per-trial array to the bit: durations, values, policy, hold quality, planning counters."""
-    pairs = [(a.durations_s, b.durations_s), (a.values, b.values), (a.policy, b.policy), (a.hold, b.hold),
-             (a.counters, b.counters)]
-    return all(x is not None and y is not None and x.tobytes() == y.tobytes() for x, y in pairs)
-
-
 def compare_with_anchor(pairs: list[str], commit: str, trials: int, episodes: int, seed: int, repeats: int) -> None:
-    """Each preset/learner's CPU per trial-episode today and with the commit's planning, alternated (the
-    machine's load changes under both alike), best of `repeats`, and whether the results are the same bits."""
-    kernel, folder = anchor_kernels(commit)
-    print(f"anchor: the study with {commit}'s learning/planning.py and shared.py ({folder}); compiling ...",
-          flush=True)
+    """Each preset/learner's CPU per trial-episode today and on the commit's tree, each in a child process on one
+    thread, alternated (the machine's load changes under both alike), best of `repeats`, and whether every
+    per-trial array is the same bits."""
+    anchor = source_tree(commit)
+    print(f"anchor: the study on {commit}'s tree ({anchor}), one thread each", flush=True)
     for pair in pairs:
         preset_name, learner = pair.split("/")
-        for run_trials in (runner.run_trials, kernel.run_trials):  # compile or load outside the timing
-            _cpu_per_trial_episode(preset_name, learner, 2, 2, seed, run_trials)
-        now, then, same = [], [], True
-        study = (preset_name, learner, trials, episodes, seed)
+        now, then, digests = [], [], set()
         for _ in range(repeats):
-            ms_now, result_now = _cpu_per_trial_episode(*study, runner.run_trials)
-            ms_then, result_then = _cpu_per_trial_episode(*study, kernel.run_trials)
-            now.append(ms_now)
-            then.append(ms_then)
-            same = same and _same(result_now, result_then)
+            for tree, times in ((ROOT, now), (anchor, then)):
+                ms, digest = study_cpu(tree, preset_name, learner, trials, episodes, seed, 1)
+                times.append(ms)
+                digests.add(digest)
         ratio = min(then) / min(now)
         verdict = "met" if ratio >= GOAL else "NOT met"
         print(f"cpu per trial-episode {pair} ({trials} x {episodes}, best of {repeats}): now {min(now):.3f} ms, "
               f"{commit} {min(then):.3f} ms: {ratio:.2f}x (goal >= {GOAL:.0f}x: {verdict}); "
-              f"results bit-identical: {'yes' if same else 'NO'}", flush=True)
+              f"results bit-identical: {'yes' if len(digests) == 1 else 'NO'}", flush=True)
 
 
 def main() -> None:

@@ -147,13 +147,16 @@ def type_of(state: int, action: int, spec: KernelSpec) -> int:
 def record_shared(model: ModelArrays, state: int, action: int, next_cell: int, spec: KernelSpec) -> bool:
     """Count the offset from state's cell to next_cell in the type's histogram; True if a slot was evicted."""
     codes, counts, totals, evictions = model.codes, model.type_counts, model.totals, model.type_evictions
-    z3, v3 = 3 * spec.z_cells, 3 * spec.zdot_cells
-    here = state_cell_code(state, spec)
-    dv = next_cell % v3 - here % v3
-    dz = (next_cell // v3) % z3 - (here // v3) % z3
-    db = next_cell // (v3 * z3) - here // (v3 * z3)
-    code = _offset_code(dz, dv, db)
-    t = type_of(state, action, spec)
+    # Both cells decoded once each (a quotient and its remainder share one division): integer divisions by the
+    # grid's sizes were most of a study's model update. The same offsets as state_cell_code and type_of give.
+    v_cells, z_cells = spec.zdot_cells, spec.z_cells
+    iv, rest = state % v_cells, state // v_cells
+    iz, ib = rest % z_cells, rest // z_cells
+    v3 = 3 * v_cells
+    rv, rest = next_cell % v3, next_cell // v3
+    rz, rb = rest % (3 * z_cells), rest // (3 * z_cells)
+    code = _offset_code(rz - (iz + z_cells), rv - (iv + v_cells), rb - ib)
+    t = (ib * v_cells + iv) * N_ACTIONS + action  # type_of(state, action)
     n_slots = counts.shape[1]
     slot = -1
     free = -1
