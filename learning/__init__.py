@@ -3,9 +3,10 @@
 from learning.config import LearnerConfig, ModelForm, n_states, terminal_state
 from learning.errors import LearnerConfigError, LearningError
 from learning.learner import Learner, learner_memory_bytes, model_memory_bytes, state_index
-from learning.presets import learner_help, learner_names, learner_preset, resolve_learner
+from learning.presets import VELOCITY_FILTER, learner_help, learner_names, learner_preset, resolve_learner
 
 __all__ = [
+    "VELOCITY_FILTER",
     "Learner",
     "LearnerConfig",
     "LearnerConfigError",

@@ -10,6 +10,16 @@ from learning.errors import LearnerConfigError
 
 _SHARED = LearnerConfig(shared_model=True, p_explore_start=0.0, in_place_sweeps=True)
 
+# Issue 29: the learner's velocity filter (LearnerConfig.filter_*). Gains: the fading-memory g-h-k filter at
+# theta = 0.8 (g = 1 - theta^3, h = 1.5 (1 - theta^2)(1 - theta), k = (1 - theta)^3 / 2); model: the hardware
+# preset's nominal z'' per degree (-rho g dV / alpha_max / (m + m_a)) and drag k / (m + m_a). The agent parameter
+# `velocity_filter` = 1 switches these on (simulator/agent/params_table.py; the C twin in firmware/src/params.c).
+VELOCITY_FILTER: dict[str, float] = {
+    "filter_depth_gain": 0.488, "filter_velocity_gain": 0.108, "filter_bias_gain": 0.004,
+    "filter_accel_per_deg": -0.0022734, "filter_drag_per_m": 2.0864,
+}
+_FILTER_FIELDS: dict[str, Any] = dict(VELOCITY_FILTER)  # as replace() keywords (mypy checks ** against every field)
+
 _PRESETS: dict[str, LearnerConfig] = {
     # Section III as printed, errata fixed.
     "paper": LearnerConfig(),
@@ -40,13 +50,9 @@ _PRESETS: dict[str, LearnerConfig] = {
     ),
     # Issue 29: the same with the velocity from a filter that predicts with the commanded gear angle instead of
     # the 8-step difference, whose lag made late episodes swing out of the region on a lagging or noisier
-    # depth (docs/reproduction.md, "Why trials stay unstable"). Gains: the fading-memory g-h-k filter at
-    # theta = 0.8 (g = 1 - theta^3, h = 1.5 (1 - theta^2)(1 - theta), k = (1 - theta)^3 / 2); model: the
-    # hardware preset's nominal z'' per degree (-rho g dV / alpha_max / (m + m_a)) and drag k / (m + m_a).
+    # depth (docs/reproduction.md, "Why trials stay unstable"); the gains are VELOCITY_FILTER's.
     "shared-z20-bins7-filter-term100-vpen1": replace(
-        _SHARED, z_cells=20, actuator_bins=7, terminal_reward=-100.0, velocity_penalty=1.0,
-        filter_depth_gain=0.488, filter_velocity_gain=0.108, filter_bias_gain=0.004,
-        filter_accel_per_deg=-0.0022734, filter_drag_per_m=2.0864,
+        _SHARED, z_cells=20, actuator_bins=7, terminal_reward=-100.0, velocity_penalty=1.0, **_FILTER_FIELDS
     ),
     # Per-state counts as well, the shared histogram their Dirichlet prior worth 10 transitions: keeps
     # working where dynamics depend on depth.

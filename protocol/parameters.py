@@ -149,6 +149,8 @@ _ROWS = (
     _p("in_place_sweeps", B, "", 0, 0, 1, _LEARNER, "in-place (Gauss-Seidel) value iteration sweeps"),
     _p("vel_penalty", F, "s", 0.0, 0.0, 100.0, _LEARNER,
        "shared model: a cell's reward also loses this times its centre |velocity| (0 = the paper's -|z|)"),
+    _p("velocity_filter", B, "", 0, 0, 1, _LEARNER,
+       "learner velocity from a depth filter predicting with the commanded gear angle (0 = vel_diff_steps')"),
 )
 
 

@@ -37,4 +37,5 @@ const param_def_t param_defs[PARAM_COUNT] = {
     {"max_sweeps", 4u, 1u, 0x06u, 100000.0f, 1.0f, 1000000.0f},  /* 31 U32  */
     {"in_place_sweeps", 1u, 1u, 0x06u, 0.0f, 0.0f, 1.0f},  /* 32 BOOL  */
     {"vel_penalty", 5u, 1u, 0x06u, 0.0f, 0.0f, 100.0f},  /* 33 F32 s */
+    {"velocity_filter", 1u, 1u, 0x06u, 0.0f, 0.0f, 1.0f},  /* 34 BOOL  */
 };

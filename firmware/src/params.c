@@ -77,6 +77,14 @@ void params_learner_config(learner_config_t *c) {
     c->vel_diff_steps = (uint8_t)g_values[PARAM_VEL_DIFF_STEPS];
     c->ties_per_step = g_values[PARAM_TIES_PER_STEP] != 0.0f;
     c->vel_penalty = g_values[PARAM_VEL_PENALTY];
+    if (g_values[PARAM_VELOCITY_FILTER] != 0.0f) {
+        /* learning/presets.py VELOCITY_FILTER (tests/firmware/test_ctl_velocity_filter.py compares them). */
+        c->filter_depth_gain = 0.488f;
+        c->filter_velocity_gain = 0.108f;
+        c->filter_bias_gain = 0.004f;
+        c->filter_accel_per_deg = -0.0022734f;
+        c->filter_drag_per_m = 2.0864f;
+    }
 }
 
 static uint32_t n_states(const learner_config_t *c) {
@@ -133,12 +141,18 @@ static bool check_value(const param_def_t *d, uint64_t bits, float *stored, verd
     return true;
 }
 
-static bool check_ram(uint16_t index, float stored, verdict_t *v) {
+/* A learner parameter: the learner it makes must be valid and fit the RAM budget. */
+static bool check_learner(uint16_t index, float stored, verdict_t *v) {
     float old = g_values[index];
     learner_config_t c;
     g_values[index] = stored;
     params_learner_config(&c);
     g_values[index] = old;
+    if (c.filter_depth_gain > 0.0f && c.vel_diff_steps > 0u) {
+        /* learning/config.py refuses both in the Python agent, with this reason */
+        verdict_set(v, ACK_RESULT_BAD_VALUE, "choose the velocity filter or the depth difference, not both");
+        return false;
+    }
     uint32_t need = params_ram_bytes(&c);
     uint32_t states = n_states(&c);
     if (need <= PARAM_RAM_BUDGET_BYTES && states <= dumps_max_states(c.shared_model) &&
@@ -163,7 +177,7 @@ void params_set(uint16_t index, uint64_t value_bits, uint8_t mode, bool apply, v
     const param_def_t *d = &param_defs[index];
     float stored = 0.0f;
     if (!check_value(d, value_bits, &stored, v)) { return; }
-    if (d->learner && !check_ram(index, stored, v)) { return; }
+    if (d->learner && !check_learner(index, stored, v)) { return; }
     if (d->refused_in_modes & (1u << mode)) {
         text_buffer_t t;
         text_start(&t, v->reason, sizeof v->reason);

@@ -6,7 +6,7 @@ from dataclasses import dataclass, fields, replace
 from enum import Enum
 from typing import Any, TypeVar
 
-from learning import LearnerConfig, learner_memory_bytes, n_states
+from learning import VELOCITY_FILTER, LearnerConfig, learner_memory_bytes, n_states
 from protocol import messages
 from protocol.parameters import PARAMS, RAM_BUDGET_BYTES, ParamDef, snapshot_ram_bytes
 from simulator.errors import ParamsError
@@ -29,6 +29,8 @@ class Binding:
     scope: Scope
     field: str
     inverted: bool = False  # a bool field holding the parameter's negation
+    # A BOOL switching a group of fields: 1 sets them to these values, 0 to 0; it reads 1 while `field` is > 0.
+    switch: dict[str, float] | None = None
 
 
 L, P, M = Scope.LEARNER, Scope.PLANT, Scope.MISSION
@@ -67,6 +69,7 @@ BINDINGS: dict[str, Binding] = {
     "max_sweeps": Binding(L, "max_sweeps"),
     "in_place_sweeps": Binding(L, "in_place_sweeps"),
     "vel_penalty": Binding(L, "velocity_penalty"),
+    "velocity_filter": Binding(L, "filter_depth_gain", switch=VELOCITY_FILTER),
 }
 
 
@@ -92,6 +95,8 @@ class ParamTable:
         for d in defs:
             b = binding(d)
             raw = float(getattr(sources[b.scope], b.field))
+            if b.switch is not None:
+                raw = float(raw > 0.0)
             # Stored as the agent stores it: a preset's 0.4 is held (and sent) as the f32 0.4000000059604645.
             self.values.append(d.stored(1.0 - raw if b.inverted else raw))
         self._messages: dict[int, messages.ParamValue] = {}  # the last PARAM_VALUE built for each index
@@ -125,7 +130,11 @@ class ParamTable:
         changes: dict[str, Any] = {}
         for definition, value in zip(self.defs, self.values, strict=True):
             b = binding(definition)
-            if b.scope is scope:
+            if b.scope is scope and b.switch is not None:
+                # On in the base already (a learner preset's own gains): kept; else switched to the group's values.
+                if not (value and getattr(base, b.field) > 0.0):
+                    changes.update({name: gain if value else 0.0 for name, gain in b.switch.items()})
+            elif b.scope is scope:
                 kind = str(kinds[b.field])
                 if b.inverted:
                     value = 1.0 - value

@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import ctypes
 import shutil
+import struct
 import subprocess
+from collections.abc import Callable
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 
@@ -12,6 +14,8 @@ import numpy as np
 import pytest
 
 from learning import Learner, LearnerConfig
+from protocol import Mode
+from protocol.parameters import param
 from simulator.gym.task import DivingEnv
 from simulator.parameters import preset
 
@@ -192,6 +196,28 @@ def build_ctl_library(out_dir: Path) -> ctypes.CDLL:
         fn.restype = restype
         fn.argtypes = argtypes
     return lib
+
+
+class Verdict(ctypes.Structure):
+    """params.h verdict_t."""
+
+    _fields_ = [("result", ctypes.c_uint8), ("reason", ctypes.c_char * 96)]
+
+
+def param_setter(lib: ctypes.CDLL) -> Callable[[str, float], Verdict]:
+    """params_set of the firmware host library (simulator.serve.firmware_host) by name, in IDLE, applied: its
+    verdict. params_init first."""
+    lib.params_set.argtypes = [ctypes.c_uint16, ctypes.c_uint64, ctypes.c_uint8, ctypes.c_bool,
+                               ctypes.POINTER(Verdict)]
+    lib.params_init()
+
+    def set_param(name: str, value: float) -> Verdict:
+        verdict = Verdict()
+        bits = struct.unpack("<Q", struct.pack("<d", value))[0]
+        lib.params_set(param(name).index, bits, Mode.IDLE, True, ctypes.byref(verdict))
+        return verdict
+
+    return set_param
 
 
 @dataclass

@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import ctypes
 import shutil
-import struct
 import subprocess
 from dataclasses import replace
 from pathlib import Path
@@ -33,8 +32,8 @@ from learning.model import N_ACTIONS
 from learning.presets import learner_preset
 from learning.rng import new_stream
 from learning.shared import cell_reward, shared_memory_bytes
-from protocol import AckResult, Mode
-from protocol.parameters import param, snapshot_ram_bytes
+from protocol import AckResult
+from protocol.parameters import snapshot_ram_bytes
 from simulator.agent.params_table import check_ram
 from simulator.errors import ParamsError
 from simulator.serve.firmware_host import load_library
@@ -45,6 +44,7 @@ from tests.firmware.ctl_lib import (
     Recording,
     build_ctl_library,
     c_config,
+    param_setter,
     record_python,
 )
 
@@ -238,18 +238,10 @@ def test_ram_budget_acceptance_is_the_virtual_agents(tmp_path_factory: pytest.Te
     next grid up (z_cells 30: 47 620 B) on both sides."""
     use_firmware_cache(tmp_path_factory)
     lib = load_library()
-    lib.params_set.argtypes = [ctypes.c_uint16, ctypes.c_uint64, ctypes.c_uint8, ctypes.c_bool,
-                               ctypes.POINTER(_Verdict)]
     lib.params_ram_bytes.restype = ctypes.c_uint32
     lib.params_ram_bytes.argtypes = [ctypes.POINTER(LearnerConfigC)]
-    lib.params_init()
+    set_param = param_setter(lib)
     config = learner_preset(VPEN_Z20)
-
-    def set_param(name: str, value: float) -> _Verdict:
-        verdict = _Verdict()
-        bits = struct.unpack("<Q", struct.pack("<d", value))[0]
-        lib.params_set(param(name).index, bits, Mode.IDLE, True, ctypes.byref(verdict))
-        return verdict
 
     # shared_model first, so that every learner on the way fits (as docs/firmware.md tells a ground station).
     for name, value in (("shared_model", 1), ("in_place_sweeps", 1), ("p_explore_start", 0.0), ("vel_diff_steps", 8),
@@ -271,8 +263,3 @@ def test_ram_budget_acceptance_is_the_virtual_agents(tmp_path_factory: pytest.Te
     assert set_param("vel_penalty", -1.0).result == AckResult.BAD_VALUE  # SPEC range [0, 100]
     assert set_param("vel_penalty", 100.5).result == AckResult.BAD_VALUE
 
-
-class _Verdict(ctypes.Structure):
-    """params.h verdict_t."""
-
-    _fields_ = [("result", ctypes.c_uint8), ("reason", ctypes.c_char * 96)]

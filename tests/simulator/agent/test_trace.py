@@ -4,6 +4,8 @@ The fixture was captured from main (one step and one link tick per call), never 
 again at 1e82738 and at c766169, whose SPEC 1.1 changes altered the wire themselves (main's own code gives the new
 bytes; the speed-ups give the same), and after the `vel_penalty` parameter was appended (34 parameters): the wire
 before and after differs in one frame only, the PARAM_VALUE's `count` (33 -> 34) and its CRC; the log is unchanged.
+Likewise after `velocity_filter` (35 parameters, regenerated with `python -m tests.simulator.agent_trace`): only
+the wire's hash changed, its length and frames not.
 """
 
 from __future__ import annotations
