@@ -14,6 +14,7 @@ from groundstation.links import make_link
 from groundstation.session.keys import read_key_file, write_key_file
 from protocol import AckResult, Mode
 from protocol import messages as m
+from protocol.parameters import PARAM_COUNT
 from tests.groundstation.check_helpers import BROKEN_AGENT, agent, by_result, check
 
 
@@ -62,14 +63,14 @@ def test_at_speed_1_the_check_waits_for_idle_after_a_surface_at_the_surface(tmp_
 def test_status_against_a_keyed_agent_without_or_with_a_wrong_key_fails_with_the_agents_reason(
         tmp_path: Path) -> None:
     """D4: the agent refuses PARAM_LIST (UNAUTHORIZED): `dive status` says so and exits 1, it does not print a
-    cached "34 parameters"; with the right key it works (after which a cached table exists to tempt it)."""
+    cached "N parameters"; with the right key it works (after which a cached table exists to tempt it)."""
     key = write_key_file(tmp_path / "dive.key")
     wrong = write_key_file(tmp_path / "other.key")
     runner = CliRunner()
     with agent(tmp_path, "--tcp", "127.0.0.1:0", "--key-file", str(key)) as url:
         good = runner.invoke(app, ["status", url, "--key-file", str(key)])
         assert good.exit_code == 0, good.output
-        assert "34 parameters" in good.stdout
+        assert f"{PARAM_COUNT} parameters" in good.stdout
         for args in ([], ["--key-file", str(wrong)]):
             refused = runner.invoke(app, ["status", url, *args])
             assert refused.exit_code == 1, (args, refused.output)
