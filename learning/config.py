@@ -75,6 +75,9 @@ class LearnerConfig:
     # The filter's model, nominal figures (not the plant's): z'' = accel_per_deg (alpha - centre) - drag z'|z'|.
     filter_accel_per_deg: float = 0.0
     filter_drag_per_m: float = 0.0
+    # With the filter: the depth the learner sees (its state's depth cell, its reward, leaving the region) is the
+    # filter's estimate instead of the raw reading, so that sensor noise does not flicker it between cells.
+    filter_depth_state: bool = False
 
     def __post_init__(self) -> None:
         if self.z_cells < 1 or self.zdot_cells < 1 or self.actuator_bins < 1:
@@ -98,6 +101,8 @@ class LearnerConfig:
             raise LearnerConfigError("the shared model holds at most 255 offset slots per type")
         if self.filter_depth_gain < 0 or self.filter_velocity_gain < 0 or self.filter_bias_gain < 0:
             raise LearnerConfigError("filter gains must not be negative")
+        if self.filter_depth_state and self.filter_depth_gain <= 0:
+            raise LearnerConfigError("filter_depth_state needs the velocity filter (filter_depth_gain > 0)")
         if self.filter_depth_gain > 0 and self.velocity_diff_steps > 0:
             raise LearnerConfigError("choose the velocity filter or the depth difference, not both")
         if self.max_sweeps < 1:

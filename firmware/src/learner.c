@@ -110,8 +110,9 @@ static bool config_valid(const learner_config_t *c)
     if (!(c->filter_depth_gain >= 0.0f) || !(c->filter_velocity_gain >= 0.0f) || !(c->filter_bias_gain >= 0.0f)
         || !isfinite(c->filter_depth_gain) || !isfinite(c->filter_velocity_gain) || !isfinite(c->filter_bias_gain)
         || !isfinite(c->filter_accel_per_deg) || !isfinite(c->filter_drag_per_m)
-        || (c->filter_depth_gain > 0.0f && c->vel_diff_steps > 0u)) {
-        return false;  /* the velocity filter or the depth difference, not both (learning/config.py) */
+        || (c->filter_depth_gain > 0.0f && c->vel_diff_steps > 0u)
+        || (c->filter_depth_state && !(c->filter_depth_gain > 0.0f))) {
+        return false;  /* the velocity filter or the depth difference, not both; its depth only with it (config.py) */
     }
     /* Written so that NaN fails every test. */
     if (!(c->z_tol_m > 0.0f) || !(c->zdot_tol_mps > 0.0f) || !(c->vi_tol > 0.0f)) {

@@ -56,6 +56,7 @@ typedef struct {
     float    filter_bias_gain;
     float    filter_accel_per_deg;     /* m/s^2 per deg of command above the window's centre */
     float    filter_drag_per_m;        /* 1/m */
+    bool     filter_depth_state;       /* with the filter: the learner's depth (state, reward, cell) is its estimate */
 } learner_config_t;
 
 /* The defaults of learning/config.py LearnerConfig (the paper's simulation values). */

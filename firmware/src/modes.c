@@ -93,8 +93,16 @@ static void measure(void) {
 
 static float actuator_fraction(void) { return (g.cmd_deg - g.center_deg) / params_get(PARAM_ACTION_WIN_DEG); }
 
+static bool vfilter_on(void) { return learner_config()->filter_depth_gain > 0.0f; }
+
+/* The depth the learner sees: the filter's estimate (learner_config_t filter_depth_state, so that sensor noise does
+   not flicker it between cells) or the reading. SAMPLE still reports the reading. */
+static float learner_depth(void) {
+    return vfilter_on() && learner_config()->filter_depth_state ? g.vfilter.z_m : g.depth_m;
+}
+
 static uint16_t state_now(void) {
-    return learner_state(g.depth_m, g.velocity_mps, params_get(PARAM_TARGET_DEPTH_M), actuator_fraction());
+    return learner_state(learner_depth(), g.velocity_mps, params_get(PARAM_TARGET_DEPTH_M), actuator_fraction());
 }
 
 static uint32_t vel_diff_steps(void) { return (uint32_t)params_get(PARAM_VEL_DIFF_STEPS); }
@@ -104,8 +112,6 @@ static void depth_ring_reset(void) {
     for (uint32_t i = 0; i < CFG_VEL_DIFF_MAX_STEPS; i++) { g.depth_ring[i] = g.depth_m; }
     g.ring_pos = 0;
 }
-
-static bool vfilter_on(void) { return learner_config()->filter_depth_gain > 0.0f; }
 
 /* The learner's velocity from its filter, which predicts with the command of the last period. */
 static float filtered_velocity(void) {
@@ -266,9 +272,9 @@ static void learning_step(void) {
     float reward = 0.0f;
     if (g.prev_state >= 0) {
         float target_m = params_get(PARAM_TARGET_DEPTH_M);
-        reward = learner_reward(g.depth_m, target_m, state);
+        reward = learner_reward(learner_depth(), target_m, state);
         g.episode_return += reward;
-        uint32_t cell = learner_cell(g.depth_m, g.velocity_mps, target_m, actuator_fraction());
+        uint32_t cell = learner_cell(learner_depth(), g.velocity_mps, target_m, actuator_fraction());
         learner_observe_cell((uint16_t)g.prev_state, g.prev_action, reward, state, cell);
         dumps_model_changed();
     }

@@ -165,10 +165,16 @@ class OnboardProgram:
             *self._sense_args, self.params.use_observer, dt_s, self._spec
         )
 
+    def _learner_depth_m(self) -> float:
+        """The depth the learner sees: its filter's estimate (LearnerConfig.filter_depth_state) or the reading."""
+        if self._velocity_filter is not None and self.config.filter_depth_state:
+            return self._velocity_filter.depth_m
+        return self.depth_m
+
     def _state(self) -> int:
         fraction = (self.hw.actuator_cmd_deg - self._center_deg) / self.params.action_window_deg
         return int(self._state_index(
-            self.depth_m, self.velocity_mps, self.params.target_depth_m, fraction, self._lspec
+            self._learner_depth_m(), self.velocity_mps, self.params.target_depth_m, fraction, self._lspec
         ))
 
     def _sample(self, action: int, reward: float, state: int) -> None:
@@ -276,13 +282,13 @@ class OnboardProgram:
         state = self._state()
         reward = 0.0
         if self._prev_state >= 0:
-            reward = float(self._reward(self.depth_m, self.params.target_depth_m, state, self._lspec))
+            reward = float(self._reward(self._learner_depth_m(), self.params.target_depth_m, state, self._lspec))
             self._return += reward
             cell = None
             if self.config.shared_model:
                 fraction = (self.hw.actuator_cmd_deg - self._center_deg) / self.params.action_window_deg
                 cell = int(self._raw_cell(
-                    self.depth_m, self.velocity_mps, self.params.target_depth_m, fraction, self._lspec
+                    self._learner_depth_m(), self.velocity_mps, self.params.target_depth_m, fraction, self._lspec
                 ))
             self.learner.observe(self._prev_state, self._prev_action, reward, state, cell)
             self.down.model_changed()

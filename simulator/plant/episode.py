@@ -164,12 +164,18 @@ def _velocity_filter(env: NDArray[np.float64], spec: KernelSpec, lspec: KernelSp
 
 
 @njit(cache=True, error_model="numpy", inline="always")
+def learner_depth(env: NDArray[np.float64], lspec: KernelSpec) -> float:
+    """The depth the learner sees: its filter's estimate (LearnerConfig.filter_depth_state) or the reading."""
+    return env[E_FILT_Z] if lspec.filter_depth_state else env[E_DEPTH_MEAS]
+
+
+@njit(cache=True, error_model="numpy", inline="always")
 def episode_cell_kernel(
     env: NDArray[np.float64], target_depth_m: float, spec: KernelSpec, lspec: KernelSpec
 ) -> int:
     """The unclipped grid cell of the current measurement (the shared model's successor, inside or out)."""
     fraction = (env[E_CMD] - env[E_CENTER]) / spec.action_window_deg
-    return raw_cell_kernel(env[E_DEPTH_MEAS], env[E_VEL_EST], target_depth_m, fraction, lspec)
+    return raw_cell_kernel(learner_depth(env, lspec), env[E_VEL_EST], target_depth_m, fraction, lspec)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -181,7 +187,7 @@ def episode_steps(spec: KernelSpec) -> int:
 @njit(cache=True, error_model="numpy", inline="always")
 def _state(env: NDArray[np.float64], target_depth_m: float, spec: KernelSpec, lspec: KernelSpec) -> int:
     fraction = (env[E_CMD] - env[E_CENTER]) / spec.action_window_deg
-    return state_index_kernel(env[E_DEPTH_MEAS], env[E_VEL_EST], target_depth_m, fraction, lspec)
+    return state_index_kernel(learner_depth(env, lspec), env[E_VEL_EST], target_depth_m, fraction, lspec)
 
 
 episode_state_kernel = _state  # the learner's state of the current measurement (gym/task.py: a placed start)
@@ -211,7 +217,7 @@ def episode_step_kernel(
     elif lspec.filter_depth_gain > 0.0:
         _velocity_filter(env, spec, lspec)
     next_state = _state(env, target_depth_m, spec, lspec)
-    reward = reward_kernel(env[E_DEPTH_MEAS], target_depth_m, next_state, lspec)
+    reward = reward_kernel(learner_depth(env, lspec), target_depth_m, next_state, lspec)
     terminal = lspec.z_cells * lspec.zdot_cells * lspec.actuator_bins
     terminated = next_state == terminal
     # Reaching the time limit is a success and a truncation, not a terminal state (no -10).

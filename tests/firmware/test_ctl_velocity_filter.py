@@ -31,6 +31,7 @@ from tests.firmware.ctl_lib import (
 from tests.simulator.agent_trace import in_process_agent
 
 FILTER = "shared-z20-bins7-filter-term100-vpen1"
+DEPTH_FILTER = "hardware"  # the robust learner: its depth from the filter too (filter_depth_state)
 F32_ATOL_MPS = 2e-6  # float32 against float64 in a contracting filter: measured below 1e-7
 
 
@@ -48,8 +49,9 @@ def _near_a_cell_edge(depth: float, velocity: float, target: float, config: Lear
     return min(abs(x - round(x)) for x in edges) < 1e-4
 
 
-def test_c_filter_and_state_follow_python(ctl: ctypes.CDLL) -> None:
-    config = learner_preset(FILTER)
+@pytest.mark.parametrize("learner", [FILTER, DEPTH_FILTER])
+def test_c_filter_and_state_follow_python(ctl: ctypes.CDLL, learner: str) -> None:
+    config = learner_preset(learner)
     params = with_overrides(preset("hardware"), {"pressure_lag_s": 0.2, "pressure_noise_pa": 13.0})
     assert ctl.learner_configure(ctypes.byref(c_config(ctl, config)))
     gains = VfilterGains(config.filter_depth_gain, config.filter_velocity_gain, config.filter_bias_gain,
@@ -66,8 +68,9 @@ def test_c_filter_and_state_follow_python(ctl: ctypes.CDLL) -> None:
         v_c = ctl.vfilter_update(ctypes.byref(state), ctypes.byref(gains), depth, offset, params.control_period_s)
         assert v_c == pytest.approx(obs[1], abs=F32_ATOL_MPS), k
         frac = offset / params.action_window_deg
-        if not _near_a_cell_edge(depth, v_c, target, config):
-            assert ctl.learner_state(depth, v_c, target, float(np.float32(frac))) == info["state"], k
+        seen = state.z_m if config.filter_depth_state else depth  # the depth the learner sees
+        if not _near_a_cell_edge(seen, v_c, target, config):
+            assert ctl.learner_state(seen, v_c, target, float(np.float32(frac))) == info["state"], k
             checked += 1
         if terminated or truncated:
             obs, info = env.reset()
