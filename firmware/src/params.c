@@ -79,11 +79,12 @@ void params_learner_config(learner_config_t *c) {
     c->vel_penalty = g_values[PARAM_VEL_PENALTY];
     if (g_values[PARAM_VELOCITY_FILTER] != 0.0f) {
         /* learning/presets.py VELOCITY_FILTER (tests/firmware/test_ctl_velocity_filter.py compares them). */
-        c->filter_depth_gain = 0.488f;
-        c->filter_velocity_gain = 0.108f;
-        c->filter_bias_gain = 0.004f;
+        c->filter_depth_gain = 0.271f;
+        c->filter_velocity_gain = 0.0285f;
+        c->filter_bias_gain = 0.0005f;
         c->filter_accel_per_deg = -0.0022734f;
         c->filter_drag_per_m = 2.0864f;
+        c->filter_depth_state = true;
     }
 }
 

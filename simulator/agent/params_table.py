@@ -29,8 +29,8 @@ class Binding:
     scope: Scope
     field: str
     inverted: bool = False  # a bool field holding the parameter's negation
-    # A BOOL switching a group of fields: 1 sets them to these values, 0 to 0; it reads 1 while `field` is > 0.
-    switch: dict[str, float] | None = None
+    # A BOOL switching a group of fields: 1 sets them to these values, 0 to 0 (False); it reads 1 while `field` is > 0.
+    switch: dict[str, Any] | None = None
 
 
 L, P, M = Scope.LEARNER, Scope.PLANT, Scope.MISSION
@@ -133,7 +133,7 @@ class ParamTable:
             if b.scope is scope and b.switch is not None:
                 # On in the base already (a learner preset's own gains): kept; else switched to the group's values.
                 if not (value and getattr(base, b.field) > 0.0):
-                    changes.update({name: gain if value else 0.0 for name, gain in b.switch.items()})
+                    changes.update({name: gain if value else type(gain)(0) for name, gain in b.switch.items()})
             elif b.scope is scope:
                 kind = str(kinds[b.field])
                 if b.inverted:

@@ -99,7 +99,8 @@ NOT_BOTH = "choose the velocity filter or the depth difference, not both"
 def test_the_velocity_filter_parameter_gives_both_agents_the_filter_preset(
         tmp_path_factory: pytest.TempPathFactory) -> None:
     """PARAM_SET velocity_filter = 1 makes the C firmware's learner (params.c, the host build) and the Python agent's
-    the filter preset, gains included; with vel_diff_steps > 0 both refuse it, with one reason; 0 switches it off."""
+    the hardware learner (the robust filter preset), gains and filtered depth included; with vel_diff_steps > 0 both
+    refuse it, with one reason; 0 switches it off."""
     use_firmware_cache(tmp_path_factory)
     lib = load_library()
     set_c = param_setter(lib)
@@ -126,7 +127,7 @@ def test_the_velocity_filter_parameter_gives_both_agents_the_filter_preset(
     assert program.table.value("velocity_filter") == 0.0 and program.config.filter_depth_gain == 0.0
     for name, value in (*FILTER_BY_PARAMS, ("vel_diff_steps", 0), ("velocity_filter", 1)):
         assert set_both(name, value) == (AckResult.ACCEPTED, b""), name
-    config = learner_preset(FILTER)
+    config = learner_preset(DEPTH_FILTER)
     assert {name: getattr(config, name) for name in VELOCITY_FILTER} == VELOCITY_FILTER
     # The Python agent holds the table's values as f32 (0.1 as 0.10000000149011612), the filter's gains as given.
     assert asdict(program.config) == pytest.approx(asdict(config), rel=1e-7)
@@ -135,6 +136,6 @@ def test_the_velocity_filter_parameter_gives_both_agents_the_filter_preset(
     assert_c_is(config)
     assert set_both("vel_diff_steps", 8) == (AckResult.BAD_VALUE, NOT_BOTH.encode())
     assert set_both("velocity_filter", 0) == (AckResult.ACCEPTED, b"")
-    off = replace(config, **dict.fromkeys(VELOCITY_FILTER, 0.0))
+    off = replace(config, **{name: type(value)(0) for name, value in VELOCITY_FILTER.items()})
     assert asdict(program.config) == pytest.approx(asdict(off), rel=1e-7)
     assert_c_is(off)
