@@ -3,10 +3,10 @@
     .venv/bin/python scripts/replay_trials.py [--params docs/perturbations/noise2.toml] [--seed 10]
         [--trials 20] [--learner hardware] [--z-tol 0.1 --zdot-tol 0.04] [--last 100]
 
-Runs each trial exactly as simulator/study/kernel.py's run_trial does (same streams, same kernels; the
-durations match the study's) and records, per episode, what ended it: the depth edge or the velocity
-edge of the learning region (as the learner measured it), and the true velocity, the learner's velocity
-error and the actuator window's offset from the true neutral at that moment. Not a test (issue 29).
+Replays each trial with simulator/study/kernel.py's replay_trial (run_trial's loop and streams: the durations are
+the study's), which records every step, and says per episode what ended it: the depth edge or the velocity edge
+of the learning region (as the learner measured it), and the true velocity, the learner's velocity error and the
+actuator window's offset from the true neutral at that moment. Not a test (issue 29).
 """
 
 from __future__ import annotations
@@ -16,108 +16,53 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
-from numba import njit
 from numpy.typing import NDArray
 from rich.console import Console
 from rich.table import Table
 
-from learning.acting import select_action_kernel
+from learning import LearnerConfig, n_states
 from learning.config import kernel_spec
 from learning.presets import learner_preset
-from learning.shared import allocate_arrays, plan_shared_kernel, record_shared
-from learning.spec import KernelSpec
-from simulator.parameters import kernel_params, load_params, preset
-from simulator.plant.episode import (
-    E_CENTER,
-    E_CMD,
-    E_DEPTH_MEAS,
-    E_STEPS,
-    E_VEL_EST,
-    episode_cell_kernel,
-    episode_reset_kernel,
-    episode_step_kernel,
-    neutral_alpha_kernel,
-    new_env_state,
-)
-from simulator.plant.kernel import ZDOT, Z
+from simulator.parameters import PlantParams, kernel_params, load_params, preset
+from simulator.plant.episode import E_CENTER, E_CMD, E_DEPTH_MEAS, E_VEL_EST, E_ZDOT, neutral_alpha_kernel
+from simulator.study.kernel import S_ACTION, S_ENV, S_STATE, StepRecord, TrialArrays, replay_trial
 from simulator.study.runner import trial_streams
 from simulator.study.stats import per_trial
 
+# The env entries recorded at every step, and their columns in a recorded step.
+COLUMNS = np.array([E_DEPTH_MEAS, E_VEL_EST, E_ZDOT, E_CMD, E_CENTER], dtype=np.int64)
+S_DEPTH, S_VEL, S_TRUE_VEL, S_CMD, S_CENTER = range(S_ENV, S_ENV + len(COLUMNS))
 # Columns of an episode's record.
 R_STEPS, R_END, R_ERR, R_VEL, R_TRUE_VEL, R_VEL_RMS, R_CENTER_OFF, R_FRACTION, R_SWITCHES = range(9)
 N_REC = 9
 END_HELD, END_DEPTH, END_VELOCITY = 0, 1, 2
 
 
-@njit(cache=True, error_model="numpy")
-def replay_trial(
-    learner_stream: NDArray[np.uint64],
-    env_stream: NDArray[np.uint64],
-    target_depth_m: float,
-    spec: KernelSpec,
-    lspec: KernelSpec,
-    records: NDArray[np.float64],
-    trace: NDArray[np.float64],
-) -> None:
-    """run_trial's loop (shared model, no exploration) with one row of records per episode; trace gets the
-    steps (error, learner's velocity, true velocity, actuator fraction, action) of the last failed episode."""
-    n_states = lspec.z_cells * lspec.zdot_cells * lspec.actuator_bins + 1
-    model = allocate_arrays(lspec)
-    values = np.zeros(n_states)
-    q = np.zeros((n_states, 2))
-    policy = np.zeros(n_states, dtype=np.int8)
-    plan_shared_kernel(model, values, q, policy, lspec, learner_stream)
-    env = new_env_state(spec)
-    neutral = neutral_alpha_kernel(spec)
-    steps_now = np.zeros_like(trace)
-    for episode in range(records.shape[0]):
-        state = episode_reset_kernel(env, target_depth_m, spec, lspec, env_stream)
-        sq = 0.0
-        switches = 0
-        last_action = -1
-        while True:
-            action = select_action_kernel(policy, state, 0.0, lspec, learner_stream)
-            if last_action >= 0 and action != last_action:
-                switches += 1
-            last_action = action
-            next_state, _, terminated, truncated = episode_step_kernel(
-                env, action, target_depth_m, spec, lspec, env_stream
-            )
-            sq += (env[E_VEL_EST] - env[ZDOT]) ** 2
-            k = int(env[E_STEPS]) - 1
-            if k < steps_now.shape[0]:
-                steps_now[k, 0] = env[E_DEPTH_MEAS] - target_depth_m
-                steps_now[k, 1] = env[E_VEL_EST]
-                steps_now[k, 2] = env[ZDOT]
-                steps_now[k, 3] = (env[E_CMD] - env[E_CENTER]) / spec.action_window_deg
-                steps_now[k, 4] = action
-            cell = episode_cell_kernel(env, target_depth_m, spec, lspec)
-            record_shared(model, state, action, cell, lspec)
-            state = next_state
-            if terminated or truncated:
-                break
-        row = records[episode]
-        steps = env[E_STEPS]
-        row[R_STEPS] = steps
-        err = env[E_DEPTH_MEAS] - target_depth_m
-        if truncated:
+def episode_records(
+    steps: list[NDArray[np.float64]], params: PlantParams, config: LearnerConfig, neutral_deg: float
+) -> NDArray[np.float64]:
+    """One row of R_* columns per episode from its recorded steps: what ended it, and the state at its end."""
+    records = np.zeros((len(steps), N_REC))
+    terminal = n_states(config) - 1
+    for row, episode in zip(records, steps, strict=True):
+        last = episode[-1]
+        err = last[S_DEPTH] - params.target_depth_m
+        if last[S_STATE] != terminal:  # an episode not ended by the terminal state lasted its full time
             row[R_END] = END_HELD
-        elif abs(err) >= lspec.z_tol_m:
+        elif abs(err) >= config.z_tol_m:
             row[R_END] = END_DEPTH
         else:
             row[R_END] = END_VELOCITY
+        actions = episode[:, S_ACTION]
+        row[R_STEPS] = len(episode)
         row[R_ERR] = err
-        row[R_VEL] = env[E_VEL_EST]
-        row[R_TRUE_VEL] = env[ZDOT]
-        row[R_VEL_RMS] = np.sqrt(sq / steps)
-        row[R_CENTER_OFF] = env[E_CENTER] - neutral
-        row[R_FRACTION] = (env[E_CMD] - env[E_CENTER]) / spec.action_window_deg
-        row[R_SWITCHES] = switches / steps
-        if terminated:
-            trace[:] = np.nan
-            trace[:int(steps)] = steps_now[:int(steps)]
-        plan_shared_kernel(model, values, q, policy, lspec, learner_stream)
-        _ = env[Z]
+        row[R_VEL] = last[S_VEL]
+        row[R_TRUE_VEL] = last[S_TRUE_VEL]
+        row[R_VEL_RMS] = np.sqrt(np.mean((episode[:, S_VEL] - episode[:, S_TRUE_VEL]) ** 2))
+        row[R_CENTER_OFF] = last[S_CENTER] - neutral_deg
+        row[R_FRACTION] = (last[S_CMD] - last[S_CENTER]) / params.action_window_deg
+        row[R_SWITCHES] = np.count_nonzero(actions[1:] != actions[:-1]) / len(episode)
+    return records
 
 
 def main() -> None:
@@ -139,16 +84,26 @@ def main() -> None:
     overrides = {k.strip(): float(v) for k, _, v in (text.partition("=") for text in args.set)}
     config = replace(learner_preset(args.learner, **overrides), z_tol_m=args.z_tol, zdot_tol_mps=args.zdot_tol)
     spec, lspec = kernel_params(params), kernel_spec(config)
+    neutral_deg = float(neutral_alpha_kernel(spec))
     records = np.zeros((args.trials, args.episodes, N_REC))
-    trace = np.full((int(params.episode_limit_s / params.control_period_s) + 1, 5), np.nan)
+    durations = np.zeros((args.trials, args.episodes))
+    limit = round(params.episode_limit_s / params.control_period_s)
+    record = StepRecord(COLUMNS, np.zeros((args.episodes, limit, S_ENV + len(COLUMNS))))
     for t in range(args.trials):
         ls, es = trial_streams(args.seed, t)
-        replay_trial(ls, es, params.target_depth_m, spec, lspec, records[t], trace)
-        if t == args.trace:
-            for k, (e, v, tv, f, a) in enumerate(trace[~np.isnan(trace[:, 0])]):
-                print(f"{k * params.control_period_s:6.1f} s  err {e * 1000:+6.1f} mm  v {v * 1000:+5.1f}  "
-                      f"true {tv * 1000:+5.1f} mm/s  bin frac {f:+.2f}  action {int(a)}")
-    durations = records[:, :, R_STEPS] * params.control_period_s
+        out = TrialArrays.zeros((), args.episodes, n_states(config))
+        replay_trial(ls, es, params.target_depth_m, spec, lspec, out, record)
+        durations[t] = out.durations_s
+        steps = [record.rows[e, :round(d / params.control_period_s)] for e, d in enumerate(out.durations_s)]
+        records[t] = episode_records(steps, params, config, neutral_deg)
+        failed = np.nonzero(records[t, :, R_END] != END_HELD)[0]
+        if t == args.trace and len(failed):
+            for k, step in enumerate(steps[failed[-1]]):
+                err = step[S_DEPTH] - params.target_depth_m
+                fraction = (step[S_CMD] - step[S_CENTER]) / params.action_window_deg
+                print(f"{k * params.control_period_s:6.1f} s  err {err * 1000:+6.1f} mm  v {step[S_VEL] * 1000:+5.1f}  "
+                      f"true {step[S_TRUE_VEL] * 1000:+5.1f} mm/s  bin frac {fraction:+.2f}  "
+                      f"action {int(step[S_ACTION])}")
     rows = per_trial(durations, params.episode_limit_s)
     table = Table(title=f"late episodes (last {args.last}), seed {args.seed}, {args.z_tol}/{args.zdot_tol}")
     for col in ("trial", "stable from", "fails", "depth edge", "vel edge", "fail at s", "|true v| at vel end",

@@ -78,7 +78,7 @@ def emit_sample(
     f32_bytes: NDArray[np.uint8], pressure_pa: float, depth_m: float, velocity_mps: float, actuator_deg: float,
     cmd_deg: float, reward: float, state: int, action: int,
 ) -> None:
-    """One SAMPLE (OnboardProgram._sample): next sample index and seq, into the log and onto the wire."""
+    """One SAMPLE (ModeMachine._sample): next sample index and seq, into the log and onto the wire."""
     index = ints[NEXT_SAMPLE]
     ints[NEXT_SAMPLE] = index + 1
     seq = ints[SEQ]
@@ -124,7 +124,7 @@ def battery_voltage(charge: float, socs: NDArray[np.float64], volts: NDArray[np.
 @njit(cache=True, error_model="numpy", inline="always")
 def limit_holds(ints: NDArray[np.int64], floats: NDArray[np.float64], socs: NDArray[np.float64],
                 volts: NDArray[np.float64]) -> bool:
-    """OnboardProgram._check_limits would surface the agent now (battery, dive time, link loss)."""
+    """ModeMachine._check_limits would surface the agent now (battery, dive time, link loss)."""
     if battery_voltage(floats[CHARGE], socs, volts) < floats[LOW_BATTERY_V]:
         return True
     max_dive_s = floats[MAX_DIVE_S]
@@ -166,7 +166,7 @@ def held_steps(
     ring_data: NDArray[np.uint8], ring_index: NDArray[np.int64], ring_counters: NDArray[np.int64],
     wire: NDArray[np.uint8],
 ) -> None:
-    """Steps of RECOVERING, HOVER or PAUSED (OnboardProgram._controller_step) until the batch must return."""
+    """Steps of RECOVERING, HOVER or PAUSED (ModeMachine._controller_step) until the batch must return."""
     f32 = np.empty(1, np.float32)
     f32_bytes = f32.view(np.uint8)
     alpha_max = spec.alpha_max_deg
@@ -198,7 +198,7 @@ def learning_steps(
     ring_index: NDArray[np.int64], ring_counters: NDArray[np.int64], wire: NDArray[np.uint8],
     lspec: KernelSpec, policy: NDArray[np.int8], learner_rng: NDArray[np.uint64], model: ModelArrays,
 ) -> None:
-    """Steps of LEARNING (OnboardProgram._learning_step with Learner.observe and act) until the batch must return.
+    """Steps of LEARNING (ModeMachine._learning_step with Learner.observe and act) until the batch must return.
 
     The learner's velocity is the sensed one (a k-step depth difference runs step by step in Python).
     """

@@ -1,4 +1,5 @@
-"""Compiled trial loop of the batch study: the same episode and learner kernels, one trial per thread."""
+"""Compiled trial loop of the batch study: the same episode and learner kernels, one trial per thread; a replay
+of one trial that also records every step (scripts/replay_trials.py)."""
 
 from __future__ import annotations
 
@@ -22,7 +23,7 @@ from simulator.plant.episode import (
     new_env_state,
 )
 from simulator.plant.kernel import MOTOR, Z
-from simulator.study.hold import N_ACC, hold_add, hold_reset, hold_write
+from simulator.study.hold import N_ACC, N_HOLD, hold_add, hold_reset, hold_write
 
 # Columns of a trial's planning/model counters.
 C_EVICTIONS, C_SWEEPS_TOTAL, C_SWEEPS_MAX, C_PLANS = 0, 1, 2, 3
@@ -39,9 +40,39 @@ class TrialArrays(NamedTuple):
     counters: NDArray[np.int64]  # [N_COUNTERS] evictions, sweeps in all, most sweeps of one call, planning calls
     hold: NDArray[np.float64]  # [episodes, N_HOLD] hold quality of each successful episode (NaN otherwise)
 
+    @classmethod
+    def zeros(cls, trials: tuple[int, ...], episodes: int, states: int) -> TrialArrays:
+        """Outputs for `trials` (() for one trial's rows) of `episodes` episodes and `states` learner states."""
+        return cls(
+            np.zeros((*trials, episodes)), np.zeros((*trials, states)), np.zeros((*trials, states), dtype=np.int8),
+            np.zeros((*trials, N_COUNTERS), dtype=np.int64), np.zeros((*trials, episodes, N_HOLD)),
+        )
+
+
+# Columns of a recorded step: the action taken, the learner's state after it, then the recorded env entries.
+S_ACTION, S_STATE, S_ENV = 0, 1, 2
+
+
+class StepRecord(NamedTuple):
+    """What replay_trial records: rows[episode, k] is step k + 1 of the episode (S_* columns, then env[columns]
+    after the step, env as simulator/plant/episode.py's E_* lays it out); rows past an episode's end keep what
+    the caller put there."""
+
+    columns: NDArray[np.int64]  # [n] the env entries recorded
+    rows: NDArray[np.float64]  # [episodes, episode_steps(spec), S_ENV + n]
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _record_step(record: StepRecord, episode: int, action: int, state: int, env: NDArray[np.float64]) -> None:
+    row = record.rows[episode, int(env[E_STEPS]) - 1]
+    row[S_ACTION] = action
+    row[S_STATE] = state
+    for j in range(record.columns.shape[0]):
+        row[S_ENV + j] = env[record.columns[j]]
+
 
 @njit(cache=True, error_model="numpy", nogil=True)
-def run_trial(
+def _trial(
     learner_stream: NDArray[np.uint64],
     env_stream: NDArray[np.uint64],
     target_depth_m: float,
@@ -50,8 +81,10 @@ def run_trial(
     out: TrialArrays,
     progress: NDArray[np.int64],
     trial: int,
+    record: StepRecord | None,
 ) -> None:
-    """One learning trial: len(out.durations_s) episodes; fills durations, final values, policy and counters."""
+    """The trial loop of run_trial and replay_trial. numba compiles it once per type of record and drops the
+    `record is not None` branch when it is None: the study's loop carries no trace of the recording."""
     durations_s, values, policy, counters, hold = out
     n_states = values.shape[0]
     sparse = lspec.model_form == 1
@@ -78,6 +111,8 @@ def run_trial(
             next_state, reward, terminated, truncated = episode_step_kernel(
                 env, action, target_depth_m, spec, lspec, env_stream
             )
+            if record is not None:
+                _record_step(record, episode, action, next_state, env)
             if env[E_STEPS] > hold_from:
                 hold_add(acc, env[Z] - target_depth_m, abs(env[MOTOR] - motor_before), spec.control_period_s)
             if shared:
@@ -101,6 +136,35 @@ def run_trial(
         counters[C_SWEEPS_MAX] = max(counters[C_SWEEPS_MAX], sweeps)
         counters[C_PLANS] += 1
         progress[trial] = episode + 1
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def run_trial(
+    learner_stream: NDArray[np.uint64],
+    env_stream: NDArray[np.uint64],
+    target_depth_m: float,
+    spec: KernelSpec,
+    lspec: KernelSpec,
+    out: TrialArrays,
+    progress: NDArray[np.int64],
+    trial: int,
+) -> None:
+    """One learning trial: len(out.durations_s) episodes; fills durations, final values, policy and counters."""
+    _trial(learner_stream, env_stream, target_depth_m, spec, lspec, out, progress, trial, None)
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def replay_trial(
+    learner_stream: NDArray[np.uint64],
+    env_stream: NDArray[np.uint64],
+    target_depth_m: float,
+    spec: KernelSpec,
+    lspec: KernelSpec,
+    out: TrialArrays,
+    record: StepRecord,
+) -> None:
+    """run_trial with the same streams and the same results, also recording every step into record."""
+    _trial(learner_stream, env_stream, target_depth_m, spec, lspec, out, np.zeros(1, np.int64), 0, record)
 
 
 @njit(cache=True, error_model="numpy", nogil=True, parallel=True)

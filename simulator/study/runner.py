@@ -19,7 +19,7 @@ from learning.rng import new_stream
 from simulator.errors import StudyError
 from simulator.parameters import PlantParams, kernel_params
 from simulator.study.hold import N_HOLD, RECOVERY_HOLDS, recovery_hold_trial, recovery_holds
-from simulator.study.kernel import N_COUNTERS, TrialArrays, run_trial, run_trials
+from simulator.study.kernel import TrialArrays, run_trial, run_trials
 
 _POLL_S = 0.1
 
@@ -76,17 +76,12 @@ def run_study(
     threads = max(1, min(threads or os.cpu_count() or 1, numba_threads, trials))
     learner_streams = np.array([s[0] for s in streams])
     env_streams = np.array([s[1] for s in streams])
-    s_count = n_states(config)
-    durations = np.zeros((trials, episodes))
-    values = np.zeros((trials, s_count))
-    policy = np.zeros((trials, s_count), dtype=np.int8)
     progress = np.zeros(trials, dtype=np.int64)
-    counters = np.zeros((trials, N_COUNTERS), dtype=np.int64)
     if plants is not None and len(plants) != trials:
         raise StudyError(f"{len(plants)} plants for {trials} trials")
-    hold = np.zeros((trials, episodes, N_HOLD))
     recovery_hold = np.zeros((trials, RECOVERY_HOLDS, N_HOLD))
-    out = TrialArrays(durations, values, policy, counters, hold)
+    out = TrialArrays.zeros((trials,), episodes, n_states(config))
+    durations, values, policy, counters, hold = out
     lspec = kernel_spec(config)
     args = (learner_streams, env_streams, params.target_depth_m, kernel_params(params), lspec, out, progress)
     # The recovery controller's holds start from the trials' own first starts: copies of their fresh streams.
