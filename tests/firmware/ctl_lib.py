@@ -67,7 +67,8 @@ class LearnerConfigC(ctypes.Structure):
         ("count_bonus", ctypes.c_float), ("vel_diff_steps", ctypes.c_uint8), ("vel_penalty", ctypes.c_float),
         ("filter_depth_gain", ctypes.c_float), ("filter_velocity_gain", ctypes.c_float),
         ("filter_bias_gain", ctypes.c_float), ("filter_accel_per_deg", ctypes.c_float),
-        ("filter_drag_per_m", ctypes.c_float),
+        ("filter_drag_per_m", ctypes.c_float), ("plan_stable_sweeps", ctypes.c_uint16),
+        ("plan_loose_tolerance", ctypes.c_float),
     ]
 
 
