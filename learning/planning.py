@@ -101,7 +101,9 @@ def plan_rows(
     spec: KernelSpec,
     rng_state: NDArray[np.uint64],
 ) -> int:
-    """Value iteration over compressed rows until max |change| < tolerance or max_sweeps; returns sweeps.
+    """Value iteration over compressed rows until max |change| < tolerance or max_sweeps (or the early stop of
+    plan_stable_sweeps: no greedy action changed for that many sweeps and max |change| < plan_loose_tolerance);
+    returns sweeps.
 
     Jacobi sweeps as Alg. 4 prints them, or in-place (Gauss-Seidel) sweeps, which reach the same fixed
     point in about half the sweeps. (Alg. 4's printed stopping test compares the signed change with the
