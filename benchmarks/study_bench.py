@@ -34,23 +34,37 @@ def python_loop(preset_name: str, learner: str, trial: int, episodes: int, seed:
 
 def compare_with_anchor(pairs: list[str], commit: str, trials: int, episodes: int, seed: int, repeats: int) -> None:
     """Each preset/learner's CPU per trial-episode today and on the commit's tree, each in a child process on one
-    thread, alternated (the machine's load changes under both alike), best of `repeats`, and whether every
-    per-trial array is the same bits."""
+    thread, alternated (the machine's load changes under both alike), best of `repeats`. A pair
+    preset/learner=base times a learner whose numerics differ (a -fastplan one) against its base learner on the
+    commit's tree, and the base on today's tree too; whether the base's per-trial arrays are the anchor's bits."""
     anchor = source_tree(commit)
     print(f"anchor: the study on {commit}'s tree ({anchor}), one thread each", flush=True)
     for pair in pairs:
-        preset_name, learner = pair.split("/")
-        now, then, digests = [], [], set()
+        preset_name, learners = pair.split("/")
+        learner, _, base = learners.partition("=")
+        base = base or learner
+        runs = [(ROOT, learner), (anchor, base)] + ([(ROOT, base)] if base != learner else [])
+        times: dict[tuple[Path, str], list[float]] = {run: [] for run in runs}
+        digests: dict[tuple[Path, str], set[str]] = {run: set() for run in runs}
         for _ in range(repeats):
-            for tree, times in ((ROOT, now), (anchor, then)):
-                ms, digest = study_cpu(tree, preset_name, learner, trials, episodes, seed, 1)
-                times.append(ms)
-                digests.add(digest)
-        ratio = min(then) / min(now)
+            for tree, name in runs:
+                ms, digest = study_cpu(tree, preset_name, name, trials, episodes, seed, 1)
+                times[(tree, name)].append(ms)
+                digests[(tree, name)].add(digest)
+        now, then = min(times[(ROOT, learner)]), min(times[(anchor, base)])
+        ratio = then / now
         verdict = "met" if ratio >= GOAL else "NOT met"
-        print(f"cpu per trial-episode {pair} ({trials} x {episodes}, best of {repeats}): now {min(now):.3f} ms, "
-              f"{commit} {min(then):.3f} ms: {ratio:.2f}x (goal >= {GOAL:.0f}x: {verdict}); "
-              f"results bit-identical: {'yes' if len(digests) == 1 else 'NO'}", flush=True)
+        line = (f"cpu per trial-episode {preset_name}/{learner} ({trials} x {episodes}, best of {repeats}): "
+                f"now {now:.3f} ms, {commit} {base} {then:.3f} ms: {ratio:.2f}x (goal >= {GOAL:.0f}x: {verdict})")
+        if base != learner:
+            base_now = min(times[(ROOT, base)])
+            same = digests[(ROOT, base)] == digests[(anchor, base)] and len(digests[(ROOT, base)]) == 1
+            line += (f"; {base} now {base_now:.3f} ms ({then / base_now:.2f}x), its results bit-identical to "
+                     f"{commit}'s: {'yes' if same else 'NO'}; {learner} {base_now / now:.2f}x faster than {base}")
+        else:
+            same = len(digests[(ROOT, learner)] | digests[(anchor, base)]) == 1
+            line += f"; results bit-identical: {'yes' if same else 'NO'}"
+        print(line, flush=True)
 
 
 def main() -> None:
@@ -62,8 +76,9 @@ def main() -> None:
     parser.add_argument("--python-trials", type=int, default=2, help="trials run in the Python loop")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--anchor", default=ANCHOR, help="commit whose planning is the anchor ('' to skip)")
-    parser.add_argument("--anchor-pairs", default="paper/shared,hardware/hardware",
-                        help="preset/learner pairs timed against the anchor")
+    parser.add_argument("--anchor-pairs", default="paper/shared-fastplan=shared,hardware/diff8-fastplan=shared-z20-bins7-diff8-term100-vpen1",
+                        help="preset/learner pairs timed against the anchor (preset/learner=base: against the "
+                             "base learner, for a learner the anchor does not have)")
     parser.add_argument("--anchor-trials", type=int, default=20)
     parser.add_argument("--anchor-repeats", type=int, default=2)
     args = parser.parse_args()

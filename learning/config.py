@@ -78,6 +78,12 @@ class LearnerConfig:
     # With the filter: the depth the learner sees (its state's depth cell, its reward, leaving the region) is the
     # filter's estimate instead of the raw reading, so that sensor noise does not flicker it between cells.
     filter_depth_state: bool = False
+    # Planning's early stop (learning/planning.py plan_rows; 0 = off, the stop at vi_tolerance alone): a call
+    # also ends once no state's greedy action has changed for this many sweeps in a row and max |change| is
+    # below plan_loose_tolerance. Once learning has settled, most of a call's ~40 sweeps only refine values
+    # whose greedy actions no longer move (docs/reproduction.md, "Speed").
+    plan_stable_sweeps: int = 0
+    plan_loose_tolerance: float = 0.0
 
     def __post_init__(self) -> None:
         if self.z_cells < 1 or self.zdot_cells < 1 or self.actuator_bins < 1:
@@ -109,6 +115,10 @@ class LearnerConfig:
             raise LearnerConfigError("max_sweeps must be >= 1")
         if n_states(self) > 65535:
             raise LearnerConfigError("at most 65535 states (successor indices are uint16)")
+        if self.plan_stable_sweeps < 0 or self.plan_loose_tolerance < 0:
+            raise LearnerConfigError("plan_stable_sweeps and plan_loose_tolerance must not be negative")
+        if self.plan_stable_sweeps > 0 and not self.shared_model:
+            raise LearnerConfigError("the early planning stop (plan_stable_sweeps) is for the shared model only")
 
 
 LearnerSpec = kernel_tuple_type(LearnerConfig, "LearnerSpec")

@@ -101,7 +101,9 @@ def plan_rows(
     spec: KernelSpec,
     rng_state: NDArray[np.uint64],
 ) -> int:
-    """Value iteration over compressed rows until max |change| < tolerance or max_sweeps; returns sweeps.
+    """Value iteration over compressed rows until max |change| < tolerance or max_sweeps (or the early stop of
+    plan_stable_sweeps: no greedy action changed for that many sweeps and max |change| < plan_loose_tolerance);
+    returns sweeps.
 
     Jacobi sweeps as Alg. 4 prints them, or in-place (Gauss-Seidel) sweeps, which reach the same fixed
     point in about half the sweeps. (Alg. 4's printed stopping test compares the signed change with the
@@ -115,14 +117,27 @@ def plan_rows(
     terminal = n_states - 1
     values[terminal] = 0.0
     new_values = values.copy()
+    # The early stop (LearnerConfig.plan_stable_sweeps): each sweep's greedy action per state, and for how
+    # many sweeps in a row none changed. Off (0), none of this runs and the sweeps are the plain ones.
+    early = spec.plan_stable_sweeps > 0
+    greedy = np.full(n_states if early else 0, -1, dtype=np.int8)
+    stable = 0
     sweeps = 0
     while sweeps < spec.max_sweeps:
         delta = 0.0
+        changed = False
         for s in range(terminal):
             best = -np.inf
+            arg = 0
             for a in range(n_actions):
                 row = s * n_actions + a
-                best = max(best, _action_value(row, rows, values, spec))
+                value = _action_value(row, rows, values, spec)
+                if value > best:
+                    arg = a
+                best = max(best, value)
+            if early and greedy[s] != arg:
+                changed = True  # (the first sweep always: -1 is no action)
+                greedy[s] = arg
             delta = max(delta, abs(best - values[s]))
             new_values[s] = best
             if spec.in_place_sweeps:
@@ -132,6 +147,10 @@ def plan_rows(
         sweeps += 1
         if delta < spec.vi_tolerance:
             break
+        if early:
+            stable = 0 if changed else stable + 1
+            if stable >= spec.plan_stable_sweeps and delta < spec.plan_loose_tolerance:
+                break
     sign = -1.0 if spec.policy_argmin else 1.0
     for s in range(n_states):
         for a in range(n_actions):

@@ -9,6 +9,10 @@ from learning.config import LearnerConfig
 from learning.errors import LearnerConfigError
 
 _SHARED = LearnerConfig(shared_model=True, p_explore_start=0.0, in_place_sweeps=True)
+# Issue 29 item 6: planning that stops once no greedy action has changed for 2 sweeps and the last sweep moved no
+# value by 0.05 or more (LearnerConfig.plan_stable_sweeps): ~5 sweeps per call instead of ~40 on the hardware
+# preset (docs/reproduction.md, "Speed", has the figures old and new).
+_FAST_PLAN: dict[str, Any] = {"plan_stable_sweeps": 2, "plan_loose_tolerance": 0.05}
 
 # Issue 29: the learner's velocity filter (LearnerConfig.filter_*). Gains: the fading-memory g-h-k filter at
 # theta (g = 1 - theta^3, h = 1.5 (1 - theta^2)(1 - theta), k = (1 - theta)^3 / 2); model: the hardware preset's
@@ -74,6 +78,13 @@ _PRESETS: dict[str, LearnerConfig] = {
     "shared-bonus": replace(_SHARED, count_bonus=0.5),
 }
 
+# Each -fastplan learner is its base with _FAST_PLAN (the base's figures are kept for comparison).
+_FAST_PLAN_BASES = {
+    "shared-fastplan": "shared",
+    "diff8-fastplan": "shared-z20-bins7-diff8-term100-vpen1",
+    "filter-fastplan": "shared-z20-bins7-filter-term100-vpen1",
+}
+_PRESETS.update({name: replace(_PRESETS[base], **_FAST_PLAN) for name, base in _FAST_PLAN_BASES.items()})
 
 # Plain names a user can pick: the recommended learner of each plant preset (docs/reproduction.md).
 ALIASES: dict[str, str] = {
@@ -100,6 +111,9 @@ DESCRIPTIONS: dict[str, str] = {
     "shared-dirichlet": "shared as per-state prior",
     "shared-epsilon": "shared + paper's exploration",
     "shared-bonus": "shared + MBIE-EB count bonus",
+    "shared-fastplan": "shared, planning stops early",
+    "diff8-fastplan": "8-step diff, planning stops early",
+    "filter-fastplan": "filter, planning stops early",
 }
 
 

@@ -114,6 +114,10 @@ static bool config_valid(const learner_config_t *c)
         || (c->filter_depth_state && !(c->filter_depth_gain > 0.0f))) {
         return false;  /* the velocity filter or the depth difference, not both; its depth only with it (config.py) */
     }
+    if (!(c->plan_loose_tolerance >= 0.0f) || !isfinite(c->plan_loose_tolerance)
+        || (c->plan_stable_sweeps > 0u && !c->shared_model)) {
+        return false;  /* the early planning stop is the shared model's (learning/config.py) */
+    }
     /* Written so that NaN fails every test. */
     if (!(c->z_tol_m > 0.0f) || !(c->zdot_tol_mps > 0.0f) || !(c->vi_tol > 0.0f)) {
         return false;

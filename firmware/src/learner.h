@@ -57,6 +57,10 @@ typedef struct {
     float    filter_accel_per_deg;     /* m/s^2 per deg of command above the window's centre */
     float    filter_drag_per_m;        /* 1/m */
     bool     filter_depth_state;       /* with the filter: the learner's depth (state, reward, cell) is its estimate */
+    /* Shared model: planning also stops once no greedy action has changed for this many sweeps in a row and
+       the sweep's max change is below plan_loose_tolerance (0 = off; learning/planning.py plan_rows). */
+    uint16_t plan_stable_sweeps;
+    float    plan_loose_tolerance;
 } learner_config_t;
 
 /* The defaults of learning/config.py LearnerConfig (the paper's simulation values). */

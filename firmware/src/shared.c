@@ -1,8 +1,8 @@
 /* The shared-model learner's model (learning/shared.py): layout in learner.c's arena, recording, inspection.
 
    Arena order: shared_type_t types[T], float values[S], float new_values[S] (Jacobi only),
-   local counts[2 S] (Dirichlet only), uint8_t policy[ceil(S / 4)] (2 bits per state). Planning is in
-   shared_plan.c. */
+   local counts[2 S] (Dirichlet only), uint8_t policy[ceil(S / 4)] (2 bits per state), uint8_t
+   greedy[ceil(S / 8)] (1 bit per state, only with plan_stable_sweeps). Planning is in shared_plan.c. */
 #include "shared_internal.h"
 
 #include <math.h>
@@ -45,10 +45,16 @@ static uint32_t policy_bytes(uint32_t states)
     return (bytes + 3u) & ~3u;
 }
 
+/* The early planning stop's last greedy action per state, 1 bit each in whole words (none when it is off). */
+static uint32_t greedy_bytes(const learner_config_t *c)
+{
+    return c->plan_stable_sweeps > 0u ? ((states_of(c) + 7u) / 8u + 3u) & ~3u : 0u;
+}
+
 uint32_t shared_total_bytes(const learner_config_t *c)
 {
     uint32_t sweep_buffer = c->in_place_sweeps ? 0u : states_of(c) * (uint32_t)sizeof(float);
-    return shared_memory_bytes(c) + sweep_buffer + policy_bytes(states_of(c));
+    return shared_memory_bytes(c) + sweep_buffer + policy_bytes(states_of(c)) + greedy_bytes(c);
 }
 
 void shared_carve(uint8_t *base, const learner_config_t *c)
@@ -77,6 +83,8 @@ void shared_carve(uint8_t *base, const learner_config_t *c)
     }
     off += local_bytes(c);
     g_shared.policy = base + off;
+    off += policy_bytes(g_shared.n_states);
+    g_shared.greedy = c->plan_stable_sweeps > 0u ? base + off : NULL;
     /* learning.shared.cell_reward: minus the distance of the depth cell's centre from the target. */
     for (uint32_t iz = 0u; iz < c->z_cells && iz < SHARED_MAX_Z_CELLS; iz++) {
         g_shared.z_reward[iz] = -fabsf(-c->z_tol_m + ((float)iz + 0.5f) * 2.0f * c->z_tol_m / (float)c->z_cells);

@@ -51,7 +51,8 @@ typedef struct {
 /* learning's shared_memory_bytes: types, values, local counts with a Dirichlet weight. */
 uint32_t shared_memory_bytes(const learner_config_t *c);
 /* shared_memory_bytes plus what the firmware keeps besides: the Jacobi sweep buffer (none with in-place
-   sweeps) and the policy, 2 bits per state (the plan's action or tied), rounded up to whole words. */
+   sweeps) and the policy, 2 bits per state (the plan's action or tied), rounded up to whole words; with
+   plan_stable_sweeps also each state's last greedy action, 1 bit per state in whole words. */
 uint32_t shared_total_bytes(const learner_config_t *c);
 /* Lays the arrays out from base (learner.c's arena, at least shared_total_bytes long). */
 void     shared_carve(uint8_t *base, const learner_config_t *c);

@@ -26,6 +26,7 @@ typedef struct {
     shared_local8_t *local8;
     shared_local16_t *local16;
     uint8_t *policy;
+    uint8_t *greedy;           /* each state's greedy action in the last sweep, 1 bit (plan_stable_sweeps > 0) */
     float z_reward[SHARED_MAX_Z_CELLS];  /* reward of arriving in each depth cell (cell_reward of learning) */
     float v_penalty[SHARED_MAX_ZDOT_CELLS];  /* what arriving in each velocity cell costs (0 without vel_penalty) */
     /* planning in progress */
@@ -34,6 +35,8 @@ typedef struct {
     uint32_t sweeps;
     bool planning;
     bool policy_pass;          /* values final: the policy is being derived, state by state */
+    bool greedy_changed;       /* a state's greedy action changed in the current sweep */
+    uint32_t stable_sweeps;    /* sweeps in a row that changed no greedy action */
 } shared_learner_t;
 
 /* The one shared-model learner (defined in shared.c). */

@@ -76,6 +76,8 @@ void shared_start_planning(void)
     g_shared.next_state = 0u;
     g_shared.delta = 0.0f;
     g_shared.sweeps = 0u;
+    g_shared.greedy_changed = false;
+    g_shared.stable_sweeps = 0u;
     g_shared.planning = true;
     g_shared.policy_pass = false;
 }
@@ -110,6 +112,31 @@ static void derive_policy(uint32_t s, rng_t *rng)
     set_policy(s, p);
 }
 
+/* planning.plan_rows' early stop: whether state s's greedy action (a2 when q1 > q0) differs from its last sweep's
+   (the first sweep of a plan counts as a change everywhere, as Python's "no action yet"). */
+static void note_greedy(uint32_t s, bool a2)
+{
+    uint8_t *byte = &g_shared.greedy[s / 8u];
+    uint8_t bit = (uint8_t)(1u << (s % 8u));
+    if (((*byte & bit) != 0u) != a2) {
+        g_shared.greedy_changed = true;
+        *byte = (uint8_t)(a2 ? *byte | bit : *byte & ~bit);
+    }
+}
+
+/* After a whole sweep (sweeps already counted): whether the early stop ends the plan here. */
+static bool settled(void)
+{
+    if (g_shared.greedy == NULL) {
+        return false;
+    }
+    bool changed = g_shared.greedy_changed || g_shared.sweeps == 1u;
+    g_shared.greedy_changed = false;
+    g_shared.stable_sweeps = changed ? 0u : g_shared.stable_sweeps + 1u;
+    return g_shared.stable_sweeps >= g_shared.cfg.plan_stable_sweeps
+           && g_shared.delta < g_shared.cfg.plan_loose_tolerance;
+}
+
 bool shared_plan_backups(uint32_t max_backups, rng_t *rng)
 {
     if (!g_shared.planning) {
@@ -129,6 +156,9 @@ bool shared_plan_backups(uint32_t max_backups, rng_t *rng)
         }
         float best = action_value(s, 0u, g_shared.values);
         float q1 = action_value(s, 1u, g_shared.values);
+        if (g_shared.greedy != NULL) {
+            note_greedy(s, q1 > best);
+        }
         best = q1 > best ? q1 : best;
         float change = fabsf(best - g_shared.values[s]);
         g_shared.delta = change > g_shared.delta ? change : g_shared.delta;
@@ -142,7 +172,7 @@ bool shared_plan_backups(uint32_t max_backups, rng_t *rng)
             memcpy(g_shared.values, g_shared.new_values, (size_t)g_shared.terminal * sizeof(float));
         }
         g_shared.sweeps++;
-        bool converged = g_shared.delta < g_shared.cfg.vi_tol;
+        bool converged = g_shared.delta < g_shared.cfg.vi_tol || settled();
         g_shared.next_state = 0u;
         g_shared.delta = 0.0f;
         if (converged || g_shared.sweeps >= g_shared.cfg.max_sweeps) {

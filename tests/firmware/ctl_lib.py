@@ -68,6 +68,8 @@ class LearnerConfigC(ctypes.Structure):
         ("filter_depth_gain", ctypes.c_float), ("filter_velocity_gain", ctypes.c_float),
         ("filter_bias_gain", ctypes.c_float), ("filter_accel_per_deg", ctypes.c_float),
         ("filter_drag_per_m", ctypes.c_float), ("filter_depth_state", ctypes.c_bool),
+        ("plan_stable_sweeps", ctypes.c_uint16),
+        ("plan_loose_tolerance", ctypes.c_float),
     ]
 
 

@@ -82,6 +82,20 @@ def test_memory_bytes_equal_python_figure(ctl: ctypes.CDLL, name: str) -> None:
     assert ctl.learner_used_bytes() == expected + policy
 
 
+def test_early_stop_keeps_a_greedy_bit_per_state_and_is_the_shared_models(ctl: ctypes.CDLL) -> None:
+    config = learner_preset("diff8-fastplan")
+    c = c_config(ctl, config)
+    expected = shared_memory_bytes(*_grid(config), config.sparse_slots, False)
+    policy, greedy = (-(-n_states(config) // 4) + 3) // 4 * 4, (-(-n_states(config) // 8) + 3) // 4 * 4
+    assert ctl.learner_total_bytes(ctypes.byref(c)) == expected + policy + greedy
+    assert ctl.learner_configure(ctypes.byref(c))
+    paper = c_config(ctl, learner_preset("paper"))
+    paper.plan_stable_sweeps = 2  # what learning/config.py refuses, refused in C too
+    assert not ctl.learner_configure(ctypes.byref(paper))
+    c.plan_loose_tolerance = float("nan")
+    assert not ctl.learner_configure(ctypes.byref(c))
+
+
 def _sizeof_source() -> str:
     """One _Static_assert per shared preset: sizeof of the C state type equals learning's figure."""
     lines = ['#include "shared.h"']
@@ -186,6 +200,7 @@ def replay_in_c(lib: ctypes.CDLL, config: LearnerConfig, rec: Recording, slice_b
     ("shared-bonus", "paper", 25, 101),
     ("shared-epsilon", "paper", 20, 250),  # exploration flips: the same draws on both sides
     (VPEN_Z20, "hardware", 20, 333),  # the velocity penalty and a terminal reward of -100
+    ("diff8-fastplan", "hardware", 20, 333),  # planning's early stop (plan_stable_sweeps)
 ])
 def test_c_shared_learner_follows_python(
     ctl: ctypes.CDLL, name: str, plant: str, episodes: int, slice_backups: int

@@ -8,6 +8,7 @@ import pytest
 from learning import Learner, LearnerConfig, learner_preset, model_memory_bytes
 from learning.acting import TIED, select_action_kernel
 from learning.config import kernel_spec
+from learning.errors import LearnerConfigError
 from learning.shared import FAR, cell_reward, raw_cell_kernel, state_cell_code
 
 
@@ -133,6 +134,26 @@ def test_bounded_planning_stops_at_max_sweeps() -> None:
         unbounded.observe(_state(config, 5, 5), action, 0.0, _state(config, 5, 5), cell)
     unbounded.end_episode()
     assert unbounded.last_sweeps > 100
+
+
+def test_early_stop_ends_planning_once_the_greedy_policy_holds() -> None:
+    """plan_stable_sweeps: the slowly converging self-loop of test_bounded_planning_stops_at_max_sweeps stops after
+    the first sweep and two that change no greedy action, unless a sweep still moves a value by the loose bound."""
+    sweeps = {}
+    for loose in (1e6, 1e-9):
+        config = LearnerConfig(shared_model=True, plan_stable_sweeps=2, plan_loose_tolerance=loose)
+        learner = Learner(config, np.random.default_rng(0))
+        z, v = _cell_centre(config, 5, 5)
+        cell = raw_cell_kernel(0.4 + z, v, 0.4, 0.0, kernel_spec(config))
+        for action in (0, 1):
+            learner.observe(_state(config, 5, 5), action, -0.5, _state(config, 5, 5), cell)
+        learner.end_episode()
+        sweeps[loose] = learner.last_sweeps
+    assert sweeps == {1e6: 3, 1e-9: sweeps[1e-9]} and sweeps[1e-9] > 100
+    with pytest.raises(LearnerConfigError, match="shared model only"):
+        LearnerConfig(plan_stable_sweeps=2)
+    with pytest.raises(LearnerConfigError, match="must not be negative"):
+        LearnerConfig(shared_model=True, plan_loose_tolerance=-1.0)
 
 
 def test_the_velocity_penalty_charges_a_cell_its_centre_speed() -> None:
