@@ -76,7 +76,8 @@ def main() -> None:
     parser.add_argument("--python-trials", type=int, default=2, help="trials run in the Python loop")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--anchor", default=ANCHOR, help="commit whose planning is the anchor ('' to skip)")
-    parser.add_argument("--anchor-pairs", default="paper/shared-fastplan=shared,hardware/diff8-fastplan=shared-z20-bins7-diff8-term100-vpen1",
+    parser.add_argument("--anchor-pairs",
+                        default="paper/shared-fastplan=shared,hardware/diff8-fastplan=shared-z20-bins7-diff8-term100-vpen1",
                         help="preset/learner pairs timed against the anchor (preset/learner=base: against the "
                              "base learner, for a learner the anchor does not have)")
     parser.add_argument("--anchor-trials", type=int, default=20)
