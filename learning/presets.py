@@ -61,7 +61,7 @@ _PRESETS: dict[str, LearnerConfig] = {
     ),
     # Issue 29: the same with the velocity from a filter that predicts with the commanded gear angle instead of
     # the 8-step difference, whose lag made late episodes swing out of the region on a lagging or noisier
-    # depth (docs/reproduction.md, "Why trials stay unstable"); the gains are VELOCITY_FILTER's.
+    # depth (docs/reproduction.md, "Why trials stay unstable"); theta 0.8.
     "shared-z20-bins7-filter-term100-vpen1": replace(
         _SHARED, z_cells=20, actuator_bins=7, terminal_reward=-100.0, velocity_penalty=1.0, **_VELOCITY_FILTER_080
     ),
