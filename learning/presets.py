@@ -83,6 +83,7 @@ _FAST_PLAN_BASES = {
     "shared-fastplan": "shared",
     "diff8-fastplan": "shared-z20-bins7-diff8-term100-vpen1",
     "filter-fastplan": "shared-z20-bins7-filter-term100-vpen1",
+    "hardware-fastplan": "shared-z20-bins7-fdepth-term100-vpen1",
 }
 _PRESETS.update({name: replace(_PRESETS[base], **_FAST_PLAN) for name, base in _FAST_PLAN_BASES.items()})
 
@@ -114,6 +115,7 @@ DESCRIPTIONS: dict[str, str] = {
     "shared-fastplan": "shared, planning stops early",
     "diff8-fastplan": "8-step diff, planning stops early",
     "filter-fastplan": "filter, planning stops early",
+    "hardware-fastplan": "hardware, planning stops early",
 }
 
 
