@@ -184,5 +184,5 @@ def _with_plant_table(url: str, params: Path) -> str:
     if url.startswith("sim://"):
         return _with_query(url, {"plant": str(params.resolve())})
     err.print(f"{params}: its [plant] table is for a simulator (sim://) and cannot apply to {url}; its agent "
-              "parameters are set", style="yellow")
+              "parameters are set", style="yellow", soft_wrap=True)
     return url
