@@ -74,8 +74,11 @@ def params_command(
                               "on a terminal you are asked instead")] = False,
     key_file: KeyFileOption = None,
 ) -> None:
-    """List the agent's parameters (value, unit, range, whether a change resets learning, what each is), get / set
-    one, or save, compare with or load a TOML file of them. A value equal to the agent's is not sent."""
+    """List, get or set the agent's parameters, or save, compare with or load a TOML file of them.
+
+    The list shows each one's value, unit, range, what it is and whether a change resets learning.
+
+    A set or load sends only the values that differ from the agent's."""
     from groundstation.session.paramfile import read_params, write_params
 
     url, words = split_url(list(args or []), _PARAM_ACTIONS)

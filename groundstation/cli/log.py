@@ -102,8 +102,9 @@ def log_export(files: Annotated[list[Path], typer.Argument(help="recordings, or 
                ) -> None:
     """Export samples as CSV, (s, a, r, s', terminated, truncated) transitions as .npz, or a Minari dataset.
 
-    Several recordings (or a folder) give one output file each, beside each recording; the parts of a split
-    recording given together make one (NAME.csv beside NAME-part001.mcap), episodes across parts kept whole.
+    Several recordings (or a folder) give one output file each, beside each recording.
+
+    The parts of a split recording given together make one (NAME.csv beside NAME-part001.mcap), episodes whole.
     """
     from groundstation.cli.bar import SlowBar
     from groundstation.recording.export import export_csv, export_npz

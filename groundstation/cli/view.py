@@ -252,6 +252,9 @@ def replay(
             if rrd is not None:
                 view.flush()
                 typer.echo(f"wrote {one_line(rrd)}: {count} frames in {time.perf_counter() - began:.2f} s")
+            elif chosen == Viewer.NONE:  # read through and shown nowhere: say so, or it looks like nothing happened
+                typer.echo(f"read {count} frames of {one_line(shown)} in {time.perf_counter() - began:.2f} s; "
+                           "--viewer none shows them nowhere (add --rrd FILE to keep them, or --viewer web)")
             if view.address:
                 if factor is None:
                     view.flush()
@@ -273,8 +276,9 @@ def view(
     key_file: KeyFileOption = None,
     foxglove: FoxgloveOption = None,
 ) -> None:
-    """Watch the agent live in the Rerun view, without commanding it; or in Foxglove (--foxglove), with the
-    parameters and the controls (Rerun too only if --viewer or --rrd is given)."""
+    """Watch the agent live in the Rerun view without commanding it, or in Foxglove with its controls.
+
+    With --foxglove, Foxglove shows the parameters and controls; Rerun then opens only with --viewer or --rrd."""
     signal.signal(signal.SIGTERM, _interrupt)
     stopped = False
     with _one_line_errors():

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import re
 import signal
 import socket
 import subprocess
@@ -71,6 +72,14 @@ def test_bad_options_give_one_clear_line(small_recording: Path) -> None:
     for option in (["--speed", "fast"], ["--from", "yesterday"]):
         result = _dive("replay", str(small_recording), "--viewer", "none", *option)
         assert result.returncode == 2 and len(result.stderr.strip().splitlines()) == 1, result.stderr  # usage
+
+
+def test_a_replay_shown_nowhere_says_what_it_read(small_recording: Path) -> None:
+    """--viewer none without --rrd reads the recording through (a check that it reads) and says so in one line."""
+    result = _dive("replay", str(small_recording), "--viewer", "none")
+    assert result.returncode == 0, result.stderr
+    read = re.search(r"^read (\d+) frames of .* shows them nowhere", result.stdout, re.MULTILINE)
+    assert read is not None and int(read.group(1)) > 0, result.stdout
 
 
 def _free_port() -> int:
