@@ -143,7 +143,7 @@ def type_of(state: int, action: int, spec: KernelSpec) -> int:
     return (ib * spec.zdot_cells + iv) * N_ACTIONS + action
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def record_shared(model: ModelArrays, state: int, action: int, next_cell: int, spec: KernelSpec) -> bool:
     """Count the offset from state's cell to next_cell in the type's histogram; True if a slot was evicted."""
     codes, counts, totals, evictions = model.codes, model.type_counts, model.totals, model.type_evictions
