@@ -3,7 +3,10 @@
 from __future__ import annotations
 
 import ctypes
+import shutil
+import subprocess
 from dataclasses import asdict, replace
+from pathlib import Path
 
 import pytest
 
@@ -11,7 +14,7 @@ from learning import LearnerConfig, learner_preset
 from protocol import AckResult
 from simulator.serve.firmware_host import load_library
 from tests.firmware.core_build import use_firmware_cache
-from tests.firmware.ctl_lib import HARDWARE_BY_PARAMS, BothAgents
+from tests.firmware.ctl_lib import FIRMWARE, HARDWARE_BY_PARAMS, BothAgents, c_config
 
 # learning/config.py's reason, which firmware/src/params.c gives too.
 SHARED_ONLY = "the early planning stop (plan_stable_sweeps) is for the shared model only"
@@ -48,3 +51,25 @@ def test_the_early_stop_parameters_give_both_agents_hardware_fastplan(
     off = replace(config, plan_stable_sweeps=0)
     assert asdict(program.config) == pytest.approx(asdict(off), rel=1e-7)
     both.assert_c_is(off)
+
+
+def test_the_teensy_hardware_variant_has_room_for_the_early_stop(tmp_path: Path,
+                                                                 tmp_path_factory: pytest.TempPathFactory) -> None:
+    """The Teensy build's `shared-z20` variant (boards/teensy/teensy.mk) reserves, by its arena_size tool, exactly
+    what `hardware-fastplan`'s learner needs (learner_total_bytes), its greedy bits included: more than `hardware`
+    without the stop, so the robot does not refuse plan_stable_sweeps for want of storage."""
+    for tool in ("make", "cc"):
+        if shutil.which(tool) is None:
+            pytest.skip(f"{tool} not on PATH")
+    tool = tmp_path / "host" / "arena_size"
+    subprocess.run(["make", "-s", "-C", str(FIRMWARE), f"BUILD={tmp_path}", str(tool)], check=True, timeout=120)
+    reserved = int(subprocess.run([str(tool), "20", "10", "7", "1"], capture_output=True, text=True,
+                                  check=True).stdout.split()[0])
+    use_firmware_cache(tmp_path_factory)
+    lib = load_library()
+    lib.learner_total_bytes.restype = ctypes.c_uint32
+
+    def needs(name: str) -> int:
+        return int(lib.learner_total_bytes(ctypes.byref(c_config(lib, learner_preset(name)))))
+
+    assert reserved == needs("hardware-fastplan") > needs("hardware")
