@@ -151,6 +151,12 @@ _ROWS = (
        "shared model: a cell's reward also loses this times its centre |velocity| (0 = the paper's -|z|)"),
     _p("velocity_filter", B, "", 0, 0, 1, _LEARNER,
        "learner velocity from a depth filter predicting with the commanded gear angle (0 = vel_diff_steps')"),
+    # Planning's early stop (learning/config.py plan_stable_sweeps, plan_loose_tolerance; issue 29 item 6).
+    _p("plan_stable_sweeps", U8, "", 0, 0, 100, _LEARNER,
+       "shared model: a plan also ends once no greedy action has changed for this many sweeps and the last sweep "
+       "moved no value by plan_loose_tol or more (0 = off)"),
+    _p("plan_loose_tol", F, "", 0.0, 0.0, 10.0, _LEARNER,
+       "the value change below which plan_stable_sweeps may end a plan"),
 )
 
 

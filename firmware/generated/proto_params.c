@@ -38,4 +38,6 @@ const param_def_t param_defs[PARAM_COUNT] = {
     {"in_place_sweeps", 1u, 1u, 0x06u, 0.0f, 0.0f, 1.0f},  /* 32 BOOL  */
     {"vel_penalty", 5u, 1u, 0x06u, 0.0f, 0.0f, 100.0f},  /* 33 F32 s */
     {"velocity_filter", 1u, 1u, 0x06u, 0.0f, 0.0f, 1.0f},  /* 34 BOOL  */
+    {"plan_stable_sweeps", 2u, 1u, 0x06u, 0.0f, 0.0f, 100.0f},  /* 35 U8  */
+    {"plan_loose_tol", 5u, 1u, 0x06u, 0.0f, 0.0f, 10.0f},  /* 36 F32  */
 };

@@ -77,6 +77,8 @@ void params_learner_config(learner_config_t *c) {
     c->vel_diff_steps = (uint8_t)g_values[PARAM_VEL_DIFF_STEPS];
     c->ties_per_step = g_values[PARAM_TIES_PER_STEP] != 0.0f;
     c->vel_penalty = g_values[PARAM_VEL_PENALTY];
+    c->plan_stable_sweeps = (uint16_t)g_values[PARAM_PLAN_STABLE_SWEEPS];
+    c->plan_loose_tolerance = g_values[PARAM_PLAN_LOOSE_TOL];
     if (g_values[PARAM_VELOCITY_FILTER] != 0.0f) {
         /* learning/presets.py VELOCITY_FILTER (tests/firmware/test_ctl_velocity_filter.py compares them). */
         c->filter_depth_gain = 0.271f;
@@ -152,6 +154,12 @@ static bool check_learner(uint16_t index, float stored, verdict_t *v) {
     if (c.filter_depth_gain > 0.0f && c.vel_diff_steps > 0u) {
         /* learning/config.py refuses both in the Python agent, with this reason */
         verdict_set(v, ACK_RESULT_BAD_VALUE, "choose the velocity filter or the depth difference, not both");
+        return false;
+    }
+    if (c.plan_stable_sweeps > 0u && !c.shared_model) {
+        /* learning/config.py refuses it in the Python agent, with this reason (learner_configure would too) */
+        verdict_set(v, ACK_RESULT_BAD_VALUE,
+                    "the early planning stop (plan_stable_sweeps) is for the shared model only");
         return false;
     }
     uint32_t need = params_ram_bytes(&c);

@@ -70,6 +70,8 @@ BINDINGS: dict[str, Binding] = {
     "in_place_sweeps": Binding(L, "in_place_sweeps"),
     "vel_penalty": Binding(L, "velocity_penalty"),
     "velocity_filter": Binding(L, "filter_depth_gain", switch=VELOCITY_FILTER),
+    "plan_stable_sweeps": Binding(L, "plan_stable_sweeps"),
+    "plan_loose_tol": Binding(L, "plan_loose_tolerance"),
 }
 
 

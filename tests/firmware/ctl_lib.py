@@ -18,6 +18,7 @@ from protocol import Mode
 from protocol.parameters import param
 from simulator.gym.task import DivingEnv
 from simulator.parameters import preset
+from tests.simulator.agent_trace import in_process_agent
 
 FIRMWARE = Path(__file__).resolve().parents[2] / "firmware"
 SOURCES = ("observer", "recovery", "rng", "learner", "learner_model", "learner_plan", "shared", "shared_plan", "plant",
@@ -220,6 +221,39 @@ def param_setter(lib: ctypes.CDLL) -> Callable[[str, float], Verdict]:
         return verdict
 
     return set_param
+
+
+# The hardware learner (the filtered-depth preset) reached by PARAM_SET from the agents' defaults, velocity_filter
+# last; shared_model first so that each learner on the way fits.
+HARDWARE_BY_PARAMS = (("shared_model", 1), ("in_place_sweeps", 1), ("p_explore_start", 0.0), ("term_reward", -100.0),
+                      ("vel_penalty", 1.0), ("act_bins", 7), ("z_cells", 20), ("velocity_filter", 1))
+
+
+class BothAgents:
+    """The firmware host library's parameters (params.c) and an in-process virtual agent, set side by side."""
+
+    def __init__(self, lib: ctypes.CDLL) -> None:
+        self.lib = lib
+        self._set_c = param_setter(lib)
+        _, self.program, _ = in_process_agent()
+
+    def set(self, name: str, value: float) -> tuple[int, bytes]:
+        """PARAM_SET on both in IDLE: the (result, reason) they agree on (asserted)."""
+        c_verdict = self._set_c(name, value)
+        result, reason = self.program.set_param(param(name).index, value)
+        assert (c_verdict.result, c_verdict.reason.decode()) == (result, reason), name
+        return result, c_verdict.reason
+
+    def c_learner(self) -> LearnerConfigC:
+        """The learner_config_t the firmware's parameters make (params_learner_config)."""
+        c = LearnerConfigC()
+        self.lib.params_learner_config(ctypes.byref(c))
+        return c
+
+    def assert_c_is(self, config: LearnerConfig) -> None:
+        got, expected = self.c_learner(), c_config(self.lib, config)
+        for field_name, *_ in LearnerConfigC._fields_:
+            assert getattr(got, field_name) == getattr(expected, field_name), field_name
 
 
 @dataclass

@@ -15,20 +15,18 @@ import pytest
 
 from learning import VELOCITY_FILTER, LearnerConfig, learner_preset
 from protocol import AckResult
-from protocol.parameters import param
 from simulator.gym.task import DivingEnv
 from simulator.parameters import preset, with_overrides
 from simulator.serve.firmware_host import load_library
 from tests.firmware.core_build import use_firmware_cache
 from tests.firmware.ctl_lib import (
-    LearnerConfigC,
+    HARDWARE_BY_PARAMS,
+    BothAgents,
     VfilterGains,
     VfilterState,
     build_ctl_library,
     c_config,
-    param_setter,
 )
-from tests.simulator.agent_trace import in_process_agent
 
 FILTER = "shared-z20-bins7-filter-term100-vpen1"
 DEPTH_FILTER = "hardware"  # the robust learner: its depth from the filter too (filter_depth_state)
@@ -90,9 +88,6 @@ def test_c_refuses_the_filter_with_the_depth_difference_as_python(ctl: ctypes.CD
     assert ctl.learner_configure(ctypes.byref(c_config(ctl, replace(config, filter_depth_gain=0.0))))
 
 
-# The filter preset reached by PARAM_SET from the agents' defaults; shared_model first so that each learner fits.
-FILTER_BY_PARAMS = (("shared_model", 1), ("in_place_sweeps", 1), ("p_explore_start", 0.0), ("term_reward", -100.0),
-                    ("vel_penalty", 1.0), ("act_bins", 7), ("z_cells", 20))
 NOT_BOTH = "choose the velocity filter or the depth difference, not both"
 
 
@@ -102,40 +97,22 @@ def test_the_velocity_filter_parameter_gives_both_agents_the_filter_preset(
     the hardware learner (the robust filter preset), gains and filtered depth included; with vel_diff_steps > 0 both
     refuse it, with one reason; 0 switches it off."""
     use_firmware_cache(tmp_path_factory)
-    lib = load_library()
-    set_c = param_setter(lib)
-    _, program, _ = in_process_agent()
-
-    def set_both(name: str, value: float) -> tuple[int, bytes]:
-        c_verdict = set_c(name, value)
-        result, reason = program.set_param(param(name).index, value)
-        assert (c_verdict.result, c_verdict.reason.decode()) == (result, reason), name
-        return result, c_verdict.reason
-
-    def c_learner() -> LearnerConfigC:
-        c = LearnerConfigC()
-        lib.params_learner_config(ctypes.byref(c))
-        return c
-
-    def assert_c_is(config: LearnerConfig) -> None:
-        got, expected = c_learner(), c_config(lib, config)
-        for field_name, *_ in LearnerConfigC._fields_:
-            assert getattr(got, field_name) == getattr(expected, field_name), field_name
-
-    assert set_both("vel_diff_steps", 8) == (AckResult.ACCEPTED, b"")
-    assert set_both("velocity_filter", 1) == (AckResult.BAD_VALUE, NOT_BOTH.encode())
+    both = BothAgents(load_library())
+    program = both.program
+    assert both.set("vel_diff_steps", 8) == (AckResult.ACCEPTED, b"")
+    assert both.set("velocity_filter", 1) == (AckResult.BAD_VALUE, NOT_BOTH.encode())
     assert program.table.value("velocity_filter") == 0.0 and program.config.filter_depth_gain == 0.0
-    for name, value in (*FILTER_BY_PARAMS, ("vel_diff_steps", 0), ("velocity_filter", 1)):
-        assert set_both(name, value) == (AckResult.ACCEPTED, b""), name
+    for name, value in (("vel_diff_steps", 0), *HARDWARE_BY_PARAMS):
+        assert both.set(name, value) == (AckResult.ACCEPTED, b""), name
     config = learner_preset(DEPTH_FILTER)
     assert {name: getattr(config, name) for name in VELOCITY_FILTER} == VELOCITY_FILTER
     # The Python agent holds the table's values as f32 (0.1 as 0.10000000149011612), the filter's gains as given.
     assert asdict(program.config) == pytest.approx(asdict(config), rel=1e-7)
     assert {name: getattr(program.config, name) for name in VELOCITY_FILTER} == VELOCITY_FILTER
     assert program.restart_pending  # a learner parameter: the learner restarts
-    assert_c_is(config)
-    assert set_both("vel_diff_steps", 8) == (AckResult.BAD_VALUE, NOT_BOTH.encode())
-    assert set_both("velocity_filter", 0) == (AckResult.ACCEPTED, b"")
+    both.assert_c_is(config)
+    assert both.set("vel_diff_steps", 8) == (AckResult.BAD_VALUE, NOT_BOTH.encode())
+    assert both.set("velocity_filter", 0) == (AckResult.ACCEPTED, b"")
     off = replace(config, **{name: type(value)(0) for name, value in VELOCITY_FILTER.items()})
     assert asdict(program.config) == pytest.approx(asdict(off), rel=1e-7)
-    assert_c_is(off)
+    both.assert_c_is(off)

@@ -5,7 +5,8 @@ again at 1e82738 and at c766169, whose SPEC 1.1 changes altered the wire themsel
 bytes; the speed-ups give the same), and after the `vel_penalty` parameter was appended (34 parameters): the wire
 before and after differs in one frame only, the PARAM_VALUE's `count` (33 -> 34) and its CRC; the log is unchanged.
 Likewise after `velocity_filter` (35 parameters, regenerated with `python -m tests.simulator.agent_trace`): only
-the wire's hash changed, its length and frames not.
+the wire's hash changed, its length and frames not; and after `plan_stable_sweeps` and `plan_loose_tol`
+(37 parameters, the same way): again only the wire's hash.
 """
 
 from __future__ import annotations
