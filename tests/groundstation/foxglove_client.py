@@ -15,6 +15,9 @@ from websockets.exceptions import ConnectionClosed
 from websockets.sync.client import ClientConnection, connect
 
 SUBPROTOCOL = "foxglove.sdk.v1"
+# How long an answer may take at most (a wait ends when it comes): the agent's first use of a kernel compiles it
+# on a cold numba cache, tens of seconds when another test worker is compiling too (as in CI's fresh clone).
+ANSWER_TIMEOUT_S = 60.0
 MESSAGE_DATA, SERVICE_CALL_RESPONSE = 0x01, 0x03  # server -> client binary opcodes
 SERVICE_CALL_REQUEST = 0x02  # client -> server
 
@@ -90,20 +93,21 @@ class FoxgloveClient:
             {"id": subscription, "channelId": self.channels[topic]["id"]}]}))
         return subscription
 
-    def get_parameters(self, names: list[str], timeout_s: float = 5.0) -> list[dict[str, Any]]:
+    def get_parameters(self, names: list[str], timeout_s: float = ANSWER_TIMEOUT_S) -> list[dict[str, Any]]:
         request = f"get-{next(self._ids)}"
         self.ws.send(json.dumps({"op": "getParameters", "parameterNames": names, "id": request}))
         assert self.pump(lambda: request in self.parameter_replies, timeout_s), f"no answer to {request}"
         return self.parameter_replies[request]
 
-    def set_parameters(self, values: dict[str, Any], timeout_s: float = 5.0) -> list[dict[str, Any]]:
+    def set_parameters(self, values: dict[str, Any], timeout_s: float = ANSWER_TIMEOUT_S) -> list[dict[str, Any]]:
         request = f"set-{next(self._ids)}"
         self.ws.send(json.dumps({"op": "setParameters", "id": request,
                                  "parameters": [{"name": k, "value": v} for k, v in values.items()]}))
         assert self.pump(lambda: request in self.parameter_replies, timeout_s), f"no answer to {request}"
         return self.parameter_replies[request]
 
-    def call(self, service: str, request: dict[str, Any] | None = None, timeout_s: float = 8.0) -> dict[str, Any]:
+    def call(self, service: str, request: dict[str, Any] | None = None,
+             timeout_s: float = ANSWER_TIMEOUT_S) -> dict[str, Any]:
         """Call a service with a JSON request; its JSON response, or {"failure": message}."""
         call = next(self._ids)
         encoding = b"json"
