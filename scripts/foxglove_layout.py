@@ -108,10 +108,10 @@ def layout() -> dict[str, Any]:
 # The modes as the Indicator panel names them (protocol/enums.py's Mode), the ones to watch in warm colours.
 MODE_COLOURS = {"IDLE": "#7f7f7f", "LEARNING": "#2ca02c", "RECOVERING": "#bcbd22", "HOVER": "#1f77b4",
                 "SURFACING": "#d62728", "PAUSED": "#ff7f0e"}
-# The buttons: (service, label, colour); the services are groundstation/view/foxglove_services.py's.
+# The buttons: (service, label, colour); the services are groundstation/view/foxglove/services.py's.
 BUTTONS = (("surface", "SURFACE (emergency)", "#d62728"), ("start", "start learning", "#2ca02c"),
            ("pause", "pause", "#ff7f0e"), ("resume", "resume", "#2ca02c"), ("stop", "stop (surfaces)", "#7f7f7f"))
-VALUE_IMAGE, POLICY_IMAGE = "/value_function/image", "/policy/image"  # groundstation/view/foxglove_images.py
+VALUE_IMAGE, POLICY_IMAGE = "/value_function/image", "/policy/image"  # groundstation/view/foxglove/images.py
 
 
 def _button(service: str, label: str, colour: str) -> dict[str, Any]:

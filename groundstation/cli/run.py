@@ -21,7 +21,7 @@ from groundstation.view.options import Viewer
 
 if TYPE_CHECKING:
     from groundstation.run.job import RunStatus
-    from groundstation.view.foxglove_live import FoxgloveLive
+    from groundstation.view.foxglove.live import FoxgloveLive
 
 
 @one_line_errors

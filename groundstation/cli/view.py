@@ -31,7 +31,7 @@ if TYPE_CHECKING:  # Rerun, mcap, foxglove and the replay code are imported by t
     from rich.progress import Progress
 
     from groundstation.view import replay as rp
-    from groundstation.view.foxglove_live import FoxgloveLive
+    from groundstation.view.foxglove.live import FoxgloveLive
     from groundstation.view.rerun_sink import RerunView
 
 __all__ = ["FoxgloveOption", "GrpcPortOption", "RunViewerOption", "ViewerOption", "WebPortOption", "closing_foxglove",
@@ -122,7 +122,7 @@ LIVE_LAYOUT = "docs/foxglove/live-layout.json"
 def open_foxglove(port: int, name: str) -> FoxgloveLive:
     """The Foxglove server, bound now (before any agent is started): a port given that is in use is one line and
     exit 2; the default one in use (a second `dive view --foxglove` beside a run's) moves to a free port."""
-    from groundstation.view.foxglove_live import DEFAULT_PORT, FoxgloveLive, FoxglovePortError
+    from groundstation.view.foxglove.live import DEFAULT_PORT, FoxgloveLive, FoxglovePortError
 
     try:
         live = FoxgloveLive(port, name)

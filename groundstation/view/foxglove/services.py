@@ -17,7 +17,7 @@ from foxglove import MessageSchema, Schema, Service, ServiceRequest, ServiceSche
 from groundstation.errors import GroundStationError
 from groundstation.session import control
 from groundstation.session.agent_session import Session
-from groundstation.view.foxglove_channels import MarkerWatch
+from groundstation.view.foxglove.channels import MarkerWatch
 from protocol import DumpKind
 from protocol import messages as m
 from protocol.errors import ProtocolError

@@ -18,8 +18,8 @@ import pytest
 
 from groundstation.mcap_io import read_recording
 from groundstation.recording.recorder import message_schema
-from groundstation.view.foxglove_images import POLICY_TOPIC, VALUE_TOPIC
-from groundstation.view.foxglove_services import REQUESTS
+from groundstation.view.foxglove.images import POLICY_TOPIC, VALUE_TOPIC
+from groundstation.view.foxglove.services import REQUESTS
 from groundstation.view.options import with_flag_value
 from protocol import FrameFlag
 from protocol import messages as m
@@ -216,7 +216,7 @@ def test_a_policy_redraws_its_episodes_values_with_the_untried_cells_grey() -> N
     import foxglove
 
     from groundstation.session.dumps import Dump
-    from groundstation.view.foxglove_images import DumpImages
+    from groundstation.view.foxglove.images import DumpImages
     from protocol import DumpKind
 
     context = foxglove.Context()
@@ -241,13 +241,13 @@ def test_the_default_port_taken_moves_to_a_free_one_and_says_so(monkeypatch: pyt
                                                                  capsys: pytest.CaptureFixture[str]) -> None:
     """A second `dive view --foxglove` beside a run's server on the default port gets a port of its own."""
     from groundstation.cli.view import open_foxglove
-    from groundstation.view import foxglove_live
+    from groundstation.view.foxglove import live as live_module
 
     with socket.socket() as taken:
         taken.bind(("127.0.0.1", 0))
         taken.listen()
         default = taken.getsockname()[1]
-        monkeypatch.setattr(foxglove_live, "DEFAULT_PORT", default)  # the test's own port, never a fixed one
+        monkeypatch.setattr(live_module, "DEFAULT_PORT", default)  # the test's own port, never a fixed one
         live = open_foxglove(default, "test")
         try:
             assert live.port not in (default, 0)
@@ -263,7 +263,7 @@ def test_publishing_that_fails_stops_publishing_not_the_run() -> None:
     import foxglove
 
     from groundstation.session.events import EventKind, LinkEvent
-    from groundstation.view.foxglove_channels import FoxgloveChannels
+    from groundstation.view.foxglove.channels import FoxgloveChannels
 
     said: list[str] = []
     channels = FoxgloveChannels(foxglove.Context(), on_failure=said.append)
@@ -282,7 +282,7 @@ def test_a_late_subscriber_gets_its_channels_history_alone_and_bounded() -> None
     subscribes late is sent what it missed, in order and to it alone; the client subscribed before gets nothing
     twice. Larger than the SDK's default per-client queue (1024), which would drop the oldest."""
     from groundstation.session.dumps import Dump
-    from groundstation.view.foxglove_live import FoxgloveLive
+    from groundstation.view.foxglove.live import FoxgloveLive
     from protocol import DumpKind
     from tests.groundstation.recording_fixtures import received, sample
 
@@ -314,7 +314,7 @@ def test_a_late_subscriber_gets_its_channels_history_alone_and_bounded() -> None
 
 
 def test_the_history_keeps_the_last_minutes_every_episode_and_the_newest_dump() -> None:
-    from groundstation.view.foxglove_history import ChannelHistory, FoxgloveHistoryConfig
+    from groundstation.view.foxglove.history import ChannelHistory, FoxgloveHistoryConfig
 
     history = ChannelHistory(FoxgloveHistoryConfig(window_s=60.0, max_per_topic=100, max_whole=1000))
     for second in range(200):  # one message a second of each

@@ -22,10 +22,10 @@ from groundstation.session.agent_session import Session, SessionConfig
 from groundstation.session.events import SessionListener
 from groundstation.session.params import Parameter
 from groundstation.view.errors import ViewError
-from groundstation.view.foxglove_channels import FoxgloveChannels, MarkerWatch
-from groundstation.view.foxglove_history import CLIENT_BACKLOG
-from groundstation.view.foxglove_params import ParameterBridge, to_foxglove
-from groundstation.view.foxglove_services import Controls
+from groundstation.view.foxglove.channels import FoxgloveChannels, MarkerWatch
+from groundstation.view.foxglove.history import CLIENT_BACKLOG
+from groundstation.view.foxglove.params import ParameterBridge, to_foxglove
+from groundstation.view.foxglove.services import Controls
 from groundstation.view.options import FOXGLOVE_DEFAULT_PORT
 from protocol import messages as m
 

@@ -14,8 +14,8 @@ from groundstation.links.hub import MARKER_CONFIRMATION
 from groundstation.recording.recorder import body_json, dump_topic, event_topic, message_json, message_topic
 from groundstation.session.dumps import Dump, DumpAssembler
 from groundstation.session.events import LinkEvent, Received, Sent
-from groundstation.view.foxglove_history import Body, ChannelHistory, FoxgloveHistoryConfig
-from groundstation.view.foxglove_images import DumpImages
+from groundstation.view.foxglove.history import Body, ChannelHistory, FoxgloveHistoryConfig
+from groundstation.view.foxglove.images import DumpImages
 from protocol import Message
 from protocol import messages as m
 from protocol.cobs import cobs_decode
@@ -65,7 +65,7 @@ class FoxgloveChannels:
     """A session listener: each frame, command and event published on the channel the recording would write it to
     (`/agent/SAMPLE`, `/ground/CMD_PAUSE`, `/link`, `/event`, `/marker`, `/dump/VALUES`), and each completed value
     or policy dump also drawn as an image. A channel is encoded only while a client subscribes to it; what it would
-    have carried is kept (bounded: foxglove_history.py) and sent to each client that subscribes later, to it alone.
+    have carried is kept (bounded: history.py) and sent to each client that subscribes later, to it alone.
     On `dive run` it listens to the run's own session: the very frames, commands and events (alarms) the recorder
     writes."""
 

@@ -72,7 +72,7 @@ class DumpImages:
         self.published += 1
 
     def replay(self, topic: str, sink_id: int) -> bool:
-        """The newest image of `topic` to one client (foxglove_channels.replay); whether `topic` is an image's."""
+        """The newest image of `topic` to one client (channels.replay); whether `topic` is an image's."""
         channels = {VALUE_TOPIC: self._value, POLICY_TOPIC: self._policy}
         if topic not in channels:
             return False
