@@ -8,6 +8,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, fields
 from typing import Any, NamedTuple
 
+from protocol.chunk_verdicts import REJECTED_AS
 from protocol.cobs import cobs_decode
 from protocol.compiled import fast_frames
 from protocol.crc import CRC_INIT
@@ -25,9 +26,6 @@ _SIGNED = int(FrameFlag.SIGNED)
 REORDER_WINDOW = 64  # skipped seqs remembered: a late one among them was reordered, not lost
 _SEQ_HALF = 0x8000  # a seq this far or more behind the expected one is late/duplicate, not a gap
 _new_frame = tuple.__new__  # Frame(...) without the named tuple's Python-level __new__
-# The compiled decoder's verdict on a chunk (protocol.fast_frames) and the DecoderStats counter of each reject.
-CHUNK_OK, CHUNK_OVERSIZE, CHUNK_COBS_ERROR, CHUNK_RUNT, CHUNK_CRC_ERROR, CHUNK_INCOMPATIBLE = range(6)
-REJECTED_AS = ("", "oversize", "cobs_errors", "runts", "crc_errors", "incompatible")
 COMPILED_FROM_BYTES = 256  # shorter reads take the stdlib path
 _CompiledDecoder = Callable[[bytes, int, int, int, int], tuple[int, list[list[int]], bytes]]
 

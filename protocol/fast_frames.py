@@ -16,8 +16,15 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from protocol.chunk_verdicts import (
+    CHUNK_COBS_ERROR,
+    CHUNK_CRC_ERROR,
+    CHUNK_INCOMPATIBLE,
+    CHUNK_OK,
+    CHUNK_OVERSIZE,
+    CHUNK_RUNT,
+)
 from protocol.crc import CRC_INIT
-from protocol.decoder import CHUNK_COBS_ERROR, CHUNK_CRC_ERROR, CHUNK_INCOMPATIBLE, CHUNK_OK, CHUNK_OVERSIZE, CHUNK_RUNT
 
 
 def _crc_table() -> NDArray[np.uint16]:

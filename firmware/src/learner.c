@@ -28,8 +28,6 @@
 /* Whole words, rounded up, so that a build's byte figure is always available. */
 static uint32_t arena_words[(LEARNER_ARENA_BYTES + sizeof(uint32_t) - 1u) / sizeof(uint32_t)];
 
-learner_state_t g_learner;
-
 /* ------------------------------------------------------------------ configuration and memory */
 
 void learner_default_config(learner_config_t *c)
@@ -244,7 +242,7 @@ uint16_t learner_n_states(void)
 
 uint16_t learner_terminal(void)
 {
-    return (uint16_t)(g_learner.n_states - 1u);
+    return learner_terminal_index();
 }
 
 static uint32_t cell_of(float x, float half_width, uint8_t cells)

@@ -1,5 +1,5 @@
 /* What learner.c (configuration, the arena, the count model, acting, inspection) and learner_plan.c (value
-   iteration, sliced, and the policy) share: the learner's state and the successor lookup planning's inner loop
+   iteration, sliced, and the policy) share through learner_state.c: the learner's state and the successor lookup planning's inner loop
    makes on every slot (inline, so that loop stays call-free). Private to those two files; everything else goes
    through learner.h. */
 #ifndef LEARNER_INTERNAL_H
@@ -29,8 +29,15 @@ typedef struct {
     uint32_t used_bytes;        /* end of the carved arrays */
 } learner_state_t;
 
-/* The one learner (defined in learner.c). */
+/* The one learner (defined in learner_state.c, so that learner.c and learner_plan.c both build on it and
+   neither on the other's definitions: learner.c calls planning, planning never calls back). */
 extern learner_state_t g_learner;
+
+/* The terminal state's index: always the last (learner.h's learner_terminal returns this). */
+static inline uint16_t learner_terminal_index(void)
+{
+    return (uint16_t)(g_learner.n_states - 1u);
+}
 
 static inline uint16_t learner_succ_get(uint32_t cell)
 {

@@ -1,6 +1,6 @@
 /* Value iteration over the count model (paper Alg. 4, errata fixed), in slices of sweeps or backups so that
    planning never holds up a control step, then the greedy policy; the shared model's planning is shared_plan.c.
-   The state it works on is learner.c's (learner_internal.h). */
+   The state it works on is learner_state.c's (learner_internal.h); it calls nothing of learner.c. */
 #include <math.h>
 #include <string.h>
 
@@ -39,7 +39,7 @@ void learner_start_planning(void)
         g_learner.planning = true;
         return;
     }
-    uint16_t terminal = learner_terminal();
+    uint16_t terminal = learner_terminal_index();
     g_learner.values[terminal] = 0.0f;
     if (!g_learner.cfg.in_place_sweeps) {
         memcpy(g_learner.new_values, g_learner.values, (size_t)g_learner.n_states * sizeof(float));
@@ -51,7 +51,7 @@ void learner_start_planning(void)
 /* One sweep; returns true when max |change| fell below the tolerance. */
 static bool sweep(void)
 {
-    uint16_t terminal = learner_terminal();
+    uint16_t terminal = learner_terminal_index();
     float delta = 0.0f;
     for (uint32_t s = 0u; s < terminal; s++) {
         float best = -INFINITY;
@@ -74,7 +74,7 @@ static bool sweep(void)
    as planning.py, so the same stream gives the same policy). */
 static void finish_planning(void)
 {
-    uint16_t terminal = learner_terminal();
+    uint16_t terminal = learner_terminal_index();
     for (uint32_t s = 0u; s < g_learner.n_states; s++) {
         float d = 0.0f;
         if (s != terminal) {
@@ -110,7 +110,7 @@ bool learner_plan_slice(uint32_t max_sweeps)
         return true;
     }
     if (g_learner.cfg.shared_model) {
-        uint32_t sweep = learner_terminal();
+        uint32_t sweep = learner_terminal_index();
         for (uint32_t i = 0u; i < max_sweeps; i++) {
             if (shared_done(shared_plan_backups(sweep, &g_learner.rng))) {
                 return true;
@@ -135,7 +135,7 @@ bool learner_plan_backups(uint32_t max_backups)
     if (g_learner.cfg.shared_model) {
         return shared_done(shared_plan_backups(max_backups, &g_learner.rng));
     }
-    uint32_t sweep = learner_terminal() > 0u ? learner_terminal() : 1u;
+    uint32_t sweep = learner_terminal_index() > 0u ? learner_terminal_index() : 1u;
     return learner_plan_slice((max_backups + sweep - 1u) / sweep);
 }
 

@@ -7,8 +7,8 @@ import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 
+from groundstation.check.errors import CheckFailed, CheckSkipped
 from groundstation.check.probe import Exchange, Probe, result_name
-from groundstation.check.registry import CheckFailed, CheckSkipped
 from protocol import AckResult, Mode
 from protocol import messages as m
 

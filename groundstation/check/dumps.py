@@ -5,8 +5,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from groundstation.check.agent import overridden, reach, states
+from groundstation.check.errors import CheckFailed
 from groundstation.check.probe import Exchange, Probe, result_name
-from groundstation.check.registry import CheckFailed, check, expect
+from groundstation.check.registry import check, expect
 from protocol import AckResult, DumpKind, Mode
 from protocol import messages as m
 from protocol.parameters import SNAPSHOTS_HELD

@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import os
 
+from groundstation.check.errors import CheckFailed, CheckSkipped
 from groundstation.check.probe import Probe
-from groundstation.check.registry import CheckFailed, CheckSkipped, check, expect
+from groundstation.check.registry import check, expect
 from groundstation.session.hello import ground_hello
 from protocol import PROTOCOL_VERSION, NodeKind, definitions_hash
 from protocol import messages as m

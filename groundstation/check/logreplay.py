@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
+from groundstation.check.errors import CheckSkipped
 from groundstation.check.probe import Probe, result_name
-from groundstation.check.registry import CheckSkipped, check, expect
+from groundstation.check.registry import check, expect
 from protocol import AckResult, FrameFlag
 from protocol import messages as m
 from protocol.decoder import Frame

@@ -11,8 +11,9 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from groundstation.check.agent import get_param, hover_depth, overridden, reach
+from groundstation.check.errors import CheckSkipped
 from groundstation.check.probe import Probe, result_name
-from groundstation.check.registry import CheckSkipped, check, expect
+from groundstation.check.registry import check, expect
 from protocol import AckResult, DumpKind, EndReason, Message, Mode
 from protocol import messages as m
 

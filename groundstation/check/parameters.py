@@ -5,8 +5,9 @@ from __future__ import annotations
 import math
 
 from groundstation.check.agent import get_param, is_f32, param_table, reach, require_set, set_param, states
+from groundstation.check.errors import CheckSkipped
 from groundstation.check.probe import Probe, result_name
-from groundstation.check.registry import CheckSkipped, check, expect
+from groundstation.check.registry import check, expect
 from protocol import AckResult, Mode, ParamType
 from protocol import messages as m
 from protocol import parameters as spec_params

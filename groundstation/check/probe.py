@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import time
 
+from groundstation.check.errors import CheckFailed
 from groundstation.check.probe_link import (
     ACK_REQUESTED,
     REPLAYED,
@@ -17,7 +18,6 @@ from groundstation.check.probe_link import (
     Timeouts,
     result_name,
 )
-from groundstation.check.registry import CheckFailed
 from groundstation.links import Link
 from protocol import AckResult, Message, Mode
 from protocol import messages as m

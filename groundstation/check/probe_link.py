@@ -15,7 +15,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import TypeVar
 
-from groundstation.check.registry import CheckFailed
+from groundstation.check.errors import CheckFailed
 from groundstation.errors import LinkError
 from groundstation.links import Link
 from protocol import AckResult, FrameFlag, Message, Signer, StreamDecoder

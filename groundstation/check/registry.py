@@ -5,10 +5,10 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from enum import StrEnum
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
-if TYPE_CHECKING:
-    from groundstation.check.probe import Probe
+from groundstation.check.errors import CheckFailed
+from groundstation.check.probe import Probe
 
 
 class Result(StrEnum):
@@ -17,15 +17,7 @@ class Result(StrEnum):
     SKIP = "SKIP"
 
 
-class CheckFailed(AssertionError):
-    """A check saw the agent break the sentence it tests; the message says what was seen."""
-
-
-class CheckSkipped(Exception):
-    """A check cannot run against this agent (no key, not enough logged samples...); the message says why."""
-
-
-CheckFunction = Callable[["Probe"], str | None]
+CheckFunction = Callable[[Probe], str | None]
 
 
 @dataclass(frozen=True)

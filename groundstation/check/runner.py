@@ -7,8 +7,9 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
+from groundstation.check.errors import CheckFailed, CheckSkipped
 from groundstation.check.probe import Probe, Timeouts
-from groundstation.check.registry import REGISTRY, Check, CheckFailed, CheckSkipped, Outcome, Result
+from groundstation.check.registry import REGISTRY, Check, Outcome, Result
 from groundstation.errors import GroundStationError, LinkError
 from groundstation.links import make_link
 from protocol import AckResult, ProtocolError

@@ -21,8 +21,8 @@ from simulator.parameters import preset
 from tests.simulator.agent_trace import in_process_agent
 
 FIRMWARE = Path(__file__).resolve().parents[2] / "firmware"
-SOURCES = ("observer", "recovery", "rng", "learner", "learner_model", "learner_plan", "shared", "shared_plan", "plant",
-           "sensor")
+SOURCES = ("observer", "recovery", "rng", "learner", "learner_model", "learner_plan", "learner_state", "shared",
+           "shared_plan", "plant", "sensor")
 
 
 class SmoState(ctypes.Structure):

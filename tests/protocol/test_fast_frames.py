@@ -7,8 +7,8 @@ from hypothesis import strategies as st
 
 from protocol import FrameEncoder, StreamDecoder, compiled, encoder
 from protocol import decoder as decoder_module
+from protocol.chunk_verdicts import CHUNK_COBS_ERROR, CHUNK_OK
 from protocol.cobs import cobs_decode, cobs_encode
-from protocol.decoder import CHUNK_COBS_ERROR, CHUNK_OK
 from protocol.enums import INCOMPATIBLE_FLAGS_MASK, PROTOCOL_VERSION
 from protocol.errors import CobsError
 from protocol.fast_frames import COMPILED_MAX_PAYLOAD, decode_buffer, frame_writer

@@ -22,7 +22,7 @@ TEENSY_LDFLAGS := $(TEENSY_ARCH) -T $(TEENSY_DIR)/mk20dx256.ld -nostartfiles --s
 	-Wl,--gc-sections
 TEENSY_CORE := $(filter-out %/learner.c,$(CORE_SRC)) $(FIRMWARE)/src/learner.c
 ARENA_TOOL := $(BUILD)/host/arena_size
-LEARNER_SRC := $(addprefix $(FIRMWARE)/src/,learner.c learner_model.c learner_plan.c shared.c shared_plan.c rng.c)
+LEARNER_SRC := $(addprefix $(FIRMWARE)/src/,learner.c learner_model.c learner_plan.c learner_state.c shared.c shared_plan.c rng.c)
 # name z_cells zdot_cells act_bins shared_model
 TEENSY_VARIANTS := paper:10:10:1:0 actuator3:10:10:3:0 shared-bins13:10:10:13:1 shared-z20:20:10:7:1
 SKETCH_DIR ?= $(TEENSY_DIR)/diving_agent
