@@ -66,4 +66,8 @@ class SafeConsole(Console):
     def print(self, *objects: Any, **kwargs: Any) -> None:  # type: ignore[override]
         kwargs["markup"] = False
         kwargs["emoji"] = False
+        if all(isinstance(o, str | Text) for o in objects):
+            # A line of text is never broken by us: a path or a figure in it must survive whole for the user to
+            # copy (the terminal may still fold it on screen). Tables and panels keep Rich's layout.
+            kwargs.setdefault("soft_wrap", True)
         super().print(*(printable(o) if isinstance(o, str) else o for o in objects), **kwargs)

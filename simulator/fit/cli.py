@@ -115,7 +115,8 @@ def fit(
 
     hover at each depth for --hold s of agent time, recorded into recordings/, then fitted (docs/fitting.md).
     """
-    err = Console(stderr=True, width=None if sys.stderr.isatty() else 200)
+    # soft_wrap: a line of text (a path, a figure) is never broken by us.
+    err = Console(stderr=True, width=None if sys.stderr.isatty() else 200, soft_wrap=True)
     try:
         if not window > 0:
             raise ParamsError(f"--window must be positive (got {window})")
@@ -142,6 +143,7 @@ def fit(
         if target is None:
             continue
         try:
+            target.parent.mkdir(parents=True, exist_ok=True)  # as `dive study --out` and `dive run --out` do
             write(target)
         except (OSError, ValueError) as e:
             say_error(f"cannot write {target}: {getattr(e, 'strerror', None) or e}")

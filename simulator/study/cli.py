@@ -74,7 +74,8 @@ def study(
 ) -> None:
     """Run N trials x E episodes of learners on the simulated plant; CSV, npz, summary.json, figures."""
     # A log file gets the table at full width (a terminal keeps its own width).
-    err = Console(stderr=True, width=None if sys.stderr.isatty() else 200)
+    # soft_wrap: a line of text (a path, a figure) is never broken by us; the table sets its own layout.
+    err = Console(stderr=True, width=None if sys.stderr.isatty() else 200, soft_wrap=True)
     try:
         if sweep is not None:
             from simulator.study.sweep import run_sweep_command
@@ -209,4 +210,4 @@ def _print_table(rows: list[dict[str, Any]], console: Console) -> None:
             str(r["memory_bytes"]),
             f"{r['sweeps_per_plan_mean']:g} ({r['sweeps_per_plan_max']})",
         )
-    console.print(table)
+    console.print(table, soft_wrap=False)
