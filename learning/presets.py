@@ -18,7 +18,7 @@ _FAST_PLAN: dict[str, Any] = {"plan_stable_sweeps": 2, "plan_loose_tolerance": 0
 # theta (g = 1 - theta^3, h = 1.5 (1 - theta^2)(1 - theta), k = (1 - theta)^3 / 2); model: the hardware preset's
 # nominal z'' per degree (-rho g dV / alpha_max / (m + m_a)) and drag k / (m + m_a).
 _FILTER_MODEL: dict[str, float] = {"filter_accel_per_deg": -0.0022734, "filter_drag_per_m": 2.0864}
-# theta = 0.8, the learner's velocity only (the first filter learner, stop 34).
+# theta = 0.8, the learner's velocity only (the first filter learner: velocity filtered, depth raw).
 _VELOCITY_FILTER_080: dict[str, Any] = {
     "filter_depth_gain": 0.488, "filter_velocity_gain": 0.108, "filter_bias_gain": 0.004, **_FILTER_MODEL,
 }

@@ -14,7 +14,7 @@ from simulator.study.runner import run_study
 _REAL_PLANT = {"backlash_deg": 2.0, "pressure_lag_s": 0.1, "control_jitter_s": 0.01}
 
 # sha256 (first 16 hex digits) of durations, values, policy, hold, counters and recovery holds of 3 trials x 40
-# episodes, seed 7, as a0a1fc7 computed them (the filtered-depth learner: as it was introduced, stop 35).
+# episodes, seed 7, as a0a1fc7 computed them (the filtered-depth learner as it was introduced).
 DIGESTS = {
     ("paper", "shared", False): "5e1ebcfc33bbe11f",
     ("paper", "paper", False): "7aed3c4e1b147a30",
