@@ -49,7 +49,7 @@ LEARNERS: dict[str, tuple[LearnerConfig, list[str], str]] = {
     "shared-bins13-diff4 (S = 1301)": (learner_preset("shared-bins13-diff4"), [
         "--param", "shared_model=1", "--param", "in_place_sweeps=1", "--param", "p_explore_start=0",
         "--param", "vel_diff_steps=4", "--param", "act_bins=13"], "shared-bins13"),
-    # The hardware preset's best learner (docs/reproduction.md).
+    # The filter learner before filtered depth (docs/learners.md lists the learners and which one `hardware` names).
     "shared-z20-bins7-diff8-term100-vpen1 (S = 1401)": (learner_preset("shared-z20-bins7-diff8-term100-vpen1"), [
         "--param", "shared_model=1", "--param", "in_place_sweeps=1", "--param", "p_explore_start=0",
         "--param", "vel_diff_steps=8", "--param", "term_reward=-100", "--param", "vel_penalty=1",

@@ -68,7 +68,7 @@ class LearnerConfig:
     # neutral point off by a few degrees), corrected each step by the depth innovation r with these gains
     # (z += kz r, z' += kv r / dt, bias += kb r / dt^2). An 8-step difference lags the true velocity by
     # ~0.35 s, and more behind a lagging port: the policy then brakes late and its swing grows until it
-    # leaves the region (docs/reproduction.md, "Why trials stay unstable"). 0 = off.
+    # leaves the region (docs/learners.md, "The `hardware` learner, ingredient by ingredient"). 0 = off.
     filter_depth_gain: float = 0.0
     filter_velocity_gain: float = 0.0
     filter_bias_gain: float = 0.0
@@ -81,7 +81,7 @@ class LearnerConfig:
     # Planning's early stop (learning/planning.py plan_rows; 0 = off, the stop at vi_tolerance alone): a call
     # also ends once no state's greedy action has changed for this many sweeps in a row and max |change| is
     # below plan_loose_tolerance. Once learning has settled, most of a call's ~40 sweeps only refine values
-    # whose greedy actions no longer move (docs/reproduction.md, "Speed").
+    # whose greedy actions no longer move (docs/reproduction.md, "Planning that stops early").
     plan_stable_sweeps: int = 0
     plan_loose_tolerance: float = 0.0
 

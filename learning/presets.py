@@ -11,7 +11,7 @@ from learning.errors import LearnerConfigError
 _SHARED = LearnerConfig(shared_model=True, p_explore_start=0.0, in_place_sweeps=True)
 # Issue 29 item 6: planning that stops once no greedy action has changed for 2 sweeps and the last sweep moved no
 # value by 0.05 or more (LearnerConfig.plan_stable_sweeps): ~5 sweeps per call instead of ~40 on the hardware
-# preset (docs/reproduction.md, "Speed", has the figures old and new).
+# preset (docs/reproduction.md, "Planning that stops early", has the figures).
 _FAST_PLAN: dict[str, Any] = {"plan_stable_sweeps": 2, "plan_loose_tolerance": 0.05}
 
 # Issue 29: the learner's velocity filter (LearnerConfig.filter_*). Gains: the fading-memory g-h-k filter at
@@ -23,9 +23,9 @@ _VELOCITY_FILTER_080: dict[str, Any] = {
     "filter_depth_gain": 0.488, "filter_velocity_gain": 0.108, "filter_bias_gain": 0.004, **_FILTER_MODEL,
 }
 # theta = 0.9 and the learner's depth from the filter too: sensor noise no longer flickers the state between cells
-# (screened on seeds 11-12 against theta 0.8 and 0.85, docs/reproduction.md "A learner that holds up"). The agent
-# parameter `velocity_filter` = 1 switches these on (simulator/agent/params_table.py; the C twin in
-# firmware/src/params.c).
+# (screened on seeds 11-12 against theta 0.8 and 0.85, docs/learners.md "The `hardware` learner, ingredient by
+# ingredient"). The agent parameter `velocity_filter` = 1 switches these on (simulator/agent/params_table.py; the C
+# twin in firmware/src/params.c).
 VELOCITY_FILTER: dict[str, Any] = {
     "filter_depth_gain": 0.271, "filter_velocity_gain": 0.0285, "filter_bias_gain": 0.0005, **_FILTER_MODEL,
     "filter_depth_state": True,
@@ -50,7 +50,7 @@ _PRESETS: dict[str, LearnerConfig] = {
     # For the hardware preset (issue 17's per-trial goals): 7 actuator bins, an 8-step depth difference,
     # a terminal reward of -100 instead of -10 and a reward that also loses 1 s x |velocity|. Each is a
     # remedy for what ended late episodes: a rush from the region's depth edge that met its velocity edge
-    # (docs/reproduction.md, "Why single trials kept failing").
+    # (docs/learners.md, "The `hardware` learner, ingredient by ingredient").
     "shared-bins7-diff8-term100-vpen1": replace(
         _SHARED, actuator_bins=7, velocity_diff_steps=8, terminal_reward=-100.0, velocity_penalty=1.0
     ),
@@ -61,7 +61,7 @@ _PRESETS: dict[str, LearnerConfig] = {
     ),
     # Issue 29: the same with the velocity from a filter that predicts with the commanded gear angle instead of
     # the 8-step difference, whose lag made late episodes swing out of the region on a lagging or noisier
-    # depth (docs/reproduction.md, "Why trials stay unstable"); theta 0.8.
+    # depth (docs/learners.md, "The `hardware` learner, ingredient by ingredient"); theta 0.8.
     "shared-z20-bins7-filter-term100-vpen1": replace(
         _SHARED, z_cells=20, actuator_bins=7, terminal_reward=-100.0, velocity_penalty=1.0, **_VELOCITY_FILTER_080
     ),
@@ -87,7 +87,7 @@ _FAST_PLAN_BASES = {
 }
 _PRESETS.update({name: replace(_PRESETS[base], **_FAST_PLAN) for name, base in _FAST_PLAN_BASES.items()})
 
-# Plain names a user can pick: the recommended learner of each plant preset (docs/reproduction.md).
+# Plain names a user can pick: the recommended learner of each plant preset (docs/learners.md).
 ALIASES: dict[str, str] = {
     "hardware": "shared-z20-bins7-fdepth-term100-vpen1",
     "paper-best": "shared",

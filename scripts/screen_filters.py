@@ -3,8 +3,8 @@
     python scripts/screen_filters.py --variants base,t85zst,t90zst --plants noise2,combined,tank,lag0.2 --seed 12
 
 Each line is one study of --trials trials x 400 episodes (JSON): never stable (a failure in the last 50 episodes),
-late failures (failed episodes among the last 100) and the median first success. docs/reproduction.md, "A learner
-that holds up", sums them per variant.
+late failures (failed episodes among the last 100) and the median first success. docs/learners.md, "The
+`hardware` learner, ingredient by ingredient", sums them per variant.
 """
 
 from __future__ import annotations

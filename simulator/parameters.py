@@ -88,7 +88,7 @@ PlantSpec = kernel_tuple_type(PlantParams, "PlantSpec")
 _PRESETS: dict[str, PlantParams] = {
     # The firmware figures with the observer in the loop and the recovery controller between episodes.
     # The inner boundary layer of the recovery controller (recovery_near_gain_deg) lets it settle despite up to
-    # 3 deg of gear backlash (docs/reproduction.md, issue 29).
+    # 3 deg of gear backlash (docs/robust-plant.md, "The recovery controller on a real gear").
     "hardware": PlantParams(trim_error_fraction=0.005, recovery_near_gain_deg=3.0),
     # Calibration P1 of diving-agent.md s. 7, which reproduces the paper's Fig. 5: a narrow actuator
     # window (+/- 6.5 deg) and slower step (1.625 deg) around the true neutral, the true velocity

@@ -22,7 +22,7 @@ float smo_update(smo_state_t *o, const smo_gains_t *g, float measured_depth_m, f
 /* The learner's velocity filter (learning/config.py filter_*; simulator/plant/episode.py _velocity_filter): predicts
    one period with the commanded gear angle's acceleration, corrects with the measured depth. An 8-step depth
    difference lags the true velocity by ~0.35 s (more behind a lagging port) and the learned policy then swings
-   out of its region (issue 29, docs/reproduction.md). */
+   out of its region (issue 29, docs/learners.md). */
 typedef struct {
     float z_m;        /* depth estimate */
     float v_mps;      /* velocity estimate */
