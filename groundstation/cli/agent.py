@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from groundstation.cli.common import UrlArg, agent_session, one_line_errors, out, split_url
+from groundstation.cli.common import UrlArg, agent_session, one_line_errors, out, split_url, tool_name
 from groundstation.cli.validate import UsageError
 from groundstation.errors import GroundStationError
 from groundstation.safe_output import one_line
@@ -55,6 +55,8 @@ def status(url: UrlArg = None, key_file: KeyFileOption = None) -> None:
                   f"{snap['rx_rejects']} rejected" + (f", rtt {rtt:.1f} ms" if rtt is not None else ""))
         if agent.mode is None and hb is not None:
             agent.update(hb)  # the heartbeat came before the listener
+        if agent.target_m is None and "target_depth_m" in s.params:
+            agent.param("target_depth_m", s.params.get("target_depth_m").value)  # no EPISODE_START seen yet
         if history.last_end is not None:
             out.print(history.last_end_text(), highlight=False)
         out.print(f"status: {status_line(agent, snap, s.link_up)}", soft_wrap=True, highlight=False)
@@ -196,6 +198,18 @@ def mark(text: Annotated[str, typer.Argument(help="what happened (recorded on /m
     from groundstation.run.marker import send_marker
 
     info = find_run(run.removeprefix("hub://") if run else None)
-    send_marker(info, text)
+    send_marker(info, text, tool=tool_name())
     where = f" ({info.recording})" if info.recording else ""
     out.print(f"marked in run {info.run}{where}")
+
+
+@one_line_errors
+def ack(run: Annotated[str | None, typer.Option(help="the run (hub://RUN's RUN) when several are running")] = None,
+        ) -> None:
+    """Acknowledge the alarms of the `dive run` running on this machine: its status line's alarm flag goes (an
+    alarm still active shows as acked until it clears). The key `a` in the run's pane does the same."""
+    from groundstation.links.runs import find_run
+    from groundstation.run.marker import send_ack
+
+    info = find_run(run.removeprefix("hub://") if run else None)
+    out.print(send_ack(info, tool=tool_name()), soft_wrap=True, highlight=False)

@@ -9,7 +9,7 @@ from types import TracebackType
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
 
-from groundstation.run.job import RunStatus
+from groundstation.run.job import ECHO, RunStatus
 from groundstation.safe_output import in_markup, styled
 from groundstation.session.status_line import status_line
 
@@ -18,17 +18,33 @@ SLOW_START_NOTE = ("the virtual agent is starting: its first start compiles the 
                    "idle machine), later starts take seconds")
 
 
+ACK_HINT = "the alarm flag stays on the status line until acknowledged: the key a here, or dive ack from another pane"
+
+
 def _run_status_line(s: RunStatus) -> str:
-    """The status line (mode, episode, successes, battery, depth, link): the run counts every episode it saw end,
-    so its own count stands in until the agent's EPISODE_END says how many succeeded."""
+    """The status line (mode, episode, successes, held, target, depth, battery, link, alarm flag): the run counts
+    every episode it saw end, so its own count stands in until the agent's EPISODE_END says how many succeeded."""
     agent = replace(s.agent, successes=s.agent.successes if s.agent.successes is not None else s.successes)
-    return status_line(agent, s.link, s.link_up)
+    return status_line(agent, s.link, s.link_up, s.alarm_flag)
 
 
 def describe(s: RunStatus) -> str:
     """The status line in markup for the live bar."""
     line = in_markup(_run_status_line(s))
-    return line.replace("link down", "[red]link down[/]")
+    line = line.replace("link down", "[red]link down[/]")
+    flag = in_markup(s.alarm_flag)
+    if flag:  # the last field: an unacknowledged alarm in reverse red, as a console's master caution
+        style = "bold white on red" if s.alarm_flag.startswith("ALARM") else "red"
+        line = line[: len(line) - len(flag)] + f"[{style}]{flag}[/]"
+    return line
+
+
+def _style(line: str) -> str:
+    if line.startswith("ALARM:"):
+        return "bold red"
+    if line.startswith("cleared:"):
+        return "green"
+    return "cyan" if line.startswith(ECHO) else "yellow"
 
 
 class RunDisplay:
@@ -48,6 +64,7 @@ class RunDisplay:
         self._episodes = 0
         self._hub = ""
         self._mode: int | None = None
+        self._alarmed = False
 
     def __enter__(self) -> RunDisplay:
         if self.live:
@@ -86,7 +103,12 @@ class RunDisplay:
         # is counted as said without being printed (an episode's line went missing that way).
         messages = len(status.messages)
         for line in status.messages[self._messages:messages]:  # agent text among them: data, never markup
-            printer.print(styled(line, "bold red" if line.startswith("ALARM:") else "yellow"), soft_wrap=True)
+            printer.print(styled(line, _style(line)), soft_wrap=True)
+            if line.startswith("ALARM:") and self.live:
+                printer.bell()
+                if not self._alarmed:
+                    printer.print(styled(ACK_HINT, "dim"), soft_wrap=True)
+            self._alarmed = self._alarmed or line.startswith("ALARM:")
         self._messages = messages
         total = f" of {self.episodes}" if self.episodes else ""
         ends = len(status.ends)

@@ -43,6 +43,7 @@ class SessionConfig:
     fetch_params: bool = True
     node_id: int = field(default_factory=lambda: int.from_bytes(os.urandom(4), "little"))
     key: bytes | None = field(default=None, repr=False)  # signing key: every frame sent is signed (SPEC s. 12)
+    name: str = "dive"  # our HELLO's name: a run's hub names the tool a command came from by it ("dive target")
 
 
 
@@ -194,7 +195,7 @@ class SessionCore:
     def _send_hello(self) -> None:
         self._hello_resend_s = time.monotonic() + HELLO_RESEND_S
         self._hello_tries += 1
-        self.send(ground_hello(self.config.node_id, self._boot_id))
+        self.send(ground_hello(self.config.node_id, self._boot_id, self.config.name))
 
     def _write(self, message: Message, seq: int, wire: bytes, retry: bool = False) -> None:
         self.link.send(wire)

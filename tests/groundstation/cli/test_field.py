@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import socket
 import subprocess
 import sys
@@ -49,6 +50,31 @@ def test_bad_usage_is_exit_2_before_anything_starts(args: list[str], text: str) 
     done = CliRunner().invoke(app, args, env={"COLUMNS": "200"})
     assert done.exit_code == 2 and text in done.stderr, done.stderr
     assert "virtual agent did not start" not in done.stderr and "connecting" not in done.stderr
+
+
+@pytest.mark.parametrize(("args", "text"), [
+    (["run", "--episodes", "-3"], "invalid value for '--episodes': -3 is out of range: from 0 to 4294967295"),
+    (["run", "--web-port", "70000"], "invalid value for '--web-port': 70000 is out of range: from 1 to 65535"),
+    (["view", "--foxglove", "70000"], "invalid value for '--foxglove': 70000 is out of range: from 0 to 65535"),
+])
+def test_a_value_out_of_range_is_the_one_line_the_readme_promises(args: list[str], text: str) -> None:
+    done = dive(*args)
+    assert done.returncode == 2, done.stderr
+    assert done.stderr.splitlines() == [f"dive: {text} (dive {args[0]} -h shows the options)"], done.stderr
+
+
+def test_run_help_is_readable_at_80_columns() -> None:
+    env = {k: v for k, v in os.environ.items() if k not in ("DIVE_URL", "DIVE_KEY_FILE")}
+    done = subprocess.run([*DIVE, "run", "-h"], env={**env, "COLUMNS": "80"}, capture_output=True, text=True,
+                          timeout=60)
+    assert done.returncode == 0, done.stderr
+    lines = done.stdout.splitlines()
+    options = [line for line in lines if line.startswith("│ --")]
+    # the help text starts within the first half of the line: no 41-column option column squeezing it
+    assert options and all(line.index(" ", line.index("--") + 1) < 40 for line in options), options
+    assert not any(re.search(r"\d$", line.rstrip(" │")) and re.match(r"│ +\d", after)
+                   for line, after in zip(lines, lines[1:], strict=False)), done.stdout  # no number split
+    assert len(lines) <= 110, len(lines)
 
 
 def test_a_web_port_in_use_is_refused_before_the_run_starts() -> None:
