@@ -53,7 +53,8 @@ def test_run_log_fit_and_study_print_their_paths_whole_on_a_narrow_terminal(tmp_
 
     _whole(_dive(runtime, "log", "info", str(recording)), recording)
     _whole(_dive(runtime, "log", "info", str(base / "run")), recording)
-    for form, written in (("csv", base / "samples.csv"), ("npz", base / "transitions.npz"), ("parquet", base / "tables")):
+    for form, written in (("csv", base / "samples.csv"), ("npz", base / "transitions.npz"),
+                          ("parquet", base / "tables")):
         output = _dive(runtime, "log", "export", str(recording), "--format", form, "--out", str(written))
         assert written.exists()
         _whole(output, written)
