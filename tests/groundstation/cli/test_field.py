@@ -172,11 +172,16 @@ def test_params_save_diff_load_and_run_share_one_toml_format(tmp_path: Path) -> 
         saved.write_text(text.replace("z_tol_m = 0.1", "z_tol_m = 0.25"))
         diff = _cli("params", agent.url, "diff", str(saved))
         assert "z_tol_m: agent 0.1, file 0.25" in diff.stdout and "1 of 7 differ" in diff.stdout
+        assert diff.exit_code == 1  # as diff(1): a script can tell the file differs
         loaded = _cli("params", agent.url, "load", str(saved), "--reset-model")  # z_tol_m restarts the learner
         assert loaded.exit_code == 0 and "z_tol_m = 0.25" in loaded.stdout, loaded.stderr
         assert "0 of 7 differ" in _cli("params", agent.url, "diff", str(saved)).stdout
         action_first = _cli("params", "get", agent.url, "z_tol_m")  # the order people who think "get" first type
         assert action_first.exit_code == 0 and "z_tol_m = 0.25" in action_first.stdout, action_first.stderr
+        pattern = _cli("params", agent.url, "get", "z_*")  # a pattern: every parameter it matches, one a line
+        assert pattern.exit_code == 0 and pattern.stdout.splitlines() == ["z_tol_m = 0.25"], pattern.stdout
+        nothing = _cli("params", agent.url, "get", "nope_*")
+        assert nothing.exit_code == 1 and "no parameter matches 'nope_*'" in nothing.stderr, nothing.stderr
         whole = _cli("params", agent.url, "set", "max_episodes", "3.7")
         assert whole.exit_code == 1 and "3.7 is not a whole number" in whole.stderr
         bad = tmp_path / "bad.toml"
