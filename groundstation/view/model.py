@@ -83,6 +83,7 @@ ENTITIES: dict[str, tuple[Kind, str]] = {
     "log/events": (Kind.TEXT, "episodes and link"),
 }
 TIMELINES = ("agent_time", "host_time", "episode", "step")
+_STATE_ENTITIES = ("value_function", "policy", "learning_curve_by_episode")  # what keep_state keeps the last of
 _MODE_PATHS = {int(mode): f"mode/{mode.name.lower()}" for mode in Mode}
 _ACTION_PATHS = {int(Action.DECREASE_VOLUME): "action/decrease_volume",
                  int(Action.INCREASE_VOLUME): "action/increase_volume"}
@@ -147,6 +148,19 @@ class ViewModel:
     def take(self) -> Batch:
         batch, self._batch = self._batch, {}
         return batch
+
+    def keep_state(self) -> None:
+        """Drop the rows so far but the state a replay window opens on (`dive replay --from`): the latest value and
+        policy heatmaps with their axes, the learning curve by episode, and the curve over agent time (one row per
+        episode). Their times are the last ones before the window: the viewer shows them at its start."""
+        batch, self._batch = self._batch, {}
+        for path, rows in batch.items():
+            if path.startswith("learning_curve/"):
+                self._batch[path] = rows
+            elif path.split("/")[0] in _STATE_ENTITIES and rows.values:
+                last = len(rows) - 1
+                self._batch[path] = Rows([rows.agent_time_s[last]], [rows.host_time_ns[last]], [rows.episode[last]],
+                                         [rows.step[last]], [rows.values[last]])
 
     def _row(self, path: str, value: Any, host_time_ns: int) -> None:
         rows = self._batch.get(path)
