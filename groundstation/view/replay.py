@@ -183,18 +183,20 @@ def select(items: Iterator[Item], start: Bound | None, end: Bound | None,
 def convert(items: Iterator[Item], progress: Callable[[int], None] | None = None) -> tuple[Batch, int]:
     """Feed everything to one model and return all its rows at once (for columnar logging) and the item count."""
     model = ViewModel()
-    count, seen, carried = 0, 0, False
+    count, seen, before = 0, 0, False
     for seen, item in enumerate(items, 1):  # noqa: B007
-        item.feed(model)
         if item.before:
+            item.feed(model)
+            before = True
             continue
-        if not carried:  # the window opens on the latest heatmaps and the learning curve so far, not on nothing
+        if before:  # the window opens on the latest heatmaps and the learning curve so far, not on nothing
             model.keep_state()
-            carried = True
+            before = False
+        item.feed(model)
         count += 1
         if progress is not None and seen % 4096 == 0:
             progress(seen)
-    if not carried:
+    if before:
         model.take()  # all before the window: nothing to show
     return model.take(), count
 
