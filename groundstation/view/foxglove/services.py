@@ -98,8 +98,9 @@ class Controls:
                     raise ServiceError("not attached to the agent yet")
                 answer: dict[str, Any] = act(s, body)
             except (GroundStationError, ProtocolError) as e:  # ProtocolError: a request that cannot be framed
-                self._warn(f"{name}: {e}")
-                raise ServiceError(str(e)) from None
+                line = str(e)  # most already name the service ("target: give depth_m ..."): never twice
+                self._warn(line if line.startswith(f"{name}:") else f"{name}: {line}")
+                raise ServiceError(line) from None
             if answer.get("accepted") is False:
                 self._warn(answer["message"])  # the refusal in Foxglove's problems list too
             return json.dumps(answer).encode()

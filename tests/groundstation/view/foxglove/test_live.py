@@ -186,13 +186,16 @@ def test_foxglove_without_a_port_takes_the_default() -> None:
 
 
 def test_the_live_layout_is_current_and_shows_what_the_server_offers() -> None:
-    from scripts.foxglove_layout import BOUNDS_SCRIPT, BOUNDS_TOPIC, LIVE_OUT, live_layout
+    from groundstation.view.foxglove.console import LOG_TOPIC
+    from scripts.foxglove_layout import BOUNDS_SCRIPT, BOUNDS_TOPIC, LIVE_OUT, VOLTS_TOPIC, live_layout
 
     shipped = json.loads(LIVE_OUT.read_text())
     assert shipped == live_layout(), "docs/foxglove/live-layout.json is stale: run python scripts/foxglove_layout.py"
     panels = shipped["configById"]
     buttons = {config["serviceName"] for name, config in panels.items() if name.startswith("CallService!")}
-    assert buttons == {"surface", "start", "stop", "pause", "resume"} and buttons <= set(REQUESTS)
+    assert buttons == set(REQUESTS)  # a button for every control: hover, target, mark and dump too
+    assert panels["RosOut!log"]["topicToRender"] == LOG_TOPIC  # the agent's log and the run's events
+    assert panels["Plot!battery"]["paths"][0]["value"] == f"{VOLTS_TOPIC}.battery_v"  # volts, as dive says
     assert {config["imageMode"]["imageTopic"] for name, config in panels.items() if name.startswith("Image!")} == \
         {VALUE_TOPIC, POLICY_TOPIC}
     assert any(name.startswith("Parameters!") for name in panels)
@@ -204,8 +207,8 @@ def test_the_live_layout_is_current_and_shows_what_the_server_offers() -> None:
     assert "z up = -depth" in panels["Plot!depth"]["title"] and "-start.target_depth_m" in BOUNDS_SCRIPT
     for path in paths:  # every field plotted is in the schema of the channel the server publishes
         topic, field = re.sub(r"\.@\w+$", "", path).rsplit(".", 1)  # a math modifier (.@negative) off
-        if topic == BOUNDS_TOPIC:
-            continue  # the layout's own user script
+        if topic in (BOUNDS_TOPIC, VOLTS_TOPIC):
+            continue  # the layout's own user scripts
         name = topic.removeprefix("/agent/")
         assert field in message_schema(messages[name])["properties"], path
 
