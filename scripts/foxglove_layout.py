@@ -128,7 +128,8 @@ BUTTONS = (("surface", "SURFACE (emergency)", "#d62728", {}), ("start", "start l
            ("stop", "stop (surfaces)", "#7f7f7f", {}), ("hover", "hover at depth_m", "#1f77b4", {"depth_m": 0.3}),
            ("target", "target depth_m", "#1f77b4", {"depth_m": 0.4}),
            ("mark", "mark", "#9467bd", {"text": "marked in Foxglove"}),
-           ("dump", "dump values and policy", "#7f7f7f", {"kind": "both"}))
+           ("dump", "dump values and policy", "#7f7f7f", {"kind": "both"}),
+           ("ack", "acknowledge alarms", "#d62728", {}))
 VALUE_IMAGE, POLICY_IMAGE = "/value_function/image", "/policy/image"  # groundstation/view/foxglove/images.py
 
 

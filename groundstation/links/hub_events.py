@@ -22,6 +22,7 @@ GROUND_FLAG = 0x08  # flags bit 3: a frame the hub itself says (never set on a f
 # the ground's event kinds its tools get (not its link's own events)
 FANNED_OUT = frozenset(("marker", "alarm", "alarm_cleared", "alarm_ack", "command"))
 ACK_REQUEST = "ack"  # a tool's ground-flagged TEXT to its run's hub: acknowledge the alarms (dive ack)
+ACK_ANSWERS = ("alarms acknowledged by ", "no alarm to acknowledge")  # how the hub's TEXT answer to it begins
 TEXT_BYTES = 238  # TEXT's tail (protocol/messages.py)
 _SEPARATOR = "\x1f"
 _SEVERITY = {"alarm": 3}  # error; anything else info

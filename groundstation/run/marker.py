@@ -11,7 +11,7 @@ from collections.abc import Callable
 from groundstation.errors import LinkError, LinkTimeout
 from groundstation.links.hub import MARKER_CONFIRMATION
 from groundstation.links.hub_auth import tool_side
-from groundstation.links.hub_events import ACK_REQUEST, GROUND_FLAG, ground_text
+from groundstation.links.hub_events import ACK_ANSWERS, ACK_REQUEST, GROUND_FLAG, ground_text
 from groundstation.links.runs import RunInfo
 from groundstation.links.tcp import parse_host_port
 from groundstation.session.hello import ground_hello
@@ -19,7 +19,6 @@ from protocol import FrameEncoder, StreamDecoder
 from protocol import messages as m
 
 CONFIRMATION = MARKER_CONFIRMATION  # what the hub answers (groundstation/run/hub.py)
-ACK_ANSWERS = ("alarms acknowledged by ", "no alarm to acknowledge")  # how the hub's answers to `dive ack` begin
 
 
 def send_marker(run: RunInfo, text: str, timeout_s: float = 3.0, tool: str = "dive mark") -> None:

@@ -105,15 +105,17 @@ class SessionCore:
         self._param_updates = 0
 
     # ------------------------------------------------------------------ commands out
-    def send(self, message: Message, *, wait: bool = True, timeout_s: float | None = None) -> m.Ack | None:
-        """Send a message; a command is retried with the same bytes and seq until ACKed.
+    def send(self, message: Message, *, wait: bool = True, timeout_s: float | None = None,
+             flags: int = 0) -> m.Ack | None:
+        """Send a message; a command is retried with the same bytes and seq until ACKed. `flags`: frame flags of
+        ours (a tool's request to its run's hub is flagged as the ground's: links/hub_events.py).
 
         With wait, returns the ACK and raises CommandError on a NACK, CommandTimeout without an ACK.
         """
         now = time.monotonic()
         ack_timeout_s = self._ack_timeout_s()
         with self._send_lock:
-            encoded = self.encoder.encode(message)
+            encoded = self.encoder.encode(message, flags)
             if isinstance(message, m.Hello):
                 # Counted under the send lock, with the bytes: a command's bytes then leave wholly before or after
                 # this HELLO, and its written_in says which (counted outside, a command written just before it

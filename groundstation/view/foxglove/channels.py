@@ -11,6 +11,7 @@ from typing import Any, TypeVar
 import foxglove
 
 from groundstation.links.hub import MARKER_CONFIRMATION
+from groundstation.links.hub_events import ACK_ANSWERS
 from groundstation.mcap_io import RAW_ENCODING
 from groundstation.recording.recorder import body_json, dump_topic, event_topic, message_json, message_topic
 from groundstation.session.dumps import Dump, DumpAssembler
@@ -24,15 +25,21 @@ from protocol.cobs import cobs_decode
 
 
 class MarkerWatch:
-    """A session listener on a run's hub that notes its confirmation of a marker (`mark` service)."""
+    """A session listener on a run's hub that notes its confirmation of a marker (`mark` service) and its answer to
+    an acknowledgement of its alarms (`ack` service)."""
 
     def __init__(self) -> None:
         self.confirmed = threading.Event()
+        self.acknowledged = threading.Event()
+        self.ack_answer = ""
 
     def on_received(self, received: Received) -> None:
         msg = received.frame.message
         if isinstance(msg, m.Text) and msg.text == MARKER_CONFIRMATION:
             self.confirmed.set()
+        elif isinstance(msg, m.Text) and msg.text.startswith(ACK_ANSWERS):
+            self.ack_answer = msg.text
+            self.acknowledged.set()
 
     def on_sent(self, sent: Sent) -> None:
         pass

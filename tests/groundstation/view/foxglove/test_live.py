@@ -79,7 +79,8 @@ def test_foxglove_watches_sets_and_commands_a_running_keyed_run(tmp_path: Path) 
         beats = fox.subscribe("/agent/HEARTBEAT")
         assert fox.pump(lambda: len(fox.messages.get(samples, [])) >= 5, 10)
         assert {"depth_m", "mode", "_seq"} <= set(json.loads(fox.messages[samples][0]))
-        assert set(fox.services) == {"surface", "hover", "start", "stop", "pause", "resume", "target", "mark", "dump"}
+        assert set(fox.services) == {"surface", "hover", "start", "stop", "pause", "resume", "target", "mark", "dump",
+                                     "ack"}
 
         # the Parameters panel: the agent's table; the value it already has changes nothing
         table = {p["name"]: p["value"] for p in fox.get_parameters([])}
@@ -107,6 +108,9 @@ def test_foxglove_watches_sets_and_commands_a_running_keyed_run(tmp_path: Path) 
         assert fox.pump(lambda: bool(fox.messages.get(policy)), 60)  # drawn as a foxglove.RawImage
         assert fox.channels["/policy/image"]["schemaName"] == "foxglove.RawImage"
         assert fox.call("mark", {"text": "from foxglove"})["accepted"]
+        acked = fox.call("ack")  # the run's alarms, as dive ack: the answer says what was acknowledged
+        assert acked["accepted"] and acked["message"].startswith(("alarms acknowledged by foxglove",
+                                                                  "no alarm to acknowledge (foxglove)")), acked
         # the run's own session publishes: its marker event (the hub marks the run's session, not Foxglove's)
         assert fox.pump(lambda: "/marker" in fox.channels, 3), sorted(fox.channels)
         assert "exceeds" in fox.call("mark", {"text": "x" * 100_000})["failure"]  # longer than a frame holds
