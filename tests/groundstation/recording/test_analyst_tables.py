@@ -72,3 +72,22 @@ def test_enums_are_labelled_and_float32_is_the_wire_s(tables: tuple[Path, Path])
     [(duration, text)] = duckdb.sql(f"SELECT duration_s, duration_s::VARCHAR FROM '{out}/episodes/*.parquet' "
                                     "WHERE episode = 2").fetchall()
     assert text == "2.6" and duration == pytest.approx(2.6)  # 26 steps; float32 2.6, not 2.5999999046325684
+
+
+def test_polars_answers_the_same_without_a_join(tables: tuple[Path, Path]) -> None:
+    pl = pytest.importorskip("polars")
+    _, out = tables
+    link = pl.scan_parquet(f"{out}/link/*.parquet")
+    per_minute = (link.group_by((pl.col("host_time_ns") // 60_000_000_000).alias("minute"))
+                  .agg(pl.col("link_rtt_median_ms").mean(), pl.col("link_loss_fraction").max(), pl.len())
+                  .sort("minute").collect())
+    duck = duckdb.sql(f"SELECT host_time_ns // 60000000000 AS minute, avg(link_rtt_median_ms), "
+                      f"max(link_loss_fraction), count(*) FROM '{out}/link/*.parquet' GROUP BY minute "
+                      "ORDER BY minute").fetchall()
+    assert [tuple(row) for row in per_minute.iter_rows()] == [pytest.approx(row) for row in duck]
+    samples = pl.scan_parquet(f"{out}/samples/*.parquet")
+    markers = pl.read_parquet(f"{out}/marker/*.parquet")
+    near = {text: samples.filter((pl.col("t_us") - at).abs() <= 2_000_000).select(pl.len()).collect().item()
+            for text, at in markers.select("text", "agent_t_us").iter_rows()}
+    assert near == {f"mark {i}": 41 for i in range(len(MARKS_S))}
+    assert samples.select(pl.col("mode_name").unique()).collect().to_series().to_list() == ["LEARNING"]
