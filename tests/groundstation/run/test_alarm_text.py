@@ -34,3 +34,14 @@ def test_the_status_line_holds_the_time_held_of_the_success_time_and_the_target(
                     "target 0.60 m | depth 0.41 m | 4.15 V | rtt 12 ms, loss 0.0% | ALARM depth")
     agent.update(_sample(223.0, Mode.RECOVERING))  # recovering: nothing is held
     assert "held" not in status_line(agent, {})
+
+
+def test_a_dump_in_json_has_the_agents_float32_without_noise() -> None:
+    import struct
+
+    from groundstation.session.dumps import Dump
+    from protocol import DumpKind
+
+    dump = Dump(7, DumpKind.VALUES, 3, struct.pack("<3f", 0.4, -3.2, 8.6))
+    assert dump.values() != [0.4, -3.2, 8.6]  # widened: 0.4000000059604645, ...
+    assert dump.as_dict()["values"] == [0.4, -3.2, 8.6]
