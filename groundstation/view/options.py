@@ -37,12 +37,13 @@ class Viewer(StrEnum):
 _VIEWERS = "spawn: the native viewer; web: serve the web viewer on --web-port; none: no viewer. "
 ViewerOption = Annotated[
     Viewer | None,
-    typer.Option("--viewer", help=_VIEWERS + "Default: spawn where there is a display, else web; none when --rrd "
-                 "is given."),
+    typer.Option("--viewer", metavar="VIEWER", help=_VIEWERS + "Default: spawn where there is a display, else "
+                 "web; none when --rrd is given."),
 ]
 RunViewerOption = Annotated[  # `dive run`'s main job needs no viewer: headless, it records only
     Viewer | None,
-    typer.Option("--viewer", help=_VIEWERS + "Default: spawn where there is a display, else none (--viewer web on "
+    typer.Option("--viewer", metavar="VIEWER",  # the choices are in the help: a narrower option column
+                 help=_VIEWERS + "Default: spawn where there is a display, else none (--viewer web on "
                  "a headless machine); none when --rrd is given."),
 ]
 WebPortOption = Annotated[int, typer.Option("--web-port", callback=ranged(1, 65535), metavar="PORT",
