@@ -8,6 +8,7 @@ from types import TracebackType
 
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
+from rich.table import Column
 
 from groundstation.run.job import ECHO, RunStatus
 from groundstation.safe_output import in_markup, styled
@@ -68,8 +69,9 @@ class RunDisplay:
 
     def __enter__(self) -> RunDisplay:
         if self.live:
-            columns = (SpinnerColumn(), TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
-                       TimeElapsedColumn())
+            # The status line wraps rather than being cut: at 80 columns its alarm flag and link came after the "…"
+            columns = (SpinnerColumn(), TextColumn("{task.description}", table_column=Column(overflow="fold")),
+                       BarColumn(bar_width=20), MofNCompleteColumn(), TimeElapsedColumn())
             self._progress = Progress(*columns, console=self.console, transient=False)
             self._progress.__enter__()
             self._task = self._progress.add_task(in_markup(self.first), total=self.episodes or None)
