@@ -79,6 +79,9 @@ def test_foxglove_watches_sets_and_commands_a_running_keyed_run(tmp_path: Path) 
         beats = fox.subscribe("/agent/HEARTBEAT")
         assert fox.pump(lambda: len(fox.messages.get(samples, [])) >= 5, 10)
         assert {"depth_m", "mode", "_seq"} <= set(json.loads(fox.messages[samples][0]))
+        # at --speed max the SAMPLEs come in batches: each has a log time of its own, in the agent's order
+        stamps = fox.log_times[samples]
+        assert len(set(stamps)) == len(stamps) and stamps == sorted(stamps), stamps[:20]
         assert set(fox.services) == {"surface", "hover", "start", "stop", "pause", "resume", "target", "mark", "dump",
                                      "ack"}
 
