@@ -3,8 +3,9 @@
 Each alarm is said once when its condition starts (printed by the run, recorded as an `alarm` event on /event,
 shown in the view's event log), and once more when it clears (an `alarm_cleared` event): past a hysteresis, so a
 depth hovering at the limit is one alarm, not one a second. As in QGroundControl and MAVProxy, the alarm flag on the
-status line stays until the operator acknowledges it (`dive ack`, the key `a` in the run pane: an `alarm_ack`
-event), even after the condition cleared: an alarm that came and went while nobody looked is still seen.
+status line stays until the operator acknowledges it (`dive ack`, the key `a` in the run pane, Foxglove's ack
+service: an `alarm_ack` event), even after the condition cleared: an alarm that came and went while nobody looked
+is still seen.
 
 | state          | flag on the status line          | becomes                                      |
 |----------------|----------------------------------|----------------------------------------------|
