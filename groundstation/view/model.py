@@ -48,8 +48,8 @@ class Kind(Enum):
 ENTITIES: dict[str, tuple[Kind, str]] = {
     "depth/z_up_m": (Kind.SCALAR, "z up = -depth [m]"),
     "depth/target_z_up_m": (Kind.SCALAR, "target z up [m]"),
-    "depth/region_top_z_up_m": (Kind.SCALAR, "region top z up [m]"),
-    "depth/region_bottom_z_up_m": (Kind.SCALAR, "region bottom z up [m]"),
+    "depth/region_top_z_up_m": (Kind.SCALAR, "learning region [m]"),  # one name: one legend entry for both edges
+    "depth/region_bottom_z_up_m": (Kind.SCALAR, "learning region [m]"),
     "depth/episode_start_z_up_m": (Kind.POINT, "episode start"),
     "depth/episode_success_z_up_m": (Kind.POINT, "success"),
     "depth/episode_failure_z_up_m": (Kind.POINT, "failure"),
