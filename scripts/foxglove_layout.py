@@ -16,6 +16,7 @@ from typing import Any
 
 OUT = Path(__file__).resolve().parent.parent / "docs" / "foxglove" / "diving-agent-layout.json"
 LIVE_OUT = OUT.with_name("live-layout.json")
+LOG_TOPIC = "/log"  # groundstation/view/foxglove/console.py: foxglove.Log
 BOUNDS_TOPIC = "/studio_script/depth_bounds"
 # A Foxglove user script: the learning region's edges from each EPISODE_START, as z up = -depth like the plot.
 BOUNDS_SCRIPT = f"""// Learning-region bounds for the depth plot (z up = -depth), from each episode's start message.
@@ -33,6 +34,18 @@ export default function script(event: Input<"/agent/EPISODE_START">): Bounds {{
     shallow_edge_z_m: -(start.target_depth_m - start.z_tol_m),
     deep_edge_z_m: -(start.target_depth_m + start.z_tol_m),
   }};
+}}
+"""
+VOLTS_TOPIC = "/studio_script/battery_v"
+# A Foxglove user script: the battery in volts (HEARTBEAT carries mV; dive and the Rerun view say V everywhere).
+VOLTS_SCRIPT = f"""// Battery voltage [V] from each heartbeat's battery_mv.
+import {{ Input }} from "./types";
+
+export const inputs = ["/agent/HEARTBEAT"];
+export const output = "{VOLTS_TOPIC}";
+
+export default function script(event: Input<"/agent/HEARTBEAT">): {{ battery_v: number }} {{
+  return {{ battery_v: (event.message as any).battery_mv / 1000 }};
 }}
 """
 # Foxglove's Plot panel cannot flip its y axis: depth is plotted as z up = -depth (the message path's math modifier
@@ -108,14 +121,20 @@ def layout() -> dict[str, Any]:
 # The modes as the Indicator panel names them (protocol/enums.py's Mode), the ones to watch in warm colours.
 MODE_COLOURS = {"IDLE": "#7f7f7f", "LEARNING": "#2ca02c", "RECOVERING": "#bcbd22", "HOVER": "#1f77b4",
                 "SURFACING": "#d62728", "PAUSED": "#ff7f0e"}
-# The buttons: (service, label, colour); the services are groundstation/view/foxglove/services.py's.
-BUTTONS = (("surface", "SURFACE (emergency)", "#d62728"), ("start", "start learning", "#2ca02c"),
-           ("pause", "pause", "#ff7f0e"), ("resume", "resume", "#2ca02c"), ("stop", "stop (surfaces)", "#7f7f7f"))
+# The buttons: (service, label, colour, request); the services are groundstation/view/foxglove/services.py's. A
+# request with a value (a depth, a marker's text) is the panel's to edit before the call.
+BUTTONS = (("surface", "SURFACE (emergency)", "#d62728", {}), ("start", "start learning", "#2ca02c", {}),
+           ("pause", "pause", "#ff7f0e", {}), ("resume", "resume", "#2ca02c", {}),
+           ("stop", "stop (surfaces)", "#7f7f7f", {}), ("hover", "hover at depth_m", "#1f77b4", {"depth_m": 0.3}),
+           ("target", "target depth_m", "#1f77b4", {"depth_m": 0.4}),
+           ("mark", "mark", "#9467bd", {"text": "marked in Foxglove"}),
+           ("dump", "dump values and policy", "#7f7f7f", {"kind": "both"}),
+           ("ack", "acknowledge alarms", "#d62728", {}))
 VALUE_IMAGE, POLICY_IMAGE = "/value_function/image", "/policy/image"  # groundstation/view/foxglove/images.py
 
 
-def _button(service: str, label: str, colour: str) -> dict[str, Any]:
-    return {"serviceName": service, "requestPayload": "{}", "layout": "vertical", "buttonText": label,
+def _button(service: str, label: str, colour: str, request: dict[str, Any]) -> dict[str, Any]:
+    return {"serviceName": service, "requestPayload": json.dumps(request), "layout": "vertical", "buttonText": label,
             "buttonTooltip": f"call the {service} service: the agent's ACK and mode come back",
             "buttonColor": colour}
 
@@ -125,7 +144,7 @@ def live_layout() -> dict[str, Any]:
 
     panels: dict[str, Any] = {
         "Plot!depth": _depth_plot(),
-        "Plot!battery": _plot("Battery [mV]", [("/agent/HEARTBEAT.battery_mv", "battery")]),
+        "Plot!battery": _plot("Battery [V]", [(f"{VOLTS_TOPIC}.battery_v", "battery")]),
         "Indicator!mode": {"path": "/agent/HEARTBEAT.mode", "style": "background", "fallbackColor": "#333333",
                            "fallbackLabel": "no heartbeat yet",
                            "rules": [{"operator": "=", "rawValue": str(int(mode)), "color": MODE_COLOURS[mode.name],
@@ -135,25 +154,26 @@ def live_layout() -> dict[str, Any]:
         "Image!value": {"imageMode": {"imageTopic": VALUE_IMAGE}},
         "Image!policy": {"imageMode": {"imageTopic": POLICY_IMAGE}},
         "Parameters!agent": {"title": "The agent's parameters (a learner restart: set it twice to confirm)"},
-        "RawMessages!events": {"topicPath": "/event", "diffEnabled": False, "diffMethod": "custom",
-                               "diffTopicPath": "", "showFullMessageForDiff": False},
+        # the agent's log and the run's events (alarms, markers, commands) as foxglove.Log: each kept, none overwritten
+        "RosOut!log": {"topicToRender": LOG_TOPIC, "searchTerms": [], "minLogLevel": 1},
     }
-    buttons = [f"CallService!{service}" for service, _, _ in BUTTONS]
-    for (service, label, colour), panel in zip(BUTTONS, buttons, strict=True):
-        panels[panel] = _button(service, label, colour)
+    buttons = [f"CallService!{service}" for service, _, _, _ in BUTTONS]
+    for (service, label, colour, request), panel in zip(BUTTONS, buttons, strict=True):
+        panels[panel] = _button(service, label, colour, request)
     button_row: Node = buttons[-1]
     for panel in reversed(buttons[:-1]):  # equal widths: each splits off its share of what is left
         button_row = row(panel, button_row, round(100 / (len(buttons) - buttons.index(panel))))
     return {
         "configById": panels,
         "globalVariables": {},
-        "userNodes": {"depth-bounds": {"name": "depth bounds", "sourceCode": BOUNDS_SCRIPT}},
+        "userNodes": {"depth-bounds": {"name": "depth bounds", "sourceCode": BOUNDS_SCRIPT},
+                      "battery-volts": {"name": "battery volts", "sourceCode": VOLTS_SCRIPT}},
         "playbackConfig": {"speed": 1},
         "layout": column(
             button_row,
             row(column("Plot!depth", row("Plot!battery", "Indicator!mode", 60), 65),
                 column(row("Image!value", "Image!policy", 50), row("Plot!curve", column(
-                    "Parameters!agent", "RawMessages!events", 70), 40), 55), 55),
+                    "Parameters!agent", "RosOut!log", 50), 40), 55), 55),
             10,
         ),
     }

@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from groundstation.cli.common import UrlArg, agent_session, one_line_errors, out, split_url
+from groundstation.cli.common import UrlArg, agent_session, one_line_errors, out, split_url, tool_name
 from groundstation.cli.validate import UsageError
 from groundstation.errors import GroundStationError
 from groundstation.safe_output import one_line
@@ -19,6 +19,7 @@ from groundstation.session.keys import KeyFileOption
 if TYPE_CHECKING:
     from groundstation.session.agent_session import Session
     from groundstation.session.dumps import Dump
+    from groundstation.session.params import Parameter
 
 
 @one_line_errors
@@ -55,6 +56,8 @@ def status(url: UrlArg = None, key_file: KeyFileOption = None) -> None:
                   f"{snap['rx_rejects']} rejected" + (f", rtt {rtt:.1f} ms" if rtt is not None else ""))
         if agent.mode is None and hb is not None:
             agent.update(hb)  # the heartbeat came before the listener
+        if agent.target_m is None and "target_depth_m" in s.params:
+            agent.param("target_depth_m", s.params.get("target_depth_m").value)  # no EPISODE_START seen yet
         if history.last_end is not None:
             out.print(history.last_end_text(), highlight=False)
         out.print(f"status: {status_line(agent, snap, s.link_up)}", soft_wrap=True, highlight=False)
@@ -66,7 +69,8 @@ _PARAM_ACTIONS = ("get", "set", "save", "diff", "load")
 @one_line_errors
 def params_command(
     args: Annotated[list[str] | None, typer.Argument(
-        help="get NAME, set NAME VALUE, save FILE, diff FILE or load FILE (none: list them all), after the "
+        help="get NAME (or a pattern: 'z_*'), set NAME VALUE, save FILE, diff FILE (exit 1 if it differs) or load "
+             "FILE (none: list them all), after the "
              "agent's URL (default: $DIVE_URL, else the running `dive run`)",
         metavar="[URL] [ACTION ...]", show_default=False)] = None,
     reset_model: Annotated[bool, typer.Option(
@@ -97,8 +101,8 @@ def params_command(
             for p in s.params:
                 out.print(one_line(describe(p)), soft_wrap=True, highlight=False)
         elif action == "get":
-            p = s.get_param(rest[0])
-            out.print(f"{p.name} = {p.display_value}")
+            for p in _matching(s, rest[0]):
+                out.print(f"{p.name} = {p.display_value}", highlight=False)
         elif action == "set":
             _set_all(s, {rest[0]: rest[1]}, reset_model)
         elif action == "save":
@@ -112,8 +116,22 @@ def params_command(
                 out.print(f"{p.name}: agent {p.display_value}, file {from_file[p.name]}")
             out.print(f"{len(change.changes)} of {len(from_file)} differ"
                       + (f"; loading it: {change.restart_warning()}" if change.restarts else ""))
+            if change.changes:
+                raise typer.Exit(1)  # as diff(1): 0 the same, 1 different, so a script can tell
         else:
             _set_all(s, from_file, reset_model)
+
+
+def _matching(s: Session, pattern: str) -> list[Parameter]:
+    """The parameters a name or a shell pattern (`z_*`, `*_s`) names; a name unknown says the names it is near."""
+    if not any(c in pattern for c in "*?["):
+        return [s.get_param(pattern)]
+    import fnmatch
+
+    found = [p for p in s.params if fnmatch.fnmatchcase(p.name, pattern)]
+    if not found:
+        raise GroundStationError(f"no parameter matches {pattern!r} (dive params lists them all)")
+    return found
 
 
 def _set_all(s: Session, values: dict[str, str], reset_model: bool) -> None:
@@ -126,8 +144,11 @@ def _set_all(s: Session, values: dict[str, str], reset_model: bool) -> None:
     warning = change.restart_warning()
     if warning:
         confirm_reset(warning, reset_model, "--reset-model")
-    for p in change.unchanged:
+    if len(change.unchanged) == 1:
+        p = change.unchanged[0]
         out.print(f"{p.name} = {p.display_value} (unchanged, not sent)")
+    elif change.unchanged:  # a load of a whole file: one line, not one per parameter
+        out.print(f"{len(change.unchanged)} of {len(values)} unchanged, not sent")
     apply(s, change, lambda done: out.print(f"{done.name} = {done.display_value}"))
 
 
@@ -196,6 +217,18 @@ def mark(text: Annotated[str, typer.Argument(help="what happened (recorded on /m
     from groundstation.run.marker import send_marker
 
     info = find_run(run.removeprefix("hub://") if run else None)
-    send_marker(info, text)
+    send_marker(info, text, tool=tool_name())
     where = f" ({info.recording})" if info.recording else ""
     out.print(f"marked in run {info.run}{where}")
+
+
+@one_line_errors
+def ack(run: Annotated[str | None, typer.Option(help="the run (hub://RUN's RUN) when several are running")] = None,
+        ) -> None:
+    """Acknowledge the alarms of the `dive run` running on this machine: its status line's alarm flag goes (an
+    alarm still active shows as acked until it clears). The key `a` in the run's pane does the same."""
+    from groundstation.links.runs import find_run
+    from groundstation.run.marker import send_ack
+
+    info = find_run(run.removeprefix("hub://") if run else None)
+    out.print(send_ack(info, tool=tool_name()), soft_wrap=True, highlight=False)

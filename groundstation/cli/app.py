@@ -64,6 +64,7 @@ app.command(context_settings=TAKES_NEGATIVE)(cli_control.hover)
 app.command("reset-model")(cli_control.reset_model)
 app.command()(cli_agent.dump)
 app.command()(cli_agent.mark)
+app.command()(cli_agent.ack)
 app.command("check")(cli_check.check_command)
 
 

@@ -65,9 +65,25 @@ def agent_session(url: str | None, key_file: Path | None = None, reconnect: bool
     from groundstation.session.agent_session import Session, SessionConfig
 
     session = Session(make_link(attach_url(url)),
-                      SessionConfig(reconnect=reconnect, backfill=False, key=resolve_key(key_file)))
+                      SessionConfig(reconnect=reconnect, backfill=False, key=resolve_key(key_file), name=tool_name()))
     with session:
         yield session
+
+
+def tool_name() -> str:
+    """The command running ("dive target"): its HELLO's name, by which a run's pane says who sent a command."""
+    import click
+
+    return command_path(click.get_current_context(silent=True))
+
+
+def command_path(context: Any) -> str:
+    """"dive params" for a click context, however dive was started (`python -m groundstation.cli.app` too)."""
+    names: list[str] = []
+    while context is not None and context.parent is not None:  # the root's name is how it was started
+        names.insert(0, context.info_name or "")
+        context = context.parent
+    return " ".join(["dive", *names])
 
 
 _URL_HELP = ("tcp://HOST:PORT, serial:///dev/ttyUSB0?baud=115200, sim://?speed=max, hub://RUN "

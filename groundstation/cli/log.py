@@ -32,13 +32,13 @@ def log_info(files: Annotated[list[Path], typer.Argument(help="recordings, or fo
              ) -> None:
     """Sessions, duration, episodes with outcome and length, samples, loss, backfill and missing samples."""
     from groundstation.cli.bar import SlowBar
-    from groundstation.recording.files import being_recorded, expand, group_recordings, json_summary
+    from groundstation.recording.files import being_recorded, group_recordings, json_summary
     from groundstation.recording.info import format_summary
     from groundstation.recording.summaries import combine, format_combined, summarize_files
 
     if plant is not None and not plant.is_file():
         raise GroundStationError(f"no such plant file: {plant}")
-    paths = expand(files)
+    paths = _expand_saying(files)
     with SlowBar(f"summarising {len(paths)} file(s)") as bar:
         done = summarize_files(paths, bar.update)
     summaries = [(s, None if s.complete else being_recorded(Path(s.path))) for s in done]
@@ -64,6 +64,18 @@ def log_info(files: Annotated[list[Path], typer.Argument(help="recordings, or fo
     if len(paths) > 1:
         for line in combine(done, [[str(f) for f in r.files] for r in group_recordings(paths)]):
             out.print(format_combined(line))
+
+
+def _expand_saying(files: list[Path]) -> list[Path]:
+    """The recordings the files and folders given hold, and on stderr the line naming what the folders held."""
+    from groundstation.cli.common import err
+    from groundstation.recording.files import expand, read_line
+
+    paths = expand(files)
+    line = read_line(files, paths)
+    if line is not None:
+        err.print(line, style="dim", soft_wrap=True, highlight=False)
+    return paths
 
 
 def plant_residual(path: Path, plant: Path) -> dict[str, Any]:
@@ -100,15 +112,17 @@ def log_export(files: Annotated[list[Path], typer.Argument(help="recordings, or 
                    "--out", help="output file (one recording only) or a folder for the outputs (a name ending in / "
                    "is a folder, made if missing); for minari the datasets folder (default: Minari's own)")] = None,
                ) -> None:
-    """Export samples as CSV, (s, a, r, s', terminated, truncated) transitions as .npz, or a Minari dataset.
+    """Export samples as CSV, (s, a, r, s', terminated, truncated) transitions as .npz, a Minari dataset, or Parquet
+    tables (one per topic, with link statistics, agent time on markers and events, labelled modes and actions) for
+    DuckDB, polars and pandas.
 
-    Several recordings (or a folder) give one output file each, beside each recording.
+    Several recordings (or a folder, its subfolders too) give one output file each, beside each recording.
 
     The parts of a split recording given together make one (NAME.csv beside NAME-part001.mcap), episodes whole.
     """
     from groundstation.cli.bar import SlowBar
     from groundstation.recording.export import export_csv, export_npz
-    from groundstation.recording.files import expand, group_recordings
+    from groundstation.recording.files import group_recordings
 
     if format == ExportFormat.minari:
         if len(files) != 1:
@@ -116,7 +130,7 @@ def log_export(files: Annotated[list[Path], typer.Argument(help="recordings, or 
         _export_minari(files[0], None if out_text is None else Path(out_text))
         return
     out_path = None if out_text is None else Path(out_text)
-    recordings = group_recordings(expand(files))
+    recordings = group_recordings(_expand_saying(files))
     if format == ExportFormat.parquet:
         _export_parquet(recordings, out_path or recordings[0].files[0].parent / "parquet")
         return

@@ -8,8 +8,9 @@ from types import TracebackType
 
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
+from rich.table import Column
 
-from groundstation.run.job import RunStatus
+from groundstation.run.job import ECHO, RunStatus
 from groundstation.safe_output import in_markup, styled
 from groundstation.session.status_line import status_line
 
@@ -18,17 +19,33 @@ SLOW_START_NOTE = ("the virtual agent is starting: its first start compiles the 
                    "idle machine), later starts take seconds")
 
 
+ACK_HINT = "the alarm flag stays on the status line until acknowledged: the key a here, or dive ack from another pane"
+
+
 def _run_status_line(s: RunStatus) -> str:
-    """The status line (mode, episode, successes, battery, depth, link): the run counts every episode it saw end,
-    so its own count stands in until the agent's EPISODE_END says how many succeeded."""
+    """The status line (mode, episode, successes, held, target, depth, battery, link, alarm flag): the run counts
+    every episode it saw end, so its own count stands in until the agent's EPISODE_END says how many succeeded."""
     agent = replace(s.agent, successes=s.agent.successes if s.agent.successes is not None else s.successes)
-    return status_line(agent, s.link, s.link_up)
+    return status_line(agent, s.link, s.link_up, s.alarm_flag)
 
 
 def describe(s: RunStatus) -> str:
     """The status line in markup for the live bar."""
     line = in_markup(_run_status_line(s))
-    return line.replace("link down", "[red]link down[/]")
+    line = line.replace("link down", "[red]link down[/]")
+    flag = in_markup(s.alarm_flag)
+    if flag:  # the last field: an unacknowledged alarm in reverse red, as a console's master caution
+        style = "bold white on red" if s.alarm_flag.startswith("ALARM") else "red"
+        line = line[: len(line) - len(flag)] + f"[{style}]{flag}[/]"
+    return line
+
+
+def _style(line: str) -> str:
+    if line.startswith("ALARM:"):
+        return "bold red"
+    if line.startswith("cleared:"):
+        return "green"
+    return "cyan" if line.startswith(ECHO) else "yellow"
 
 
 class RunDisplay:
@@ -48,11 +65,13 @@ class RunDisplay:
         self._episodes = 0
         self._hub = ""
         self._mode: int | None = None
+        self._alarmed = False
 
     def __enter__(self) -> RunDisplay:
         if self.live:
-            columns = (SpinnerColumn(), TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
-                       TimeElapsedColumn())
+            # The status line wraps rather than being cut: at 80 columns its alarm flag and link came after the "…"
+            columns = (SpinnerColumn(), TextColumn("{task.description}", table_column=Column(overflow="fold")),
+                       BarColumn(bar_width=20), MofNCompleteColumn(), TimeElapsedColumn())
             self._progress = Progress(*columns, console=self.console, transient=False)
             self._progress.__enter__()
             self._task = self._progress.add_task(in_markup(self.first), total=self.episodes or None)
@@ -86,7 +105,12 @@ class RunDisplay:
         # is counted as said without being printed (an episode's line went missing that way).
         messages = len(status.messages)
         for line in status.messages[self._messages:messages]:  # agent text among them: data, never markup
-            printer.print(styled(line, "bold red" if line.startswith("ALARM:") else "yellow"), soft_wrap=True)
+            printer.print(styled(line, _style(line)), soft_wrap=True)
+            if line.startswith("ALARM:") and self.live:
+                printer.bell()
+                if not self._alarmed:
+                    printer.print(styled(ACK_HINT, "dim"), soft_wrap=True)
+            self._alarmed = self._alarmed or line.startswith("ALARM:")
         self._messages = messages
         total = f" of {self.episodes}" if self.episodes else ""
         ends = len(status.ends)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import threading
 from collections.abc import Callable
 from pathlib import Path
@@ -12,12 +13,15 @@ import typer
 
 from groundstation.cli import view as view_cli
 from groundstation.cli.common import UrlArg, err, one_line_errors
+from groundstation.cli.pane_keys import AckKey
 from groundstation.cli.signals import stop_on_signals
 from groundstation.cli.validate import UsageError, check_presets, parse_speed
 from groundstation.run.alarm_limits import DEPTH_LIMIT_M, LINK_LOST_S
 from groundstation.safe_output import printable
 from groundstation.session.keys import KeyFileOption, resolve_key
-from groundstation.view.options import Viewer
+from groundstation.view.options import Viewer, ranged
+
+U32_MAX = 2**32 - 1  # CMD_START's max_episodes and the simulator's seed are U32
 
 if TYPE_CHECKING:
     from groundstation.run.job import RunStatus
@@ -27,10 +31,10 @@ if TYPE_CHECKING:
 @one_line_errors
 def run_command(
     url: UrlArg = None,
-    episodes: Annotated[int, typer.Option(min=0, max=2**32 - 1,
+    episodes: Annotated[int, typer.Option(callback=ranged(0, U32_MAX), metavar="N",
                                           help="stop after this many episodes (0 = until Ctrl-C)")] = 0,
     speed: Annotated[str | None, typer.Option(help="built-in virtual agent only: time factor or 'max'")] = None,
-    seed: Annotated[int | None, typer.Option(min=0, max=2**32 - 1,
+    seed: Annotated[int | None, typer.Option(callback=ranged(0, U32_MAX), metavar="N",
                                              help="built-in virtual agent only: random seed")] = None,
     preset: Annotated[str | None, typer.Option(
         help="built-in virtual agent only: plant preset, paper (default) or hardware")] = None,
@@ -52,20 +56,26 @@ def run_command(
              "agent's simulator")] = None,
     out_path: Annotated[Path | None, typer.Option("--out", help="recording directory, or a .mcap file name")] = None,
     split_mb: Annotated[float, typer.Option(
-        min=0, help="start a new file (NAME-part002.mcap, ...) after this many MB on disk (0 = never)")] = 0.0,
+        callback=ranged(0), metavar="MB",
+        help="start a new file (NAME-part002.mcap, ...) after this many MB on disk (0 = never)")] = 0.0,
     split_minutes: Annotated[float, typer.Option(
-        min=0, help="start a new file after this many minutes (0 = never)")] = 0.0,
-    reconnect: Annotated[bool, typer.Option(help="reconnect after a link loss and backfill the gap")] = True,
-    dumps: Annotated[bool, typer.Option(
-        help="have the agent send its values and policy after every episode (recorded: the replay's heatmaps)")]
-        = True,
+        callback=ranged(0), metavar="MIN",
+        help="start a new file after this many minutes (0 = never)")] = 0.0,
+    # One flag each, not --reconnect/--no-reconnect: a second name column made the help's option column 41 wide
+    no_reconnect: Annotated[bool, typer.Option(
+        "--no-reconnect", help="end at a link loss (default: reconnect and backfill the gap)")] = False,
+    no_dumps: Annotated[bool, typer.Option(
+        "--no-dumps", help="the agent sends no values and policy after every episode (recorded by default: the "
+                           "replay's heatmaps)")] = False,
     history_minutes: Annotated[float, typer.Option(
-        min=0, help="telemetry a tool attaching late (dive view) is given first, besides the episode table and the "
-                    "last dumps \\[min] (at most 2 MiB of it)")] = 2.0,
+        callback=ranged(0), metavar="MIN",
+        help="telemetry a tool attaching late (dive view) is given first, besides the episode table and the "
+             "last dumps \\[min] (at most 2 MiB of it)")] = 2.0,
     alarm_depth: Annotated[float, typer.Option(
-        min=0, help="alarm when the agent is deeper than this \\[m]")] = DEPTH_LIMIT_M,
+        callback=ranged(0), metavar="M", help="alarm when the agent is deeper than this \\[m]")] = DEPTH_LIMIT_M,
     alarm_link_lost: Annotated[float, typer.Option(
-        min=0, help="alarm when the agent has sent nothing, or the link has been lost, for this long \\[s]")]
+        callback=ranged(0), metavar="S",
+        help="alarm when the agent has sent nothing, or the link has been lost, for this long \\[s]")]
         = LINK_LOST_S,
     key_file: KeyFileOption = None,
     foxglove: view_cli.FoxgloveOption = None,
@@ -105,17 +115,18 @@ def run_command(
     view = view_cli.open_live_view(viewer, rrd, web_port, name=url, headless_default=Viewer.NONE,
                                    grpc_port=grpc_port)
     config = RunConfig(url=url, episodes=episodes, params=values, recorder=recorder,
-                       session=SessionConfig(reconnect=reconnect, key=key),
-                       dumps_each_episode=dumps,
+                       session=SessionConfig(reconnect=not no_reconnect, key=key),
+                       dumps_each_episode=not no_dumps,
                        history=HistoryConfig(window_s=history_minutes * 60.0),
                        alarms=AlarmConfig(link_lost_s=alarm_link_lost, silent_s=alarm_link_lost, depth_m=alarm_depth))
-    stop, signalled = threading.Event(), list[str]()
+    stop, signalled, ack = threading.Event(), list[str](), threading.Event()
     with stop_on_signals(stop, signalled), view_cli.closing_foxglove(fox), view_cli.closing_view(view, signalled):
-        with RunDisplay(err, episodes, f"connecting to {url}", virtual=url.startswith("sim://")) as display:
+        with RunDisplay(err, episodes, f"connecting to {url}", virtual=url.startswith("sim://")) as display, \
+                AckKey(ack) if display.live else contextlib.nullcontext():
             show = display.show if fox is None else _attaching(display.show, fox, key)
             # Foxglove publishes from the run's own session: the frames, commands and alarms the recording gets
             result = run(config, show, stop=stop, listeners=[*([view] if view is not None else []),
-                                                             *([fox.channels] if fox is not None else [])])
+                                                             *([fox.channels] if fox is not None else [])], ack=ack)
         # After the status line has ended (a path written under a live display was glued to its last line), before
         # a served web viewer waits: the path is printed however the run ends.
         for path in result.paths:
@@ -133,7 +144,9 @@ def run_command(
         err.print(f"{result.still_missing - result.lost} samples not backfilled though the agent's log still "
                   "holds them (the link did not bring them in time)", style="yellow")
     if result.interrupted or signalled:
-        err.print(f"stopped by {signalled[0] if signalled else 'Ctrl-C'}; the recording is complete", style="dim")
+        did = f"; {result.status.stopped}" if result.status.stopped else ""
+        err.print(f"stopped by {signalled[0] if signalled else 'Ctrl-C'}{did}; the recording is complete",
+                  style="dim", soft_wrap=True)
         raise typer.Exit(130)  # the one convention: interrupted = 130, whatever was saved
 
 

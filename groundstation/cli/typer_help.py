@@ -36,6 +36,28 @@ class _OnFirstUse(type):
         return getattr(cls._real(), attribute)
 
 
+def _one_line_bad_value(format_error: Any) -> Any:
+    """Typer's error printer, but a bad value (`--episodes -3`, `--web-port 70000`) is the one line the README
+    promises (exit 2, as before), not a usage line, a hint and a 5-line box: the message names the option and the
+    range, which is all the box said. Other usage errors (an unknown option, a missing argument) keep the box."""
+    import click
+    from rich.text import Text
+
+    from groundstation.cli.common import command_path, err
+
+    def format_bad_value(error: click.ClickException) -> None:
+        if not isinstance(error, click.BadParameter):
+            format_error(error)
+            return
+        message = error.format_message()
+        context = getattr(error, "ctx", None)
+        where = f" ({command_path(context)} -h shows the options)" if context is not None else ""
+        err.print(Text.assemble(("dive:", "bold red"), f" {message[:1].lower()}{message[1:].rstrip('.')}{where}"),
+                  soft_wrap=True)
+
+    return format_bad_value
+
+
 def load_typer_help() -> None:
     """Import typer.rich_utils with the stand-ins in place; the real modules stay importable as before."""
     if "typer.rich_utils" in sys.modules:
@@ -48,7 +70,9 @@ def load_typer_help() -> None:
             stand_ins[module] = stand_in
     sys.modules.update(stand_ins)
     try:
-        import typer.rich_utils  # noqa: F401  (imported for its place in sys.modules)
+        import typer.rich_utils
+
+        typer.rich_utils.rich_format_error = _one_line_bad_value(typer.rich_utils.rich_format_error)
     finally:
         for module, stand_in in stand_ins.items():
             if sys.modules.get(module) is stand_in:

@@ -19,7 +19,10 @@ from typing import Any
 from protocol import messages as m
 
 GROUND_FLAG = 0x08  # flags bit 3: a frame the hub itself says (never set on a frame from the agent)
-FANNED_OUT = frozenset(("marker", "alarm"))  # the ground's event kinds its tools get (not its link's own events)
+# the ground's event kinds its tools get (not its link's own events)
+FANNED_OUT = frozenset(("marker", "alarm", "alarm_cleared", "alarm_ack", "command"))
+ACK_REQUEST = "ack"  # a tool's ground-flagged TEXT to its run's hub: acknowledge the alarms (dive ack)
+ACK_ANSWERS = ("alarms acknowledged by ", "no alarm to acknowledge")  # how the hub's TEXT answer to it begins
 TEXT_BYTES = 238  # TEXT's tail (protocol/messages.py)
 _SEPARATOR = "\x1f"
 _SEVERITY = {"alarm": 3}  # error; anything else info
@@ -27,18 +30,21 @@ _SEVERITY = {"alarm": 3}  # error; anything else info
 
 def ground_text(kind: str, detail: str, data: dict[str, Any]) -> m.Text:
     """The TEXT that carries one of the run's events to its tools."""
-    if kind == "marker" and data == {"text": detail}:
-        data = {}  # the marker's text is its detail: not sent twice (parse_ground_text puts it back)
+    if kind == "marker" and data.get("text") == detail:
+        # the marker's text is its detail: not sent twice (parse_ground_text puts it back)
+        data = {k: v for k, v in data.items() if k != "text"}
     head = f"{kind}{_SEPARATOR}{json.dumps(data, separators=(',', ':'))}{_SEPARATOR}"
     room = TEXT_BYTES - len(head.encode())
     body = detail.encode()[:max(0, room)].decode(errors="ignore")  # cut on a character, never inside one
     return m.Text(t_us=time.time_ns() // 1000, severity=_SEVERITY.get(kind, 1), text=head + body)
 
 
-def parse_ground_text(text: str) -> tuple[str, str, dict[str, Any]] | None:
-    """(kind, detail, data) of a ground TEXT; None for one that is not of this form (it is then an agent's line)."""
+def parse_ground_text(text: str, kinds: frozenset[str] | tuple[str, ...] = FANNED_OUT,
+                      ) -> tuple[str, str, dict[str, Any]] | None:
+    """(kind, detail, data) of a ground TEXT of one of `kinds`; None for one that is not of this form (it is then an
+    agent's line)."""
     parts = text.split(_SEPARATOR, 2)
-    if len(parts) != 3 or parts[0] not in FANNED_OUT:
+    if len(parts) != 3 or parts[0] not in kinds:
         return None
     kind, encoded, detail = parts
     try:
@@ -47,6 +53,6 @@ def parse_ground_text(text: str) -> tuple[str, str, dict[str, Any]] | None:
         return None
     if not isinstance(data, dict):
         return None
-    if kind == "marker" and not data:
-        data = {"text": detail}
+    if kind == "marker" and "text" not in data:
+        data = {"text": detail, **data}
     return kind, detail, data

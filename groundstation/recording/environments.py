@@ -23,6 +23,12 @@ TASK_PARAMETERS = ("target_depth_m", "z_tol_m", "zdot_tol_mps", "z_cells", "zdot
                    "depth_only_term")
 
 
+def wire_float32(value: float) -> float:
+    """A float32 field widened to float64 (2.799999952316284) as the shortest number that is the same float32
+    (2.8): what the agent sent, without the widening's noise, in JSON and text."""
+    return float(str(np.float32(value))) if math.isfinite(value) else value
+
+
 def tidy_number(text: str) -> str:
     """A recorded number as people write it: a float32 parameter's 0.10000000149011612 is 0.1 (the shortest text
     that is the same float32), 10.0 is 10; anything else unchanged."""

@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from groundstation.errors import GroundStationError
-from groundstation.recording.environments import tidy_value
+from groundstation.recording.environments import tidy_value, wire_float32
 
 _HEX_IDS = ("node_id", "boot_id")  # shown in hex everywhere else (dive status, file names)
 
@@ -22,14 +22,15 @@ def _empty(path: Path) -> bool:
 
 
 def expand(paths: list[Path]) -> list[Path]:
-    """Each file as given, each folder as its .mcap files in name order (split parts sort: part002 < part010).
+    """Each file as given, each folder as the .mcap files in it and its subfolders (a tank day's recordings sorted
+    into a folder per day) in path order (split parts sort: part002 < part010).
 
     An empty file in a folder is passed over: it holds nothing, and kill -9 as a split part was created leaves one
     (issue 25 M2); refusing the folder for it would refuse every part that holds the recording."""
     found: list[Path] = []
     for path in paths:
         if path.is_dir():
-            inside = [f for f in sorted(path.glob("*.mcap")) if not _empty(f)]
+            inside = [f for f in sorted(path.rglob("*.mcap"), key=lambda f: f.parts) if not _empty(f)]
             if not inside:
                 raise GroundStationError(f"no .mcap recordings in {path}")
             found.extend(inside)
@@ -38,6 +39,20 @@ def expand(paths: list[Path]) -> list[Path]:
         else:
             raise GroundStationError(f"no such recording: {path}")
     return found
+
+
+def read_line(paths: list[Path], found: list[Path]) -> str | None:
+    """The line naming what folders given were read as ("read 14 .mcap files in recordings/ (3 in subfolders)"),
+    None when only files were given: a subfolder read, or one passed over, is never silent."""
+    folders = [p for p in paths if p.is_dir()]
+    if not folders:
+        return None
+    parts = []
+    for folder in folders:
+        inside = [f for f in found if f.is_relative_to(folder)]
+        deeper = sum(f.parent != folder for f in inside)
+        parts.append(f"{len(inside)} .mcap file(s) in {folder}" + (f" ({deeper} in subfolders)" if deeper else ""))
+    return "read " + "; ".join(parts)
 
 
 _PART = re.compile(r"-part\d+$")
@@ -125,6 +140,9 @@ def _number(text: Any) -> Any:
     return value
 
 
+_EPISODE_F32 = ("duration_s", "episode_return")
+
+
 def json_summary(summary: dict[str, Any]) -> dict[str, Any]:
     """`dive log info --json`: numbers as numbers, node and boot ids in hex as `dive status` shows them."""
     out = dict(summary)
@@ -136,4 +154,7 @@ def json_summary(summary: dict[str, Any]) -> dict[str, Any]:
     out["parameters"] = {k: _number(v) for k, v in dict(summary.get("parameters", {})).items()}
     out["boots"] = [{**boot, "boot_id": f"{boot['boot_id']:08x}" if isinstance(boot.get("boot_id"), int) else None}
                     for boot in summary.get("boots", [])]
+    # EPISODE_END's duration and return are the wire's float32: 2.8, not 2.799999952316284
+    out["episodes"] = [{k: wire_float32(v) if k in _EPISODE_F32 and isinstance(v, float) else v for k, v in e.items()}
+                       for e in summary.get("episodes", [])]
     return out

@@ -5,7 +5,9 @@
     OUT/agent_HEARTBEAT/NAME.parquet, OUT/ground_CMD_START/..., OUT/event/...: every other JSON topic
 
 Every row carries `recording` (NAME), `boot` (1, 2, ... in the recording), `boot_id` (the agent's, hex),
-`host_time_ns` and, for the agent's messages, its own clock `t_us`. Each file's schema metadata holds the
+`host_time_ns` and, for the agent's messages, its own clock `t_us`; the ground's rows (markers, events, link
+statistics with RTT, loss and backfill) carry the agent's clock as `agent_t_us`, modes and actions their names,
+samples their episode's target (recording/analyst_columns.py). Each file's schema metadata holds the
 session's header (`dive.parameters`, `dive.agent`, `dive.session`, `dive.environment`, as JSON). One file per
 recording in one folder per table, with the same columns and types, is what pandas (`read_parquet(OUT/"samples")`),
 polars (`scan_parquet("OUT/samples/*.parquet")`) and DuckDB (`FROM 'OUT/samples/*.parquet'`) read as one table.
@@ -22,9 +24,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from groundstation.errors import RecordingError
+from groundstation.recording.analyst_columns import LABELLED, AgentClock, float32_fields, label, sample_targets
 from groundstation.recording.environments import environment, tidy_number
 from groundstation.recording.safe_files import replaced_atomically
-from groundstation.recording.tables import SAMPLE_TOPIC, Recording
+from groundstation.recording.tables import EPISODE_START_TOPIC, SAMPLE_TOPIC, Recording
 
 _LEFT_OUT = {"_seq", "_flags"}  # the link's bookkeeping, not data
 
@@ -48,24 +51,39 @@ def export_parquet(recording: Recording, name: str, out_dir: Path) -> dict[str, 
         b"dive.environment": json.dumps(environment(recording.metadata)).encode(),
     }
     boot_ids = {boot: f"{boot_id:08x}" for boot, boot_id in recording.boot_ids.items()}
-    tables: dict[str, NDArray[np.void]] = {"samples": recording.samples(), "episodes": recording.episodes()}
+    samples = recording.samples()
+    tables: dict[str, NDArray[np.void]] = {"samples": samples, "episodes": recording.episodes()}
+    topics = {"samples": SAMPLE_TOPIC, "episodes": "/agent/EPISODE_END"}
     for topic in sorted(recording.topics):
         if topic not in (SAMPLE_TOPIC, "/raw/rx", "/raw/tx") and not topic.startswith("/dump/"):
             rows_of_topic = recording.table(topic)
             if len(rows_of_topic):
                 tables[table_name(topic)] = rows_of_topic
+                topics[table_name(topic)] = topic
     if not len(tables["samples"]) and not len(tables["episodes"]):
         raise RecordingError(f"{name} holds no samples or episodes to export")
+    clock = AgentClock(samples)
+    starts = recording.table(EPISODE_START_TOPIC) if EPISODE_START_TOPIC in recording.topics else samples[:0]
+    target_m = _number(recording.parameters.get("target_depth_m"))  # the samples' before the first episode
     written: dict[str, int] = {}
     for table, rows in tables.items():
         columns: dict[str, Any] = {"recording": pa.array([name] * len(rows), pa.string())}
-        boots = rows["boot"] if "boot" in (rows.dtype.names or ()) else np.zeros(len(rows), dtype=np.int64)
+        fields = rows.dtype.names or ()
+        boots = rows["boot"] if "boot" in fields else np.zeros(len(rows), dtype=np.int64)
         columns["boot"] = pa.array(boots.astype(np.int64))
         columns["boot_id"] = pa.array([boot_ids.get(int(b)) for b in boots], pa.string())
-        for field in rows.dtype.names or ():
+        single = float32_fields(topics.get(table, ""))  # the episodes' duration and return: EPISODE_END's
+        for field in fields:
             if field in _LEFT_OUT or field == "boot":
                 continue
-            columns[field] = _column(pa, rows[field])
+            columns[field] = _column(pa, rows[field], field in single)
+            if field in LABELLED and rows.dtype[field].kind in "iu":
+                labelled, names = LABELLED[field]
+                columns[labelled] = pa.array(label(rows[field], names), pa.string()).dictionary_encode()
+        if "t_us" not in fields and "host_time_ns" in fields:  # the ground's rows: the agent's clock beside
+            columns["agent_t_us"] = pa.array(clock.agent_us(boots, rows["host_time_ns"]), pa.int64())
+        if table == "samples":
+            columns["target_depth_m"] = pa.array(sample_targets(rows, starts, target_m), pa.float32())
         arrow = pa.table(columns).replace_schema_metadata(metadata)
         target = out_dir / table / f"{name}.parquet"
         target.parent.mkdir(parents=True, exist_ok=True)
@@ -75,13 +93,21 @@ def export_parquet(recording: Recording, name: str, out_dir: Path) -> dict[str, 
     return written
 
 
-def _column(pa: Any, values: NDArray[Any]) -> Any:
-    """A typed Arrow column: integers int64, numbers float64, flags bool, text string (JSON's types, widened)."""
+def _number(text: str | None) -> float | None:
+    try:
+        return float(text) if text is not None else None
+    except ValueError:
+        return None
+
+
+def _column(pa: Any, values: NDArray[Any], single: bool = False) -> Any:
+    """A typed Arrow column: integers int64, numbers float64 (float32 for the wire's F32: `single`), flags bool, text
+    string (JSON's types, widened)."""
     kind = values.dtype.kind
     if kind in "iu":
         return pa.array(values.astype(np.int64))
     if kind == "f":
-        return pa.array(values.astype(np.float64))
+        return pa.array(values.astype(np.float32 if single else np.float64))
     if kind == "b":
         return pa.array(values.astype(bool))
     return pa.array([None if v is None else str(v) for v in values.tolist()], pa.string())

@@ -12,7 +12,8 @@ Every row carries `host_time_ns` (when the ground station received it) and, for 
 agent's own `t_us`. A recording that spans an agent reboot is told apart by `boot` (1, 2, ... in file
 order, from the agents' HELLOs as `dive log info` counts them; `boot_ids` gives each one's boot id):
 sample and episode numbers restart with a boot. Samples received twice (live and backfilled) appear
-once; messages whose JSON has the wrong shape are counted in `malformed` and left out.
+once; messages whose JSON has the wrong shape are counted in `malformed` and left out. The ground's own records
+(/link, /event, ...) nest objects: their fields are columns named by path (`link_rtt_median_ms`, `data_alarm`).
 """
 
 from __future__ import annotations
@@ -111,6 +112,8 @@ class Recording:
                     if key in seen_samples:
                         continue  # received live and again backfilled, or twice: one row
                     seen_samples.add(key)
+                if not msg.topic.startswith("/agent/"):  # the agent's messages are flat; the ground's records nest
+                    body = _flat(body)
                 body["boot"], body["host_time_ns"] = boot, msg.log_time_ns
                 self._topics.setdefault(msg.topic, _Rows()).rows.append(body)
             self.contents.append(info)
@@ -156,7 +159,7 @@ class Recording:
     # ------------------------------------------------------------------ tables
     def table(self, topic: str) -> NDArray[np.void]:
         """Every JSON message of `topic` as a structured array; columns are the message's fields plus
-        `boot` and `host_time_ns`. Nested values (dicts, lists) are left out; use messages() for those."""
+        `boot` and `host_time_ns`. Nested objects are columns by path; lists are left out (messages() has them)."""
         rows = self._topics.get(topic)
         if rows is None:
             if topic not in self.topics:
@@ -234,6 +237,17 @@ class Recording:
 def open_recording(*paths: str | Path) -> Recording:
     """Read one or more recordings (files, or folders of .mcap files) of a session into a Recording."""
     return Recording(recording_files(paths))
+
+
+def _flat(body: dict[str, Any], prefix: str = "") -> dict[str, Any]:
+    """Nested objects as columns named by their path: {"link": {"rtt_median_ms": 3}} -> link_rtt_median_ms."""
+    flat: dict[str, Any] = {}
+    for key, value in body.items():
+        if isinstance(value, dict):
+            flat.update(_flat(value, f"{prefix}{key}_"))
+        else:
+            flat[f"{prefix}{key}"] = value
+    return flat
 
 
 def _structured(rows: list[dict[str, Any]]) -> NDArray[np.void]:

@@ -12,7 +12,9 @@ own protocol, so `dive view`, `status`, `mark`, `surface`, ... attach with the s
   to the agent by the session, with the session's seq and signature, once (a client's retry of the same seq is not
   sent again); the agent's ACK goes back to that client with the client's seq;
 - a client's TIMESYNC request is answered by the hub from the run's clock model: no tool's TIMESYNC reaches the agent;
-- a client's TEXT is a marker for the run's recording (`dive mark`), confirmed by a TEXT back;
+- a client's TEXT is a marker for the run's recording (`dive mark`), confirmed by a TEXT back; a ground-flagged
+  TEXT `ack` acknowledges the run's alarms (`dive ack`, run/alarms.py), answered by a TEXT saying what was;
+- every command a tool sends is echoed once answered, as a `command` event (run/echo.py): who sent what, the answer;
 - the run's markers and alarms are fanned out too, each as a TEXT flagged as the ground's (links/hub_events.py): a
   `dive record` attached to the run records them, a `dive view` shows them, as the run's own recorder and view do.
 
@@ -27,15 +29,18 @@ import socket
 import threading
 import time
 from collections import OrderedDict
+from collections.abc import Callable
 
 from groundstation.errors import LinkError
 from groundstation.links.hub_auth import HubAuthError, HubSide
-from groundstation.links.hub_events import FANNED_OUT, GROUND_FLAG, ground_text
+from groundstation.links.hub_events import ACK_REQUEST, FANNED_OUT, GROUND_FLAG, ground_text, parse_ground_text
+from groundstation.run.echo import echo
 from groundstation.run.history import History
 from groundstation.run.hub_clients import EMERGENCY, FORWARDED, HANDSHAKE_S, MAX_CLIENTS, MAX_REJECTS, HubClient
 from groundstation.run.marker import CONFIRMATION as MARKER_CONFIRMATION
+from groundstation.safe_output import one_line
 from groundstation.session.agent_session import Session
-from groundstation.session.events import LinkEvent, Received, Sent
+from groundstation.session.events import EventKind, LinkEvent, Received, Sent
 from protocol import AckResult, FrameFlag, Message
 from protocol import messages as m
 
@@ -66,7 +71,7 @@ class Hub:
         self._lock = threading.Lock()
         self._clients: list[_Client] = []
         # session seq of a forwarded command -> (client, client seq); and the client's retries -> session seq
-        self._by_session_seq: OrderedDict[tuple[int, int], tuple[_Client, int]] = OrderedDict()
+        self._by_session_seq: OrderedDict[tuple[int, int], tuple[_Client, int, Message]] = OrderedDict()
         self._by_client_seq: OrderedDict[tuple[int, int, int], tuple[int, m.Ack | None]] = OrderedDict()
         self._forwarding: Message | None = None
         self._forwarded_seq: int | None = None
@@ -78,6 +83,8 @@ class Hub:
         # None after a tool's CMD_START: the run must not start learning again behind an operator's back.
         self.taken_over: str | None = None
         self.history: History | None = None  # what a tool's LOG_REQUEST is answered from (set by the run)
+        # A tool's `dive ack`: the run's alarms acknowledged by that tool; the line saying what was (set by the run)
+        self.acknowledge: Callable[[str], str] | None = None
 
     # ------------------------------------------------------------------ life cycle
     def start(self) -> Hub:
@@ -136,11 +143,14 @@ class Hub:
         self._wake()
 
     def _answer_forwarded(self, ack: m.Ack) -> None:
+        beat = self.session.last_heartbeat
         with self._lock:
             target = self._by_session_seq.get((ack.cmd_msg_id, ack.cmd_seq))
             if target is None:
                 return  # an answer to the run's own command
-            client, client_seq = target
+            client, client_seq, message = target
+            first = (id(client), ack.cmd_msg_id, client_seq) in self._by_client_seq and \
+                self._by_client_seq[(id(client), ack.cmd_msg_id, client_seq)][1] is None
             client.in_flight.pop((ack.cmd_msg_id, client_seq), None)
             self._note_take_over(ack)
             mapped = m.Ack(cmd_msg_id=ack.cmd_msg_id, cmd_seq=client_seq, result=ack.result, reason=ack.reason)
@@ -150,6 +160,9 @@ class Hub:
             if client in self._clients:
                 client.outbuf += client.encoder.encode(mapped).wire
         self._wake()
+        said = echo(client.tool, message, ack, beat.mode if beat is not None else None) if first else None
+        if said is not None:  # outside the lock: the event comes back to this hub's on_event
+            self.session.listeners.event(LinkEvent(EventKind.COMMAND, time.time_ns(), *said))
 
     def _note_take_over(self, ack: m.Ack) -> None:
         """A tool's accepted CMD_SURFACE / STOP / HOVER / PAUSE takes the agent from the run; its CMD_START hands it
@@ -209,7 +222,7 @@ class Hub:
             if client not in self._clients:
                 return
             self._clients.remove(client)
-            for key in [k for k, (c, _) in self._by_session_seq.items() if c is client]:
+            for key in [k for k, (c, _, _) in self._by_session_seq.items() if c is client]:
                 del self._by_session_seq[key]
         with contextlib.suppress(KeyError, ValueError, OSError):
             self._selector.unregister(client.sock)
@@ -238,20 +251,27 @@ class Hub:
                 return
         rejects = client.decoder.stats.rejects
         for frame in client.decoder.feed(data):
-            self._from_client(client, frame.message, frame.seq, frame.inner)
+            self._from_client(client, frame.message, frame.seq, frame.inner, frame.flags)
         client.rejects += client.decoder.stats.rejects - rejects
         if client.rejects > MAX_REJECTS:
             self._drop(client)
 
-    def _from_client(self, client: _Client, message: Message, seq: int, inner: bytes) -> None:
+    def _from_client(self, client: _Client, message: Message, seq: int, inner: bytes, flags: int = 0) -> None:
         if isinstance(message, m.Hello):
             hello = self.session.agent_hello
             with self._lock:
                 client.hello_seen = True
+                client.tool = one_line(message.name) or client.tool
                 if hello is not None:
                     client.outbuf += client.encoder.encode(hello).wire
+        elif isinstance(message, m.Text) and flags & GROUND_FLAG:
+            request = parse_ground_text(message.text, (ACK_REQUEST,))
+            if request is not None and self.acknowledge is not None:
+                line = self.acknowledge(client.tool)
+                with self._lock:
+                    client.queue(m.Text(t_us=time.time_ns() // 1000, severity=1, text=line))
         elif isinstance(message, m.Text):
-            self.session.mark(message.text)
+            self.session.mark(message.text, by=client.tool)
             self.markers += 1
             reply = m.Text(t_us=time.time_ns() // 1000, severity=1, text=MARKER_CONFIRMATION)
             with self._lock:
@@ -319,7 +339,7 @@ class Hub:
             if session_seq is None:
                 return  # the link is down; the client's retry will try again
             client.in_flight[(message.MSG_ID, seq)] = time.monotonic()
-            self._by_session_seq[(message.MSG_ID, session_seq)] = (client, seq)
+            self._by_session_seq[(message.MSG_ID, session_seq)] = (client, seq, message)
             self._by_client_seq[key] = (session_seq, None)
             for table in (self._by_session_seq, self._by_client_seq):
                 while len(table) > FORWARDED_MEMORY:

@@ -38,6 +38,7 @@ class HubClient:
     decoder: StreamDecoder = field(default_factory=StreamDecoder)
     outbuf: bytearray = field(default_factory=bytearray)
     hello_seen: bool = False
+    tool: str = "a tool"  # its HELLO's name ("dive target", "foxglove"): who the run pane says sent a command
     rejects: int = 0
     in_flight: OrderedDict[tuple[int, int], float] = field(default_factory=OrderedDict)  # (msg id, seq) -> sent
     verifier: SignatureVerifier | None = field(default=None, repr=False)

@@ -70,11 +70,16 @@ class RunStatus:
     hub: str = ""  # hub://RUN once local tools can attach
     ends: list[tuple[int, str, float]] = field(default_factory=list)  # (episode, outcome, duration s) in order
     agent: AgentStatus = field(default_factory=AgentStatus)  # what the status line shows of the agent
+    alarm_flag: str = ""  # the status line's alarm field (run/alarms.py: until acknowledged)
+    stopped: str = ""  # what the run found the agent doing when it was stopped, and what it did about it
 
     @property
     def completed(self) -> int:
         """Episodes that used the run's budget: an aborted one (a pause, a surface) does not, as on the agent."""
         return self.successes + self.failures
+
+
+ECHO = "> "  # how the run pane's echo of a command, marker or acknowledgement begins (cli/progress.py styles it)
 
 
 class _Progress:
@@ -110,6 +115,13 @@ class _Progress:
             self.status.link = event.data.get("link", {})
         elif event.kind in (EventKind.LINK_LOST, EventKind.LINK_RESTORED, EventKind.RESYNCED, EventKind.ERROR):
             self.status.messages.append(f"{event.kind}: {event.detail}")
+        elif event.kind in (EventKind.COMMAND, EventKind.ALARM_ACK):
+            self.status.messages.append(f"{ECHO}{event.detail}")  # a tool's command (run/echo.py), an acknowledgement
+            if event.data.get("accepted") and "target_depth_m" in event.data:
+                self.status.agent.target_m = event.data["target_depth_m"]
+        elif event.kind == EventKind.MARKER:
+            by = event.data.get("by")
+            self.status.messages.append(f"{ECHO}{by or 'the run'}: mark {event.detail!r}")
         if event.kind in (EventKind.LINK_LOST, EventKind.LINK_RESTORED, EventKind.CONNECTED):
             self.status.link_up = event.kind != EventKind.LINK_LOST
         self.changed.set()
@@ -249,6 +261,23 @@ class _AgentWatch:
         return beat
 
 
+def _stop_agent(session: Session, depth: float | None) -> str:
+    """CMD_STOP to an agent left learning, hovering or paused; the line saying what it was doing and what came of it
+    ("the agent was RECOVERING at 0.68 m: CMD_STOP accepted, it surfaces")."""
+    beat = session.last_heartbeat
+    mode = Mode(beat.mode) if beat is not None and beat.mode in Mode._value2member_map_ else None
+    was = f"the agent was {mode.name if mode is not None else 'in an unknown mode'}" + \
+        (f" at {depth:.2f} m" if depth is not None else "")
+    try:
+        session.command(m.Stop())
+    except (CommandError, LinkError) as e:
+        # the recording is what matters now; an agent surfaces on link loss when surface_on_link_loss is set
+        return f"{was}: CMD_STOP not answered ({one_line(str(e))}); check it with dive status"
+    if mode in (Mode.IDLE, Mode.SURFACING):
+        return f"{was}: CMD_STOP accepted, nothing to stop"
+    return f"{was}: CMD_STOP accepted, it surfaces (SURFACING)"
+
+
 @dataclass(frozen=True, slots=True)
 class RunResult:
     paths: list[Path]
@@ -276,10 +305,12 @@ def _announce(info: RunInfo, recorder: Recorder) -> RunInfo:
 
 
 def run(config: RunConfig, on_progress: Callable[[RunStatus], None] | None = None,
-        stop: threading.Event | None = None, listeners: Sequence[SessionListener] = ()) -> RunResult:
+        stop: threading.Event | None = None, listeners: Sequence[SessionListener] = (),
+        ack: threading.Event | None = None) -> RunResult:
     """Run the main job; Ctrl-C (KeyboardInterrupt) or `stop` ends it early with a complete recording.
 
-    `listeners` get the session's traffic too (the live Rerun view is one).
+    `listeners` get the session's traffic too (the live Rerun view is one); `ack`, once set, acknowledges the
+    alarms (the run pane's key), as a tool's `dive ack` does through the hub.
     """
     stop = stop or threading.Event()
     target = config.recorder.first_file
@@ -312,6 +343,8 @@ def run(config: RunConfig, on_progress: Callable[[RunStatus], None] | None = Non
             status.hub = f"hub://{announced.run}"
         alarms = Alarms(session, status.messages.append, config.alarms)
         session.add_listener(alarms)
+        if hub is not None:
+            hub.acknowledge = alarms.acknowledge
         if on_progress is not None:
             on_progress(status)  # connected: the display stops waiting for a (compiling) virtual agent
         values = dict(config.params)
@@ -323,6 +356,9 @@ def run(config: RunConfig, on_progress: Callable[[RunStatus], None] | None = Non
         for name, value in values.items():
             session.set_param(name, value)
         recorder.set_parameters(session.params.values())
+        for name in ("target_depth_m", "success_time_s"):  # the status line's target and success time
+            if name in session.params:
+                status.agent.param(name, session.params.get(name).value)
         watch = _AgentWatch(session, config.episodes, status)
         watch.hub = hub
         watch.start()
@@ -331,6 +367,10 @@ def run(config: RunConfig, on_progress: Callable[[RunStatus], None] | None = Non
                 progress.changed.wait(0.2)
                 progress.changed.clear()
                 alarms.check()
+                if ack is not None and ack.is_set():
+                    ack.clear()
+                    alarms.acknowledge("the run pane (key a)")
+                status.alarm_flag = alarms.flag()
                 if announced is not None and str(recorder.paths[-1] if recorder.paths else "") != \
                         announced.recording:
                     announced = _announce(announced, recorder)
@@ -345,10 +385,7 @@ def run(config: RunConfig, on_progress: Callable[[RunStatus], None] | None = Non
         # stops too, as on Ctrl-C, rather than learn on with nobody recording (issue 25 M3).
         broken = recorder.failure is not None or session.listeners.failure is not None
         if (interrupted or stop.is_set() or broken) and session.failure is None:
-            try:
-                session.command(m.Stop())
-            except (CommandError, LinkError):
-                pass  # the recording is what matters now; the agent surfaces on link loss anyway
+            status.stopped = _stop_agent(session, status.agent.depth_m)
         elif config.episodes and status.completed >= config.episodes and session.failure is None:
             watch.stop_if_still_learning()
         missing = session.request_backfill(config.backfill_wait_s, final=True)

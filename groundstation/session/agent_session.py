@@ -74,9 +74,9 @@ class Session(ReceiveLoop):
     def add_listener(self, listener: SessionListener) -> None:
         self.listeners.add(listener)
 
-    def mark(self, text: str) -> None:
-        """A user marker: goes to every listener (the recorder writes it to /marker)."""
-        self._emit(LinkEvent(EventKind.MARKER, time.time_ns(), text, {"text": text}))
+    def mark(self, text: str, by: str = "") -> None:
+        """A user marker: goes to every listener (the recorder writes it to /marker); `by`: the tool it came from."""
+        self._emit(LinkEvent(EventKind.MARKER, time.time_ns(), text, {"text": text, **({"by": by} if by else {})}))
 
     # ------------------------------------------------------------------ commands
     def command(self, message: Message, timeout_s: float | None = None) -> m.Ack:

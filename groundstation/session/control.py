@@ -36,8 +36,8 @@ HINTS: dict[tuple[str, str], str] = {
     ("CMD_SET_TARGET", "LEARNING"): "it is learning: dive pause, then dive target DEPTH, then dive resume",
     ("CMD_RESET_MODEL", "LEARNING"): "it is learning: pause or stop first: dive pause, or dive stop",
     ("PARAM_SET", "LEARNING"): "pause first: dive pause, set it, then dive resume",
-    ("PARAM_SET", "RECOVERING"): "stop first: dive stop (or dive pause), set it, then dive start",
-    ("PARAM_SET", "PAUSED"): "stop first: dive stop, set it, then dive start",
+    # SPEC s. 13: a learner parameter is refused in LEARNING and RECOVERING, never in PAUSED: pausing is enough
+    ("PARAM_SET", "RECOVERING"): "pause first: dive pause, set it, then dive resume",
 }
 
 

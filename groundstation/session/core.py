@@ -43,6 +43,7 @@ class SessionConfig:
     fetch_params: bool = True
     node_id: int = field(default_factory=lambda: int.from_bytes(os.urandom(4), "little"))
     key: bytes | None = field(default=None, repr=False)  # signing key: every frame sent is signed (SPEC s. 12)
+    name: str = "dive"  # our HELLO's name: a run's hub names the tool a command came from by it ("dive target")
 
 
 
@@ -104,15 +105,17 @@ class SessionCore:
         self._param_updates = 0
 
     # ------------------------------------------------------------------ commands out
-    def send(self, message: Message, *, wait: bool = True, timeout_s: float | None = None) -> m.Ack | None:
-        """Send a message; a command is retried with the same bytes and seq until ACKed.
+    def send(self, message: Message, *, wait: bool = True, timeout_s: float | None = None,
+             flags: int = 0) -> m.Ack | None:
+        """Send a message; a command is retried with the same bytes and seq until ACKed. `flags`: frame flags of
+        ours (a tool's request to its run's hub is flagged as the ground's: links/hub_events.py).
 
         With wait, returns the ACK and raises CommandError on a NACK, CommandTimeout without an ACK.
         """
         now = time.monotonic()
         ack_timeout_s = self._ack_timeout_s()
         with self._send_lock:
-            encoded = self.encoder.encode(message)
+            encoded = self.encoder.encode(message, flags)
             if isinstance(message, m.Hello):
                 # Counted under the send lock, with the bytes: a command's bytes then leave wholly before or after
                 # this HELLO, and its written_in says which (counted outside, a command written just before it
@@ -194,7 +197,7 @@ class SessionCore:
     def _send_hello(self) -> None:
         self._hello_resend_s = time.monotonic() + HELLO_RESEND_S
         self._hello_tries += 1
-        self.send(ground_hello(self.config.node_id, self._boot_id))
+        self.send(ground_hello(self.config.node_id, self._boot_id, self.config.name))
 
     def _write(self, message: Message, seq: int, wire: bytes, retry: bool = False) -> None:
         self.link.send(wire)

@@ -27,8 +27,14 @@ class Dump:
         return list(struct.unpack(f"<{count}{code}", self.data[: count * struct.calcsize(code)]))
 
     def as_dict(self) -> dict[str, object]:
-        return {"dump_id": self.dump_id, "episode": self.episode, "kind": self.kind.name.lower(),
-                "values": self.values()}
+        """As JSON has it (`dive dump`, the recording's /dump topics): a float32 as the shortest number that is the
+        same float32 (-3.2, not -3.200000047683716), as the agent stored it."""
+        values = self.values()
+        if _LAYOUT.get(self.kind) == "f":
+            import numpy as np  # here: the session's other paths do not need it
+
+            values = [float(str(v)) for v in np.asarray(values, dtype=np.float32)]
+        return {"dump_id": self.dump_id, "episode": self.episode, "kind": self.kind.name.lower(), "values": values}
 
 
 @dataclass

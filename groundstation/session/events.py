@@ -23,6 +23,9 @@ class EventKind(StrEnum):
     MARKER = "marker"  # a user marker (dive mark, or a key in the live run)
     STATS = "stats"  # 1 Hz link statistics (data: LinkStats.snapshot(), clock model)
     ALARM = "alarm"  # something the operator must see now (groundstation/run/alarms.py)
+    ALARM_CLEARED = "alarm_cleared"  # an alarm's condition has ended (past its hysteresis)
+    ALARM_ACK = "alarm_ack"  # the operator acknowledged the alarms (dive ack, a key in the run pane)
+    COMMAND = "command"  # an operator's command from a tool through the run's hub, with its answer (run/hub.py)
 
 
 class Received(NamedTuple):

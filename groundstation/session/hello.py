@@ -7,6 +7,8 @@ from importlib.metadata import PackageNotFoundError, version
 from protocol import PROTOCOL_VERSION, NodeKind, definitions_hash
 from protocol import messages as m
 
+NAME_BYTES = 23  # HELLO.name is char[24], NUL-terminated when shorter
+
 
 def tool_version() -> str:
     try:
@@ -15,12 +17,13 @@ def tool_version() -> str:
         return "0.0.0"
 
 
-def ground_hello(node_id: int, boot_id: int) -> m.Hello:
+def ground_hello(node_id: int, boot_id: int, name: str = "dive") -> m.Hello:
     """The ground station's HELLO: protocol version, definitions hash, and dive's version as firmware x.y.z."""
     major, minor, patch = (int(x) if x.isdigit() else 0 for x in (tool_version().split(".") + ["0"] * 3)[:3])
     return m.Hello(protocol_version=PROTOCOL_VERSION, node_kind=int(NodeKind.GROUND),
                    definitions_hash=definitions_hash(), firmware_major=major, firmware_minor=minor,
-                   firmware_patch=patch, node_id=node_id, boot_id=boot_id, name="dive")
+                   firmware_patch=patch, node_id=node_id, boot_id=boot_id,
+                   name=name.encode()[:NAME_BYTES].decode(errors="ignore"))
 
 
 def incompatibility(hello: m.Hello) -> str | None:

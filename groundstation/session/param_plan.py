@@ -76,9 +76,9 @@ def plan(table: ParamTable, values: dict[str, str]) -> ParamPlan:
     return result
 
 
+# SPEC s. 13: parameters are refused in LEARNING and RECOVERING only, never in PAUSED: pausing is enough (README)
 _WHAT_TO_DO = {Mode.LEARNING: "pause first (dive pause), set them, then dive resume",
-               Mode.RECOVERING: "stop first (dive stop), set them, then dive start",
-               Mode.PAUSED: "stop first (dive stop), set them, then dive start"}
+               Mode.RECOVERING: "pause first (dive pause), set them, then dive resume"}
 
 
 def mode_refusal(names: list[str], mode: int) -> ParameterError:

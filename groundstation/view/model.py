@@ -23,7 +23,7 @@ from groundstation.view.heatmap import (
     value_image,
     value_range,
 )
-from protocol import Action, DumpKind, EndReason, FrameFlag, Message, Severity
+from protocol import Action, DumpKind, EndReason, FrameFlag, Message, Mode, Severity
 from protocol import messages as m
 
 SUCCESS_TIME_S = 300.0  # an episode that lasts this long is a success (paper V-A)
@@ -48,8 +48,8 @@ class Kind(Enum):
 ENTITIES: dict[str, tuple[Kind, str]] = {
     "depth/z_up_m": (Kind.SCALAR, "z up = -depth [m]"),
     "depth/target_z_up_m": (Kind.SCALAR, "target z up [m]"),
-    "depth/region_top_z_up_m": (Kind.SCALAR, "region top z up [m]"),
-    "depth/region_bottom_z_up_m": (Kind.SCALAR, "region bottom z up [m]"),
+    "depth/region_top_z_up_m": (Kind.SCALAR, "learning region [m]"),  # one name: one legend entry for both edges
+    "depth/region_bottom_z_up_m": (Kind.SCALAR, "learning region [m]"),
     "depth/episode_start_z_up_m": (Kind.POINT, "episode start"),
     "depth/episode_success_z_up_m": (Kind.POINT, "success"),
     "depth/episode_failure_z_up_m": (Kind.POINT, "failure"),
@@ -59,13 +59,16 @@ ENTITIES: dict[str, tuple[Kind, str]] = {
     "velocity/bound_max_mps": (Kind.SCALAR, "bound [m/s]"),
     "actuator/actuator_deg": (Kind.SCALAR, "actuator [deg]"),
     "actuator/actuator_cmd_deg": (Kind.SCALAR, "command [deg]"),
-    "action/action": (Kind.POINT, "action (0 less volume, 1 more)"),
+    # One series per action and per mode, named by it: the legend labels them (a plot axis shows only numbers)
+    "action/decrease_volume": (Kind.POINT, "less volume (a1)"),
+    "action/increase_volume": (Kind.POINT, "more volume (a2)"),
     "reward/reward": (Kind.SCALAR, "reward"),
     "battery/battery_v": (Kind.SCALAR, "battery [V]"),
-    "mode/mode": (Kind.POINT, "mode: 0 idle, 1 learning, 2 recovering, 3 hover, 4 surfacing, 5 paused"),
+    **{f"mode/{mode.name.lower()}": (Kind.POINT, mode.name) for mode in Mode},
+    "mode/other": (Kind.POINT, "another mode"),
     "learning_curve/duration_s": (Kind.POINT, "duration [s]"),
     "learning_curve/moving_average_s": (Kind.SCALAR, f"{MOVING_AVERAGE_EPISODES}-episode mean [s]"),
-    "learning_curve/success_line_s": (Kind.SCALAR, f"{SUCCESS_TIME_S:.0f} s"),
+    "learning_curve/success_line_s": (Kind.SCALAR, f"success time ({SUCCESS_TIME_S:.0f} s)"),
     "learning_curve_by_episode/duration_s": (Kind.BARS, "duration [s] per episode"),
     "value_function/image": (Kind.IMAGE, "v(s)"),
     "value_function/current_cell": (Kind.BOX, "agent"),
@@ -80,6 +83,10 @@ ENTITIES: dict[str, tuple[Kind, str]] = {
     "log/events": (Kind.TEXT, "episodes and link"),
 }
 TIMELINES = ("agent_time", "host_time", "episode", "step")
+_STATE_ENTITIES = ("value_function", "policy", "learning_curve_by_episode")  # what keep_state keeps the last of
+_MODE_PATHS = {int(mode): f"mode/{mode.name.lower()}" for mode in Mode}
+_ACTION_PATHS = {int(Action.DECREASE_VOLUME): "action/decrease_volume",
+                 int(Action.INCREASE_VOLUME): "action/increase_volume"}
 _OUTCOME: dict[int, str] = {EndReason.SUCCESS: "success", EndReason.FAILURE: "failure", EndReason.ABORTED: "aborted"}
 _LEVELS: dict[int, str] = {Severity.DEBUG: "DEBUG", Severity.INFO: "INFO", Severity.WARNING: "WARN",
                            Severity.ERROR: "ERROR"}  # rerun's TextLog level names
@@ -142,6 +149,19 @@ class ViewModel:
         batch, self._batch = self._batch, {}
         return batch
 
+    def keep_state(self) -> None:
+        """Drop the rows so far but the state a replay window opens on (`dive replay --from`): the latest value and
+        policy heatmaps with their axes, the learning curve by episode, and the curve over agent time (one row per
+        episode). Their times are the last ones before the window: the viewer shows them at its start."""
+        batch, self._batch = self._batch, {}
+        for path, rows in batch.items():
+            if path.startswith("learning_curve/"):
+                self._batch[path] = rows
+            elif path.split("/")[0] in _STATE_ENTITIES and rows.values:
+                last = len(rows) - 1
+                self._batch[path] = Rows([rows.agent_time_s[last]], [rows.host_time_ns[last]], [rows.episode[last]],
+                                         [rows.step[last]], [rows.values[last]])
+
     def _row(self, path: str, value: Any, host_time_ns: int) -> None:
         rows = self._batch.get(path)
         if rows is None:
@@ -173,7 +193,7 @@ class ViewModel:
             if not replayed:  # the agent's state now, once a second: the battery and mode panels
                 self._agent_time_s = message.uptime_ms / 1e3
                 self._row("battery/battery_v", message.battery_mv / 1e3, host_time_ns)
-                self._row("mode/mode", float(message.mode), host_time_ns)
+                self._row(_MODE_PATHS.get(message.mode, "mode/other"), float(message.mode), host_time_ns)
         elif isinstance(message, m.ParamValue):
             self._dumps.saw_parameter(message.name, message.value)  # the grid bounds a dump's size
             if message.name in self._grid_params and math.isfinite(message.value) and message.value > 0:
@@ -212,8 +232,8 @@ class ViewModel:
         self._row("actuator/actuator_deg", s.actuator_deg, host_time_ns)
         self._row("actuator/actuator_cmd_deg", s.actuator_cmd_deg, host_time_ns)
         self._row("reward/reward", s.reward, host_time_ns)
-        if s.action != Action.NONE:
-            self._row("action/action", float(s.action), host_time_ns)
+        if s.action in _ACTION_PATHS:
+            self._row(_ACTION_PATHS[s.action], float(s.action), host_time_ns)
         region = self._region
         if region is not None:
             self._row("depth/target_z_up_m", -region.target_depth_m, host_time_ns)
@@ -263,9 +283,10 @@ class ViewModel:
         rows("actuator/actuator_cmd_deg", records["actuator_cmd_deg"].tolist())
         rows("reward/reward", records["reward"].tolist())
         actions = records["action"]
-        acted = np.flatnonzero(actions != Action.NONE).tolist()
-        if acted:
-            rows("action/action", actions[acted].astype(np.float64).tolist(), acted)
+        for action, path in _ACTION_PATHS.items():
+            acted = np.flatnonzero(actions == action).tolist()
+            if acted:
+                rows(path, [float(action)] * len(acted), acted)
         region = self._region
         if region is not None:
             for path, value in (("depth/target_z_up_m", -region.target_depth_m),

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import re
 import time
@@ -57,6 +58,7 @@ class Item:
     episode: int | None
     feed: Callable[[ViewModel], None]
     setup: bool = False  # state the view needs whatever the window (a parameter: the grid's size), no rows
+    before: bool = False  # before the window: fed for the state it leaves (dumps, learning curve), not shown
 
 
 def _decode(inner: bytes) -> tuple[Message, int] | None:
@@ -167,6 +169,7 @@ def select(items: Iterator[Item], start: Bound | None, end: Bound | None,
             (start.episode is not None and episode < start.episode)
             or (start.offset_s is not None and offset_s < start.offset_s)
         ):
+            yield dataclasses.replace(item, before=True)  # for the heatmaps and curve the window opens on
             continue
         if end is not None and end.episode is not None and episode > end.episode:
             break
@@ -180,11 +183,21 @@ def select(items: Iterator[Item], start: Bound | None, end: Bound | None,
 def convert(items: Iterator[Item], progress: Callable[[int], None] | None = None) -> tuple[Batch, int]:
     """Feed everything to one model and return all its rows at once (for columnar logging) and the item count."""
     model = ViewModel()
-    count = 0
-    for count, item in enumerate(items, 1):  # noqa: B007 (count is the result)
+    count, seen, before = 0, 0, False
+    for seen, item in enumerate(items, 1):  # noqa: B007
+        if item.before:
+            item.feed(model)
+            before = True
+            continue
+        if before:  # the window opens on the latest heatmaps and the learning curve so far, not on nothing
+            model.keep_state()
+            before = False
         item.feed(model)
-        if progress is not None and count % 4096 == 0:
-            progress(count)
+        count += 1
+        if progress is not None and seen % 4096 == 0:
+            progress(seen)
+    if before:
+        model.take()  # all before the window: nothing to show
     return model.take(), count
 
 
@@ -257,7 +270,10 @@ def play(items: Iterator[Item], sink: Callable[[Callable[[ViewModel], None]], No
     origin_agent_s: float | None = None
     origin_wall = time.monotonic()
     count = 0
-    for count, item in enumerate(items, 1):  # noqa: B007 (count is the result)
+    for item in items:
+        if item.before:
+            continue  # played in time from the window's start (its state would be sent unpaced: not here)
+        count += 1
         if item.agent_time_s is not None:
             if origin_agent_s is None:
                 origin_agent_s, origin_wall = item.agent_time_s, time.monotonic()

@@ -19,7 +19,7 @@ from rerun.encodings import TimeInt
 from groundstation.session.events import LinkEvent, Received, Sent
 from groundstation.view.errors import ViewError
 from groundstation.view.heatmap import AXIS_COLOUR, DEFAULT_GRID, SWATCH_RADIUS, Bounds, Frame, bounds, default_grid
-from groundstation.view.model import ENTITIES, MOVING_AVERAGE_EPISODES, SUCCESS_TIME_S, Batch, Kind, Rows, ViewModel
+from groundstation.view.model import ENTITIES, Batch, Kind, Rows, ViewModel
 from groundstation.view.options import Viewer
 from groundstation.view.web_server import WebViewerServer, rerun_executable
 
@@ -38,6 +38,8 @@ SERIES_COLOURS: dict[str, tuple[int, int, int]] = {
     "velocity/bound_max_mps": (150, 150, 150),
     "actuator/actuator_deg": (40, 120, 220),
     "actuator/actuator_cmd_deg": (150, 150, 150),
+    "action/decrease_volume": (230, 120, 30),
+    "action/increase_volume": (40, 120, 220),
     "link/loss_ratio": (230, 60, 60),
     "link/rtt_s": (40, 120, 220),
     "link/backfilled_samples": (200, 160, 40),
@@ -121,38 +123,37 @@ def _heatmap_view(origin: str, name: str, layout: Layout) -> rrb.Spatial2DView:
                              visual_bounds=rrb.VisualBounds2D(x_range=(b.x_min, b.x_max), y_range=(b.y_min, b.y_max)))
 
 
-# Rerun draws a plot's legend inside the plot, over the data, whatever its corner: every plot hides it and its
-# title names each series (by the colour SERIES_COLOURS gives it).
-_NO_LEGEND = rrb.PlotLegend(visible=False)
+# Each series is named (model.ENTITIES, sent by send_styles) and the legend shows the names: titles say what a panel
+# is, never which colour is which (colour words were cut off at normal widths: "grey learning regi"). The legend
+# sits in the top left corner, where the plots' newest data (at the right) does not go.
+_LEGEND = rrb.PlotLegend(visible=True, corner=rrb.Corner2D.LeftTop)
+_NO_LEGEND = rrb.PlotLegend(visible=False)  # one series, named by the title
 
 
-def _plot(origin: str, name: str, **options: Any) -> rrb.TimeSeriesView:
-    return rrb.TimeSeriesView(origin=origin, name=name, plot_legend=_NO_LEGEND, **options)
+def _plot(origin: str, name: str, legend: bool = True, **options: Any) -> rrb.TimeSeriesView:
+    return rrb.TimeSeriesView(origin=origin, name=name, plot_legend=_LEGEND if legend else _NO_LEGEND, **options)
 
 
 def blueprint(layout: Layout | None = None) -> rrb.Blueprint:
     """The shipped layout: time series on the left; learning curve, heatmaps (the most room) and logs on the right."""
     layout = layout or Layout()
     series = rrb.Vertical(
-        _plot("depth", "Depth drawn downward: z up = -depth [m] (surface 0): blue z, green target, grey learning "
-                       "region; dots: green episode start or success, red failure, amber aborted"),
-        _plot("velocity", "Velocity [m/s]: blue velocity, grey bounds",
-              axis_y=rrb.ScalarAxis(range=layout.velocity_range_mps())),
-        _plot("actuator", "Actuator [deg]: blue position, grey command"),
-        _plot("action", "Action (0 less volume, 1 more)"),
-        _plot("reward", "Reward"),
-        _plot("link", "Link: red loss ratio, blue RTT [s], amber backfilled samples"),
+        _plot("depth", "Depth drawn downward (z up = -depth) [m]"),
+        _plot("velocity", "Velocity [m/s]", axis_y=rrb.ScalarAxis(range=layout.velocity_range_mps())),
+        _plot("actuator", "Actuator [deg]"),
+        _plot("action", "Learner's action"),
+        _plot("reward", "Reward", legend=False),
+        _plot("link", "Link"),
         rrb.Horizontal(
-            _plot("battery", "Battery [V]"),
-            _plot("mode", "Mode (0 idle 1 learn 2 recover 3 hover 4 surface 5 pause)"),
+            _plot("battery", "Battery [V]", legend=False),
+            _plot("mode", "Mode"),
         ),
     )
     right = rrb.Vertical(
         rrb.Horizontal(
             rrb.BarChartView(origin="learning_curve_by_episode", name="Learning curve: duration [s] by episode number",
                              plot_legend=_NO_LEGEND),
-            _plot("learning_curve", f"Episode durations [s] over agent time: blue dots, orange "
-                  f"{MOVING_AVERAGE_EPISODES}-episode mean, green {SUCCESS_TIME_S:.0f} s success line"),
+            _plot("learning_curve", "Episode durations [s] over agent time"),
         ),
         rrb.Horizontal(
             _heatmap_view("value_function", "Value function v(depth down, velocity)", layout),

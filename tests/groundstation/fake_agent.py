@@ -26,8 +26,9 @@ class FakeAgent:
     """Streams SAMPLEs, an episode every `episode_len` samples, keeps an on-board log, answers commands."""
 
     def __init__(self, *, period_s: float = 0.005, episode_len: int = 20, protocol_version: int = 1,
-                 defs_hash: int | None = None, drop_every: int = 0) -> None:
+                 defs_hash: int | None = None, drop_every: int = 0, depth_step_m: float = 0.001) -> None:
         self.period_s = period_s
+        self.depth_step_m = depth_step_m  # an episode's depth climbs this much a step from 0.5 m
         self.last_dump_id = 6  # snapshot ids count up from 7
         self.episode_len = episode_len
         self.protocol_version = protocol_version
@@ -267,7 +268,8 @@ class FakeAgent:
                                                         target_depth_m=0.5, z_tol_m=0.1, zdot_tol_mps=0.05,
                                                         p_explore=0.1)))
             out.append((self.sample, m.Sample(t_us=t_us, sample=self.sample, episode=self.episode, step=step,
-                                              pressure_pa=106000.0, depth_m=0.5 + 0.001 * step, velocity_mps=0.01,
+                                              pressure_pa=106000.0, depth_m=0.5 + self.depth_step_m * step,
+                                              velocity_mps=0.01,
                                               actuator_deg=65.0, actuator_cmd_deg=65.0, reward=-1.0, state=50,
                                               action=step % 2, mode=int(Mode.LEARNING))))
             step += 1

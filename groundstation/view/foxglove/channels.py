@@ -11,9 +11,12 @@ from typing import Any, TypeVar
 import foxglove
 
 from groundstation.links.hub import MARKER_CONFIRMATION
+from groundstation.links.hub_events import ACK_ANSWERS
+from groundstation.mcap_io import RAW_ENCODING
 from groundstation.recording.recorder import body_json, dump_topic, event_topic, message_json, message_topic
 from groundstation.session.dumps import Dump, DumpAssembler
 from groundstation.session.events import LinkEvent, Received, Sent
+from groundstation.view.foxglove import console
 from groundstation.view.foxglove.history import Body, ChannelHistory, FoxgloveHistoryConfig
 from groundstation.view.foxglove.images import DumpImages
 from protocol import Message
@@ -22,15 +25,21 @@ from protocol.cobs import cobs_decode
 
 
 class MarkerWatch:
-    """A session listener on a run's hub that notes its confirmation of a marker (`mark` service)."""
+    """A session listener on a run's hub that notes its confirmation of a marker (`mark` service) and its answer to
+    an acknowledgement of its alarms (`ack` service)."""
 
     def __init__(self) -> None:
         self.confirmed = threading.Event()
+        self.acknowledged = threading.Event()
+        self.ack_answer = ""
 
     def on_received(self, received: Received) -> None:
         msg = received.frame.message
         if isinstance(msg, m.Text) and msg.text == MARKER_CONFIRMATION:
             self.confirmed.set()
+        elif isinstance(msg, m.Text) and msg.text.startswith(ACK_ANSWERS):
+            self.ack_answer = msg.text
+            self.acknowledged.set()
 
     def on_sent(self, sent: Sent) -> None:
         pass
@@ -40,6 +49,7 @@ class MarkerWatch:
 
 
 _Method = TypeVar("_Method", bound=Callable[..., None])
+_RAW_SCHEMA = "diving_agent.frame"  # a raw frame: version, flags, seq, id, payload, CRC (protocol/SPEC.md s. 3)
 
 
 def _publishing(method: _Method) -> _Method:
@@ -87,15 +97,19 @@ class FoxgloveChannels:
         self._on_parameter = on_parameter
         self._on_failure = on_failure
         self.failure: str | None = None
+        self._times = console.LogTimes()  # the agent's clock, mapped to the host's, as log time (console.py)
 
-    def channel(self, topic: str, schema_name: str, schema: dict[str, Any]) -> foxglove.Channel:
-        """The channel of `topic`, advertised to clients the first time it is asked for."""
+    def channel(self, topic: str, schema_name: str, schema: dict[str, Any] | None) -> foxglove.Channel:
+        """The channel of `topic`, advertised to clients the first time it is asked for; no `schema`: the raw frames
+        (/raw/rx, /raw/tx), in the recording's own encoding, as its MCAP file holds them."""
         with self._lock:
             found = self._channels.get(topic)
             if found is None:
-                data = json.dumps(schema).encode()
-                found = foxglove.Channel(topic, message_encoding="json", context=self._context,
-                                         schema=foxglove.Schema(name=schema_name, encoding="jsonschema", data=data))
+                data = json.dumps(schema).encode() if schema is not None else b""
+                found = foxglove.Channel(topic, message_encoding="json" if schema is not None else RAW_ENCODING,
+                                         context=self._context, schema=foxglove.Schema(
+                                             name=schema_name, encoding="jsonschema" if schema is not None else "",
+                                             data=data))
                 self._channels[topic] = found
             return found
 
@@ -106,7 +120,7 @@ class FoxgloveChannels:
     # ------------------------------------------------------------------ the session's side (its reader thread)
     @_publishing
     def on_received(self, received: Received) -> None:
-        frame, host_ns, _agent_ns, backfilled, after_end = received
+        frame, host_ns, agent_ns, backfilled, after_end = received
         if after_end:
             return  # from after the run's end: not in the decoded recording either (Session.request_backfill)
         msg = frame.message
@@ -116,9 +130,17 @@ class FoxgloveChannels:
             topic, schema_name, schema = message_topic("/agent", cls)
             found = self._rx[cls] = (self.channel(topic, schema_name, schema), topic)
         channel, topic = found
+        log_ns = self._times.of(topic, host_ns, agent_ns)
         # at --speed max thousands of SAMPLEs a second: encoded only for a subscriber, now or later (history)
-        self._send(channel, topic, host_ns, functools.partial(message_json, msg, frame.seq, frame.flags, backfilled))
+        self._send(channel, topic, log_ns, functools.partial(message_json, msg, frame.seq, frame.flags, backfilled))
+        self._send(self.channel("/raw/rx", _RAW_SCHEMA, None), "/raw/rx", log_ns,
+                   functools.partial(bytes, frame.inner))
+        if isinstance(msg, m.Text):
+            self._log(functools.partial(console.agent_log, msg, log_ns), log_ns)
         if isinstance(msg, m.ParamValue):
+            self._send(self.channel(console.PARAMETER_INFO_TOPIC, console.PARAMETER_INFO_SCHEMA_NAME,
+                                    console.PARAMETER_INFO_SCHEMA), console.PARAMETER_INFO_TOPIC, host_ns,
+                       functools.partial(console.parameter_info, msg))
             self._dumps.saw_parameter(msg.name, msg.value)
             self.images.saw_parameter(msg.name, msg.value)
             if self._on_parameter is not None:
@@ -142,15 +164,24 @@ class FoxgloveChannels:
             topic, schema_name, schema = message_topic("/ground", cls)
             found = self._tx[cls] = (self.channel(topic, schema_name, schema), topic)
         channel, topic = found
-        flags = cobs_decode(sent.wire[:-1])[1]  # as the recorder takes them: the frame's flags byte
+        inner = cobs_decode(sent.wire[:-1])  # as the recorder takes them: the frame, its flags byte
         self._send(channel, topic, sent.host_time_ns,
-                   functools.partial(message_json, sent.message, sent.seq, flags, False))
+                   functools.partial(message_json, sent.message, sent.seq, inner[1], False))
+        self._send(self.channel("/raw/tx", _RAW_SCHEMA, None), "/raw/tx", sent.host_time_ns,
+                   functools.partial(bytes, inner))
 
     @_publishing
     def on_event(self, event: LinkEvent) -> None:
         topic, schema_name, schema, body = event_topic(event)
         self._send(self.channel(topic, schema_name, schema), topic, event.host_time_ns,
                    functools.partial(bytes, body_json(body)))
+        if event.kind not in console.NOT_LOGGED:
+            self._log(functools.partial(console.event_log, event), event.host_time_ns)
+
+    def _log(self, body: Callable[[], bytes | None], log_ns: int) -> None:
+        """A line on /log (foxglove.Log), for Foxglove's Log panel."""
+        channel = self.channel(console.LOG_TOPIC, console.LOG_SCHEMA_NAME, console.LOG_SCHEMA)
+        self._send(channel, console.LOG_TOPIC, log_ns, lambda: body() or b"")
 
     def _send(self, channel: foxglove.Channel, topic: str, host_ns: int, body: Body) -> None:
         """Kept for later subscribers, and sent to the clients whose replay is done (each to its own sink): never

@@ -102,8 +102,9 @@ class FoxgloveLive:
         publishes from its own session instead (self.channels is one of its listeners). Through a hub the run
         backfills for every tool: no LOG_REQUESTs of our own."""
         listeners: list[SessionListener] = [self.markers, *([self.channels] if publish else [])]
-        session = Session(make_link(url), SessionConfig(key=key, backfill=not url.startswith("hub://")),
-                          listeners=listeners)
+        # named "foxglove": a run's pane says a command came from it (run/echo.py)
+        session = Session(make_link(url), SessionConfig(key=key, backfill=not url.startswith("hub://"),
+                                                        name="foxglove"), listeners=listeners)
         session.connect()
         if self._closed.is_set():
             session.close()

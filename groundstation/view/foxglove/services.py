@@ -1,4 +1,5 @@
-"""The operator's controls as Foxglove services: surface, hover, start, stop, pause, resume, target, mark and dump.
+"""The operator's controls as Foxglove services: surface, hover, start, stop, pause, resume, target, mark, dump and
+ack (the run's alarms acknowledged, as `dive ack`).
 
 Each answers as its `dive` command does (session/control.py): the agent's ACK, the mode it ends in and the line the
 command prints; a refusal is an answer too (`accepted` false, the line says why and what to do). What is not the
@@ -15,6 +16,7 @@ from typing import Any
 from foxglove import MessageSchema, Schema, Service, ServiceRequest, ServiceSchema
 
 from groundstation.errors import GroundStationError
+from groundstation.links.hub_events import ACK_REQUEST, GROUND_FLAG, ground_text
 from groundstation.session import control
 from groundstation.session.agent_session import Session
 from groundstation.view.foxglove.channels import MarkerWatch
@@ -43,6 +45,7 @@ REQUESTS: dict[str, dict[str, Any]] = {
     "hover": _DEPTH, "target": _DEPTH,
     "mark": {**_OBJECT, "required": ["text"], "properties": {"text": {"type": "string"}}},
     "dump": {**_OBJECT, "properties": {"kind": {"enum": ["values", "policy", "both"], "default": "both"}}},
+    "ack": _OBJECT,
 }
 
 
@@ -98,8 +101,9 @@ class Controls:
                     raise ServiceError("not attached to the agent yet")
                 answer: dict[str, Any] = act(s, body)
             except (GroundStationError, ProtocolError) as e:  # ProtocolError: a request that cannot be framed
-                self._warn(f"{name}: {e}")
-                raise ServiceError(str(e)) from None
+                line = str(e)  # most already name the service ("target: give depth_m ..."): never twice
+                self._warn(line if line.startswith(f"{name}:") else f"{name}: {line}")
+                raise ServiceError(line) from None
             if answer.get("accepted") is False:
                 self._warn(answer["message"])  # the refusal in Foxglove's problems list too
             return json.dumps(answer).encode()
@@ -145,6 +149,18 @@ class Controls:
             raise ServiceError(f"mark: the run did not confirm the marker within {MARK_WAIT_S:g} s")
         return {"command": "mark", "accepted": True, "result": "ACCEPTED", "reason": "", "mode": control.mode_name(s),
                 "message": f"marked in {s.link.url}"}
+
+    def _ack(self, s: Session, body: dict[str, Any]) -> dict[str, Any]:
+        """The run's alarms acknowledged, as `dive ack` does: the flag on its status line goes (run/alarms.py)."""
+        if not s.link.url.startswith("hub://"):
+            raise ServiceError("ack: alarms are a run's; attach to a run (dive view hub://RUN --foxglove)")
+        answered = self._markers.acknowledged
+        answered.clear()
+        s.send(ground_text(ACK_REQUEST, "", {}), wait=False, flags=GROUND_FLAG)
+        if not answered.wait(MARK_WAIT_S):
+            raise ServiceError(f"ack: the run did not answer within {MARK_WAIT_S:g} s")
+        return {"command": "ack", "accepted": True, "result": "ACCEPTED", "reason": "", "mode": control.mode_name(s),
+                "message": self._markers.ack_answer}
 
     def _dump(self, s: Session, body: dict[str, Any]) -> dict[str, Any]:
         """VALUES and POLICY (or one of them) fetched now; each published on /dump/<KIND> and as an image."""

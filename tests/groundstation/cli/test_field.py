@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import socket
 import subprocess
 import sys
@@ -49,6 +50,31 @@ def test_bad_usage_is_exit_2_before_anything_starts(args: list[str], text: str) 
     done = CliRunner().invoke(app, args, env={"COLUMNS": "200"})
     assert done.exit_code == 2 and text in done.stderr, done.stderr
     assert "virtual agent did not start" not in done.stderr and "connecting" not in done.stderr
+
+
+@pytest.mark.parametrize(("args", "text"), [
+    (["run", "--episodes", "-3"], "invalid value for '--episodes': -3 is out of range: from 0 to 4294967295"),
+    (["run", "--web-port", "70000"], "invalid value for '--web-port': 70000 is out of range: from 1 to 65535"),
+    (["view", "--foxglove", "70000"], "invalid value for '--foxglove': 70000 is out of range: from 0 to 65535"),
+])
+def test_a_value_out_of_range_is_the_one_line_the_readme_promises(args: list[str], text: str) -> None:
+    done = dive(*args)
+    assert done.returncode == 2, done.stderr
+    assert done.stderr.splitlines() == [f"dive: {text} (dive {args[0]} -h shows the options)"], done.stderr
+
+
+def test_run_help_is_readable_at_80_columns() -> None:
+    env = {k: v for k, v in os.environ.items() if k not in ("DIVE_URL", "DIVE_KEY_FILE")}
+    done = subprocess.run([*DIVE, "run", "-h"], env={**env, "COLUMNS": "80"}, capture_output=True, text=True,
+                          timeout=60)
+    assert done.returncode == 0, done.stderr
+    lines = done.stdout.splitlines()
+    options = [line for line in lines if line.startswith("│ --")]
+    # the help text starts within the first half of the line: no 41-column option column squeezing it
+    assert options and all(line.index(" ", line.index("--") + 1) < 40 for line in options), options
+    assert not any(re.search(r"\d$", line.rstrip(" │")) and re.match(r"│ +\d", after)
+                   for line, after in zip(lines, lines[1:], strict=False)), done.stdout  # no number split
+    assert len(lines) <= 90, len(lines)  # 159 before issue 40
 
 
 def test_a_web_port_in_use_is_refused_before_the_run_starts() -> None:
@@ -146,11 +172,16 @@ def test_params_save_diff_load_and_run_share_one_toml_format(tmp_path: Path) -> 
         saved.write_text(text.replace("z_tol_m = 0.1", "z_tol_m = 0.25"))
         diff = _cli("params", agent.url, "diff", str(saved))
         assert "z_tol_m: agent 0.1, file 0.25" in diff.stdout and "1 of 7 differ" in diff.stdout
+        assert diff.exit_code == 1  # as diff(1): a script can tell the file differs
         loaded = _cli("params", agent.url, "load", str(saved), "--reset-model")  # z_tol_m restarts the learner
         assert loaded.exit_code == 0 and "z_tol_m = 0.25" in loaded.stdout, loaded.stderr
         assert "0 of 7 differ" in _cli("params", agent.url, "diff", str(saved)).stdout
         action_first = _cli("params", "get", agent.url, "z_tol_m")  # the order people who think "get" first type
         assert action_first.exit_code == 0 and "z_tol_m = 0.25" in action_first.stdout, action_first.stderr
+        pattern = _cli("params", agent.url, "get", "z_*")  # a pattern: every parameter it matches, one a line
+        assert pattern.exit_code == 0 and pattern.stdout.splitlines() == ["z_tol_m = 0.25"], pattern.stdout
+        nothing = _cli("params", agent.url, "get", "nope_*")
+        assert nothing.exit_code == 1 and "no parameter matches 'nope_*'" in nothing.stderr, nothing.stderr
         whole = _cli("params", agent.url, "set", "max_episodes", "3.7")
         assert whole.exit_code == 1 and "3.7 is not a whole number" in whole.stderr
         bad = tmp_path / "bad.toml"

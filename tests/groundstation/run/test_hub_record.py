@@ -48,12 +48,13 @@ def _ground_events(folder: Path) -> tuple[list[str], list[str]]:
 
 @pytest.mark.slow
 def test_a_second_recorder_through_the_hub_records_the_same_samples_markers_and_alarms(tmp_path: Path) -> None:
-    agent = FakeAgent()
+    agent = FakeAgent(depth_step_m=0.01)
     runtime = tmp_path / "runtime"
     env = {**dive_env(runtime), "PYTHONUNBUFFERED": "1"}  # the view's "watching" line as soon as it is said
     try:
-        # the fake agent's depth climbs 0.500 -> 0.519 m in every episode: a depth alarm past 0.51 m, ten a second
-        with running(runtime, agent.url, tmp_path / "run", "--alarm-depth", "0.51") as run:
+        # the fake agent's depth climbs 0.50 -> 0.69 m in every episode: a depth alarm past 0.6 m, cleared below
+        # 0.55 m (its hysteresis) at the next episode's start, ten a second
+        with running(runtime, agent.url, tmp_path / "run", "--alarm-depth", "0.6") as run:
             second = subprocess.Popen([*DIVE, "record", "--out", str(tmp_path / "second"), "--split-mb", "0.05"],
                                       env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
             view = subprocess.Popen([*DIVE, "view", "--viewer", "none", "--rrd", str(tmp_path / "view.rrd")],
@@ -92,7 +93,7 @@ def test_a_second_recorder_through_the_hub_records_the_same_samples_markers_and_
     # one the run said (and recorded), the marker once.
     (run_markers, run_alarms), (markers, alarms) = _ground_events(tmp_path / "run"), _ground_events(tmp_path / "second")
     assert run_markers == markers == ["ballast checked"], (run_markers, markers)
-    assert alarms and set(alarms) <= set(run_alarms) and all("past the 0.51 m limit" in a for a in alarms), alarms
+    assert alarms and set(alarms) <= set(run_alarms) and all("past the 0.6 m limit" in a for a in alarms), alarms
     # and in the view attached beside it, in its event log as the run's own view shows them
     texts = [text for row in component_rows(tmp_path / "view.rrd", "/log/events") for text in row["TextLog:text"]]
     assert "marker: ballast checked" in texts and any(t.startswith("alarm: depth") for t in texts), texts

@@ -54,5 +54,5 @@ def test_the_heatmaps_agree_deeper_cells_sit_lower(replayed: tuple[Traffic, Path
 
 def test_the_panel_names_say_which_way_is_down(replayed: tuple[Traffic, Path]) -> None:
     names = [name for names in blueprint_values(replayed[1], "ViewBlueprint:display_name") for name in names]
-    assert any(name.startswith("Depth drawn downward: z up = -depth [m]") for name in names), names
+    assert "Depth drawn downward (z up = -depth) [m]" in names, names
     assert sum("depth down" in name for name in names) >= 2  # the value and policy heatmaps

@@ -1,4 +1,5 @@
-"""No legend box over the data: every plot hides its legend and its title names each series, read back from a .rrd."""
+"""Legends that are legends (issue 40 item 2): every plot of several series shows Rerun's legend, each series named
+(modes and actions by their names, not numbers), and no title names a colour; read back from a .rrd."""
 
 from __future__ import annotations
 
@@ -7,12 +8,11 @@ from pathlib import Path
 import pytest
 import rerun.chunk as rrc
 
-from groundstation.view.rerun_sink import SERIES_COLOURS, RerunView, ViewConfig
+from groundstation.view.rerun_sink import RerunView, ViewConfig
 from tests.groundstation.rrd_readback import blueprint_values
 from tests.groundstation.synthetic_agent import generate, play_session
 
-COLOUR_NAMES = {(40, 120, 220): "blue", (60, 180, 75): "green", (150, 150, 150): "grey", (230, 60, 60): "red",
-                (200, 160, 40): "amber", (230, 120, 30): "orange", (40, 200, 120): "green"}
+COLOUR_WORDS = ("blue", "green", "grey", "red", "amber", "orange")
 
 
 @pytest.fixture(scope="module")
@@ -23,29 +23,49 @@ def live_rrd(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return out
 
 
-def test_every_plot_hides_its_legend(live_rrd: Path) -> None:
-    """In each blueprint sent: every time series and bar chart view has a PlotLegend property, and it is hidden."""
+def _static_names(path: Path) -> dict[str, list[str]]:
+    """Entity -> the series names logged for it once (SeriesLines / SeriesPoints names)."""
+    names: dict[str, list[str]] = {}
+    for chunk in rrc.RrdReader(path).stream().collect().stream():
+        if not chunk.is_static:
+            continue
+        batch = chunk.to_record_batch()
+        for column in ("SeriesLines:names", "SeriesPoints:names"):
+            if column in batch.schema.names:
+                names[chunk.entity_path.removeprefix("/")] = batch.column(column)[0].as_py()
+    return names
+
+
+def test_plots_of_several_series_show_the_legend(live_rrd: Path) -> None:
+    """In each blueprint sent: every plot has a PlotLegend; shown but for the one-series plots (reward, battery,
+    the bar chart), whose titles say what they are."""
     reader = rrc.RrdReader(live_rrd)
     stores = list(reader.blueprints())
     assert stores
     for store in stores:
-        plots: set[str] = set()
         legends: dict[str, object] = {}
+        titles: dict[str, str] = {}
         for chunk in reader.stream(store=store).collect().stream():
             batch = chunk.to_record_batch()
-            if "ViewBlueprint:class_identifier" in batch.schema.names:
-                if batch.column("ViewBlueprint:class_identifier")[0].as_py() in (["TimeSeries"], ["BarChart"]):
-                    plots.add(chunk.entity_path)
             if "PlotLegend:visible" in batch.schema.names:
                 legends[chunk.entity_path.removesuffix("/PlotLegend")] = batch.column("PlotLegend:visible")[0].as_py()
-        assert len(plots) == 10  # nine time series and the learning curve's bar chart
-        assert legends == dict.fromkeys(plots, [False])
+            if "ViewBlueprint:display_name" in batch.schema.names:
+                titles[chunk.entity_path] = batch.column("ViewBlueprint:display_name")[0].as_py()[0]
+        shown = sorted(titles[view] for view, visible in legends.items() if visible == [True])
+        assert shown == ["Actuator [deg]", "Depth drawn downward (z up = -depth) [m]",
+                         "Episode durations [s] over agent time", "Learner's action", "Link", "Mode",
+                         "Velocity [m/s]"], shown
+        assert len(legends) == 10  # nine time series and the learning curve's bar chart
 
 
-def test_multi_series_titles_name_each_series_by_its_colour(live_rrd: Path) -> None:
-    names = [name for names in blueprint_values(live_rrd, "ViewBlueprint:display_name") for name in names]
-    for origin, start in (("depth", "Depth"), ("velocity", "Velocity"), ("actuator", "Actuator"), ("link", "Link"),
-                          ("learning_curve", "Episode durations")):
-        title = next(name for name in names if name.startswith(start))
-        colours = {COLOUR_NAMES[rgb] for path, rgb in SERIES_COLOURS.items() if path.startswith(f"{origin}/")}
-        assert colours and all(colour in title for colour in colours), (origin, title)
+def test_series_have_names_modes_and_actions_their_labels_titles_no_colours(live_rrd: Path) -> None:
+    names = _static_names(live_rrd)
+    assert names["mode/learning"] == ["LEARNING"] and names["mode/paused"] == ["PAUSED"]
+    assert names["action/decrease_volume"] == ["less volume (a1)"]
+    assert names["action/increase_volume"] == ["more volume (a2)"]
+    assert names["depth/target_z_up_m"] == ["target z up [m]"]
+    titles = [name for names in blueprint_values(live_rrd, "ViewBlueprint:display_name") for name in names]
+    assert titles and not [t for t in titles if any(word in t.lower() for word in COLOUR_WORDS)], titles
+    logged = {chunk.entity_path.removeprefix("/") for chunk in rrc.RrdReader(live_rrd).stream().collect().stream()
+              if not chunk.is_static}
+    assert {"mode/learning", "action/decrease_volume", "action/increase_volume"} <= logged  # the data went there

@@ -45,3 +45,30 @@ def test_a_reversed_or_empty_window_is_one_line_and_no_rrd(fast_recording: tuple
     lines = [line for line in done.stderr.splitlines() if line.strip()]
     assert len(lines) == 1 and why in lines[0], done.stderr
     assert not out.exists()
+
+
+def test_a_window_opens_on_the_heatmaps_and_the_learning_curve_so_far(fast_recording: tuple[Path, int],
+                                                                     tmp_path: Path) -> None:
+    """`--from` past the first episodes: the latest dumps and the curve before the window are in the .rrd at times
+    before the window's first sample, so the viewer opening at the window's start shows them (issue 40: the
+    heatmaps and the learning curve were empty for minutes)."""
+    import pyarrow as pa
+    import rerun.chunk as rrc
+
+    path, _ = fast_recording
+    out = tmp_path / "window.rrd"
+    done = CliRunner().invoke(app, ["replay", str(path), "--from", "100s", "--rrd", str(out)])
+    assert done.exit_code == 0, done.output
+    first: dict[str, float] = {}
+    for chunk in rrc.RrdReader(out).stream().collect().stream():
+        if chunk.is_static:
+            continue
+        times = chunk.to_record_batch().column("agent_time").cast(pa.int64()).to_pylist()  # ns
+        entity = chunk.entity_path.removeprefix("/")
+        earliest = min(times) / 1e9
+        first[entity] = min(first.get(entity, earliest), earliest)
+    window_s = first["depth/z_up_m"]
+    assert window_s == pytest.approx(100.0, abs=0.2)
+    for entity in ("policy/image", "value_function/image", "learning_curve_by_episode/duration_s",
+                   "learning_curve/duration_s"):
+        assert first[entity] < window_s, (entity, first.get(entity))

@@ -79,7 +79,11 @@ def test_foxglove_watches_sets_and_commands_a_running_keyed_run(tmp_path: Path) 
         beats = fox.subscribe("/agent/HEARTBEAT")
         assert fox.pump(lambda: len(fox.messages.get(samples, [])) >= 5, 10)
         assert {"depth_m", "mode", "_seq"} <= set(json.loads(fox.messages[samples][0]))
-        assert set(fox.services) == {"surface", "hover", "start", "stop", "pause", "resume", "target", "mark", "dump"}
+        # at --speed max the SAMPLEs come in batches: each has a log time of its own, in the agent's order
+        stamps = fox.log_times[samples]
+        assert len(set(stamps)) == len(stamps) and stamps == sorted(stamps), stamps[:20]
+        assert set(fox.services) == {"surface", "hover", "start", "stop", "pause", "resume", "target", "mark", "dump",
+                                     "ack"}
 
         # the Parameters panel: the agent's table; the value it already has changes nothing
         table = {p["name"]: p["value"] for p in fox.get_parameters([])}
@@ -107,6 +111,9 @@ def test_foxglove_watches_sets_and_commands_a_running_keyed_run(tmp_path: Path) 
         assert fox.pump(lambda: bool(fox.messages.get(policy)), 60)  # drawn as a foxglove.RawImage
         assert fox.channels["/policy/image"]["schemaName"] == "foxglove.RawImage"
         assert fox.call("mark", {"text": "from foxglove"})["accepted"]
+        acked = fox.call("ack")  # the run's alarms, as dive ack: the answer says what was acknowledged
+        assert acked["accepted"] and acked["message"].startswith(("alarms acknowledged by foxglove",
+                                                                  "no alarm to acknowledge (foxglove)")), acked
         # the run's own session publishes: its marker event (the hub marks the run's session, not Foxglove's)
         assert fox.pump(lambda: "/marker" in fox.channels, 3), sorted(fox.channels)
         assert "exceeds" in fox.call("mark", {"text": "x" * 100_000})["failure"]  # longer than a frame holds
@@ -186,13 +193,16 @@ def test_foxglove_without_a_port_takes_the_default() -> None:
 
 
 def test_the_live_layout_is_current_and_shows_what_the_server_offers() -> None:
-    from scripts.foxglove_layout import BOUNDS_SCRIPT, BOUNDS_TOPIC, LIVE_OUT, live_layout
+    from groundstation.view.foxglove.console import LOG_TOPIC
+    from scripts.foxglove_layout import BOUNDS_SCRIPT, BOUNDS_TOPIC, LIVE_OUT, VOLTS_TOPIC, live_layout
 
     shipped = json.loads(LIVE_OUT.read_text())
     assert shipped == live_layout(), "docs/foxglove/live-layout.json is stale: run python scripts/foxglove_layout.py"
     panels = shipped["configById"]
     buttons = {config["serviceName"] for name, config in panels.items() if name.startswith("CallService!")}
-    assert buttons == {"surface", "start", "stop", "pause", "resume"} and buttons <= set(REQUESTS)
+    assert buttons == set(REQUESTS)  # a button for every control: hover, target, mark and dump too
+    assert panels["RosOut!log"]["topicToRender"] == LOG_TOPIC  # the agent's log and the run's events
+    assert panels["Plot!battery"]["paths"][0]["value"] == f"{VOLTS_TOPIC}.battery_v"  # volts, as dive says
     assert {config["imageMode"]["imageTopic"] for name, config in panels.items() if name.startswith("Image!")} == \
         {VALUE_TOPIC, POLICY_TOPIC}
     assert any(name.startswith("Parameters!") for name in panels)
@@ -204,8 +214,8 @@ def test_the_live_layout_is_current_and_shows_what_the_server_offers() -> None:
     assert "z up = -depth" in panels["Plot!depth"]["title"] and "-start.target_depth_m" in BOUNDS_SCRIPT
     for path in paths:  # every field plotted is in the schema of the channel the server publishes
         topic, field = re.sub(r"\.@\w+$", "", path).rsplit(".", 1)  # a math modifier (.@negative) off
-        if topic == BOUNDS_TOPIC:
-            continue  # the layout's own user script
+        if topic in (BOUNDS_TOPIC, VOLTS_TOPIC):
+            continue  # the layout's own user scripts
         name = topic.removeprefix("/agent/")
         assert field in message_schema(messages[name])["properties"], path
 
