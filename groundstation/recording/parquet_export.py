@@ -5,8 +5,10 @@
     OUT/agent_HEARTBEAT/NAME.parquet, OUT/ground_CMD_START/..., OUT/event/...: every other JSON topic
 
 Every row carries `recording` (NAME), `boot` (1, 2, ... in the recording), `boot_id` (the agent's, hex),
-`host_time_ns` and, for the agent's messages, its own clock `t_us`. Each file's schema metadata holds the
-session's header (`dive.parameters`, `dive.agent`, `dive.session`, `dive.environment`, as JSON). One file per
+for the agent's messages (samples and episodes included) `generation` (the learner's chapter in its boot: an
+episode is keyed by boot, generation and episode), `host_time_ns` and, for the agent's messages, its own clock
+`t_us`. Each file's schema metadata holds the session's header (`dive.parameters`, `dive.agent`,
+`dive.session`, `dive.environment`, as JSON). One file per
 recording in one folder per table, with the same columns and types, is what pandas (`read_parquet(OUT/"samples")`),
 polars (`scan_parquet("OUT/samples/*.parquet")`) and DuckDB (`FROM 'OUT/samples/*.parquet'`) read as one table.
 """
@@ -62,8 +64,10 @@ def export_parquet(recording: Recording, name: str, out_dir: Path) -> dict[str, 
         boots = rows["boot"] if "boot" in (rows.dtype.names or ()) else np.zeros(len(rows), dtype=np.int64)
         columns["boot"] = pa.array(boots.astype(np.int64))
         columns["boot_id"] = pa.array([boot_ids.get(int(b)) for b in boots], pa.string())
+        if "generation" in (rows.dtype.names or ()):
+            columns["generation"] = _column(pa, rows["generation"])
         for field in rows.dtype.names or ():
-            if field in _LEFT_OUT or field == "boot":
+            if field in _LEFT_OUT or field in ("boot", "generation"):
                 continue
             columns[field] = _column(pa, rows[field])
         arrow = pa.table(columns).replace_schema_metadata(metadata)
