@@ -45,6 +45,11 @@ def wire_generation(body: dict[str, Any]) -> int:
     return value if isinstance(value, int) and not isinstance(value, bool) and value > 0 else 0
 
 
+def restart_words(text: str) -> bool:
+    """The agent's TEXT says its learner restarted (what ours say; any agent's ACKs and episodes count too)."""
+    return any(word in text for word in _RESTART_WORDS)
+
+
 class Chapters:
     """Follows a recording's messages in file order and says which generation each belongs to."""
 
@@ -63,29 +68,29 @@ class Chapters:
             self._boot, self.current, self._pending, self._last_episode = boot, 1, "", 0
             self._from_wire = False
         wire = wire_generation(body)
+        if topic == TEXT and restart_words(str(body.get("text", ""))):
+            self._pending = self._pending or f"the agent said \"{body.get('text')}\""
+        elif topic == ACK and body.get("cmd_msg_id") == _RESET_MODEL_ID and body.get("result") == AckResult.ACCEPTED:
+            self._pending = self._pending or "CMD_RESET_MODEL was accepted"
         if wire:
-            self._from_wire = True
-            if wire != self.current:
-                self._restart(wire, False, "the agent's generation changed")
+            if not self._from_wire:  # the first the boot's frames name: where the recording joined it
+                self._from_wire, self.current = True, wire
+            elif wire != self.current:
+                self._restart(wire, False, self._pending or "the agent's generation went up")
             if topic == EPISODE_START:
                 self._note_first(int(body.get("sample", -1)))
                 self._last_episode = int(body.get("episode", 0))
             elif topic == HEARTBEAT:
                 self._note_first(int(body.get("log_next_sample", -1)))
             return wire
-        if self._from_wire or topic in (HELLO, HEARTBEAT):
+        if self._from_wire or topic != EPISODE_START:
             return self.current
-        if topic == TEXT and any(word in str(body.get("text", "")) for word in _RESTART_WORDS):
-            self._pending = self._pending or f"the agent said \"{body.get('text')}\""
-        elif topic == ACK and body.get("cmd_msg_id") == _RESET_MODEL_ID and body.get("result") == AckResult.ACCEPTED:
-            self._pending = self._pending or "CMD_RESET_MODEL was accepted"
-        elif topic == EPISODE_START:
-            episode = int(body.get("episode", 0))
-            if self._pending or (self._last_episode and episode <= self._last_episode):
-                self._restart(self.current + 1, True, self._pending or f"episode {episode} followed "
-                              f"episode {self._last_episode}")
-            self._last_episode = episode
-            self._note_first(int(body.get("sample", -1)))
+        episode = int(body.get("episode", 0))  # a 1.0-1.2 agent: the restart inferred
+        if self._pending or (self._last_episode and episode <= self._last_episode):
+            self._restart(self.current + 1, True, self._pending or f"episode {episode} followed "
+                          f"episode {self._last_episode}")
+        self._last_episode = episode
+        self._note_first(int(body.get("sample", -1)))
         return self.current
 
     def _restart(self, generation: int, inferred: bool, why: str) -> None:

@@ -260,9 +260,12 @@ def format_summary(s: RecordingSummary) -> str:
                         (s.damaged_chunks, "damaged chunks (skipped; the rest was read)")):
         if count:
             lines.append(f"  {count} {what}")
-    if len(s.chapters) > 1:  # episode numbers restart with a learner: each chapter's figures are its own
+    # Episode numbers restart with a learner (and a boot): each chapter's figures are its own, and its episodes
+    # follow a line that says where the learner restarted.
+    chaptered = len(s.chapters) > 1 or any(c.why for c in s.chapters)
+    if chaptered:
         lines.extend(f"    {chapter_line(c)}" for c in s.chapters)
-    chapter = (s.episodes[0].boot, s.episodes[0].generation) if s.episodes and len(s.chapters) > 1 else None
+    chapter = (1, 1) if chaptered else None
     for e in s.episodes:
         if chapter is not None and (e.boot, e.generation) != chapter:
             chapter = (e.boot, e.generation)
