@@ -37,6 +37,7 @@ class Restart:
     inferred: bool  # the recording carries no generation (a 1.0-1.2 agent): read from its TEXT, ACKs, episodes
     why: str
     after_episode: int  # the last episode number of the chapter before (0: none ran)
+    previous: int = 0  # the generation of the chapter before
 
 
 def wire_generation(body: dict[str, Any]) -> int:
@@ -94,7 +95,7 @@ class Chapters:
         return self.current
 
     def _restart(self, generation: int, inferred: bool, why: str) -> None:
-        self.restarts.append(Restart(self._boot, generation, inferred, why, self._last_episode))
+        self.restarts.append(Restart(self._boot, generation, inferred, why, self._last_episode, self.current))
         self.current, self._pending, self._last_episode = generation, "", 0
 
     def _note_first(self, sample: int) -> None:
@@ -160,8 +161,9 @@ def chapter_summaries(restarts: list[Restart], ends: list[tuple[int, int, str]])
         counts[0] += 1
         counts[1] += outcome == "success"
     began = {(r.boot, r.generation): r for r in restarts}
-    for key in began:
-        figures.setdefault(key, [0, 0])
+    for r in restarts:  # a chapter a restart began, and the one it ended, even without an episode
+        figures.setdefault((r.boot, r.generation), [0, 0])
+        figures.setdefault((r.boot, r.previous), [0, 0])
     out = []
     for (boot, generation), (episodes, successes) in sorted(figures.items()):
         restart = began.get((boot, generation))
@@ -170,8 +172,9 @@ def chapter_summaries(restarts: list[Restart], ends: list[tuple[int, int, str]])
     return out
 
 
-def chapter_line(c: ChapterSummary) -> str:
-    """How `dive log info` and the run pane name a chapter."""
+def chapter_line(number: int, c: ChapterSummary) -> str:
+    """How `dive log info` names a chapter: its number in the recording (what `dive replay --from 2:5` takes)."""
     began = f": the learner restarted ({c.why}" + (", inferred: the recording carries no generation)" if c.inferred
                                                     else ")") if c.why else ""
-    return f"chapter boot {c.boot} generation {c.generation}{began}: {c.episodes} episode(s), {c.successes} success(es)"
+    return (f"chapter {number} (boot {c.boot}, generation {c.generation}){began}: {c.episodes} episode(s), "
+            f"{c.successes} success(es)")

@@ -264,13 +264,13 @@ def format_summary(s: RecordingSummary) -> str:
     # follow a line that says where the learner restarted.
     chaptered = len(s.chapters) > 1 or any(c.why for c in s.chapters)
     if chaptered:
-        lines.extend(f"    {chapter_line(c)}" for c in s.chapters)
+        lines.extend(f"    {chapter_line(n, c)}" for n, c in enumerate(s.chapters, 1))
     chapter = (1, 1) if chaptered else None
     for e in s.episodes:
         if chapter is not None and (e.boot, e.generation) != chapter:
             chapter = (e.boot, e.generation)
-            heading = next(c for c in s.chapters if (c.boot, c.generation) == chapter)
-            lines.append(f"  -- {chapter_line(heading)}")
+            number, heading = next((n, c) for n, c in enumerate(s.chapters, 1) if (c.boot, c.generation) == chapter)
+            lines.append(f"  -- {chapter_line(number, heading)}")
         lines.append(f"    {e.episode:5d}  {e.outcome:8s} {e.steps:6d} steps  {e.duration_s:8.1f} s  "
                      f"return {e.episode_return:9.1f}{'  (backfilled)' if e.backfilled else ''}")
     return "\n".join(lines)

@@ -53,7 +53,7 @@ def test_a_restart_is_a_chapter_in_every_reading(case: str, tmp_path: Path) -> N
     assert [(c.generation, c.episodes) for c in indexed.chapters] == \
         [(g, int(np.sum((episodes["generation"] == g) & (episodes["outcome"] != "open")))) for g in (1, 2)]
     text_out = format_summary(indexed)
-    assert "-- chapter boot 1 generation 2: the learner restarted" in text_out
+    assert "-- chapter 2 (boot 1, generation 2): the learner restarted" in text_out
     assert ("inferred: the recording carries no generation" in text_out) == as_1_2
 
 
@@ -61,3 +61,27 @@ def test_a_message_without_the_field_or_with_0_carries_no_generation() -> None:
     """An old recording's JSON has no `generation`; a 1.2 agent recorded by a 1.3 ground has 0: both are inferred."""
     assert wire_generation({"episode": 3}) == wire_generation({"generation": 0}) == 0
     assert wire_generation({"generation": 2}) == 2 and wire_generation({"generation": True}) == 0
+
+
+def test_replay_names_a_chapter_and_its_curves_start_afresh(tmp_path: Path) -> None:
+    """`dive replay --from 2:1 --to 2:2`: chapter 2's episodes 1-2, not the first learner's; the view's learning
+    curves restart at the chapter (the by-episode bars never hold two learners' episode 1) and its log says so."""
+    from groundstation.view.replay import convert, parse_bound, read_items, select
+    from protocol import messages as m
+
+    (path,) = record_onboard(tmp_path / "tank.mcap", "paper", "python", seed=3, episodes=5, restart_after=2)
+    ends: list[tuple[int, int]] = []
+
+    class Spy:
+        def feed(self, message: object, *_: object, **__: object) -> None:
+            if isinstance(message, m.EpisodeEnd):
+                ends.append((message.generation, message.episode))
+
+    for item in select(read_items(path), parse_bound("2:1"), parse_bound("2:2")):
+        item.feed(Spy())  # type: ignore[arg-type]
+    assert ends == [(2, 1), (2, 2)]
+    batch, _ = convert(read_items(path))
+    texts = [text for text, _level in batch["log/events"].values]
+    assert sum("the learner restarted (generation 2)" in text for text in texts) == 1
+    bars_episodes, _durations = batch["learning_curve_by_episode/duration_s"].values[-1]
+    assert list(bars_episodes) == sorted(set(bars_episodes))  # one learner's episodes, each once

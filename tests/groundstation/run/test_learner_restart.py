@@ -94,7 +94,7 @@ def test_a_learner_restart_mid_run_counts_every_episode_once_everywhere(
     (summary,) = json.loads(info.stdout) if info.stdout.lstrip().startswith("[") else [json.loads(info.stdout)]
     assert sorted((e["boot"], e["generation"], e["episode"]) for e in summary["episodes"]) == sorted(keys)
     text = dive(runtime, "log", "info", str(out))
-    assert re.search(r"-- chapter boot 1 generation 2: the learner restarted", text.stdout), text.stdout
+    assert re.search(r"-- chapter \d \(boot 1, generation 2\): the learner restarted", text.stdout), text.stdout
 
     tables = tmp_path / "tables"
     exported = dive(runtime, "log", "export", str(out), "--format", "parquet", "--out", str(tables), timeout=120)
