@@ -11,13 +11,15 @@ import time
 from groundstation.check.agent import get_param, param_table, reach, set_param, skip_unless
 from groundstation.check.probe import Probe, result_name
 from groundstation.check.registry import check, expect
-from protocol import AckResult, Mode, NodeKind
+from protocol import AckResult, Mode, NodeKind, definitions_hash
 from protocol import messages as m
 
 MODES = "6 Modes: learner generations (1.3)"
 LINK = "4 Link life cycle: answer time (1.3)"
 ANSWER_BOUND_S = 1.0  # SPEC 1.3 s. 4: a HELLO, a TIMESYNC request and a command answered within 1 s of link time
 TRIES = 3
+_GROUND_HELLO = m.Hello(protocol_version=1, node_kind=int(NodeKind.GROUND), definitions_hash=definitions_hash(),
+                        node_id=0xC4EC, boot_id=1, name="dive check")
 
 
 def _beat_after(probe: Probe, start: int) -> m.Heartbeat:
@@ -30,11 +32,14 @@ def _beat_after(probe: Probe, start: int) -> m.Heartbeat:
 @check("generation.named", MODES, """The agent sends its current generation in every HELLO and HEARTBEAT [...]
        generation is 1 for the learner it boots with and goes up by 1 every time its learner starts afresh.""")
 def named(probe: Probe) -> str:
-    hello = probe.hello
-    expect(hello is not None, "no HELLO received")
-    assert hello is not None
+    start = probe.end
+    probe.send(_GROUND_HELLO)  # the agent's HELLO now (earlier checks may have restarted its learner since boot)
+    found = probe.wait_message(m.Hello, start, probe.timeouts.reply_s)
+    expect(found is not None, f"no HELLO in answer within {probe.timeouts.reply_s:g} s")
+    assert found is not None
+    hello = found[1]
     expect(hello.generation >= 1, f"HELLO generation {hello.generation}: 0 is a 1.0-1.2 agent's (not sent)")
-    beat = _beat_after(probe, probe.end)
+    beat = _beat_after(probe, found[0] + 1)
     expect(beat.generation == hello.generation,
            f"HEARTBEAT generation {beat.generation}, the HELLO said {hello.generation} (no restart since)")
     return f"generation {beat.generation}"
@@ -71,8 +76,7 @@ def answer_time(probe: Probe) -> str:
     worst = {"HELLO": 0.0, "TIMESYNC": 0.0, "PARAM_GET": 0.0}
     for _ in range(TRIES):
         for name, message, answer in (
-            ("HELLO", m.Hello(protocol_version=1, node_kind=int(NodeKind.GROUND), node_id=0xC4EC, boot_id=1,
-                              name="dive check"), m.Hello),
+            ("HELLO", _GROUND_HELLO, m.Hello),
             ("TIMESYNC", m.Timesync(origin_us=1), m.Timesync),
             ("PARAM_GET", m.ParamGet(index=-1, name="gamma"), m.Ack),
         ):
