@@ -15,7 +15,8 @@ depth filter settles slowly does; SPEC.md 6 says only "until shallower than 0.02
 
 SPEC 1.3's rules, one fault each: `generation-stuck` (a learner restart leaves the generation as it was),
 `slow-answers` (every ground frame answered 1.5 s late, over the 1 s bound), `no-cross-refusals` (velocity_filter
-with vel_diff_steps, plan_stable_sweeps without shared_model accepted).
+with vel_diff_steps, plan_stable_sweeps without shared_model accepted), `no-estimate-cap` (a timestamp ahead becomes
+the estimate however far), `no-resync` (PARAM_SET `resync` unknown).
 """
 
 from __future__ import annotations
@@ -148,11 +149,24 @@ def no_cross_refusals() -> None:
     OnboardProgram.set_param = set_param  # type: ignore[method-assign]
 
 
+def no_estimate_cap() -> None:
+    """1.1's rule: a timestamp higher than the estimate becomes the estimate, however far ahead (no 10 s cap)."""
+    import protocol.signing
+
+    protocol.signing.ESTIMATE_STEP_S = 1e9  # type: ignore[misc]
+
+
+def no_resync() -> None:
+    """No signed re-sync: PARAM_SET `resync` is an unknown parameter (BAD_VALUE), as for a 1.1 agent."""
+    agent_link.is_resync = lambda message: False  # type: ignore[assignment]
+
+
 FAULTS: dict[str, Callable[[], None]] = {"unknown-no-ack": unknown_no_ack, "rejects-as-frames": rejects_as_frames,
                                          "silence-in-agent-time": silence_in_agent_time,
                                          "optional-unimplemented": optional_unimplemented,
                                          "slow-surface": slow_surface, "generation-stuck": generation_stuck,
-                                         "slow-answers": slow_answers, "no-cross-refusals": no_cross_refusals}
+                                         "slow-answers": slow_answers, "no-cross-refusals": no_cross_refusals,
+                                         "no-estimate-cap": no_estimate_cap, "no-resync": no_resync}
 
 if __name__ == "__main__":
     for name in sys.argv.pop(1).split(","):

@@ -8,16 +8,19 @@ from pathlib import Path
 
 import pytest
 
+from groundstation.session.keys import write_key_file
 from tests.groundstation.check_helpers import BROKEN_AGENT, agent, check
 
 pytestmark = pytest.mark.slow
-SPEC_13 = ("generation.named", "generation.restart", "link.answer_time", "params.cross_refused")
+SPEC_13 = ("generation.named", "generation.restart", "link.answer_time", "params.cross_refused",
+           "signing.estimate_cap", "signing.resync")
 ONLY = [arg for check_id in SPEC_13 for arg in ("--only", check_id)]
 
 
 def test_the_virtual_agent_passes_the_1_3_checks(tmp_path: Path) -> None:
-    with agent(tmp_path, "--tcp", "127.0.0.1:0", "--seed", "3") as url:
-        code, report = check(url, "--allow-motion", "--timeout", "10", *ONLY)
+    key = write_key_file(tmp_path / "dive.key")
+    with agent(tmp_path, "--tcp", "127.0.0.1:0", "--seed", "3", "--key-file", str(key)) as url:
+        code, report = check(url, "--allow-motion", "--timeout", "10", "--key-file", str(key), *ONLY)
     results = {c["id"]: (c["result"], c["detail"]) for c in report["checks"]}
     assert {k: v[0] for k, v in results.items()} == dict.fromkeys(SPEC_13, "PASS"), results
     assert code == 0
@@ -27,11 +30,14 @@ def test_the_virtual_agent_passes_the_1_3_checks(tmp_path: Path) -> None:
     ("generation-stuck", "generation.restart", "after CMD_RESET_MODEL generation"),
     ("slow-answers", "link.answer_time", "over the 1 s bound"),
     ("no-cross-refusals", "params.cross_refused", "wanted BAD_VALUE"),
+    ("no-estimate-cap", "signing.estimate_cap", "may move the estimate by 10 s only"),
+    ("no-resync", "signing.resync", "a re-sync with a wrong nonce: BAD_VALUE"),
 ])
 def test_an_agent_lacking_a_1_3_rule_fails_its_check(tmp_path: Path, fault: str, failed: str, said: str) -> None:
+    key = write_key_file(tmp_path / "dive.key")
     script = [str(BROKEN_AGENT), fault, "serve"]
-    with agent(tmp_path, "--tcp", "127.0.0.1:0", "--seed", "3", script=script) as url:
-        code, report = check(url, "--allow-motion", "--timeout", "10", "--only", failed)
+    with agent(tmp_path, "--tcp", "127.0.0.1:0", "--seed", "3", "--key-file", str(key), script=script) as url:
+        code, report = check(url, "--allow-motion", "--timeout", "10", "--key-file", str(key), "--only", failed)
     (outcome,) = [c for c in report["checks"] if c["id"] == failed]
     assert outcome["result"] == "FAIL" and said in outcome["detail"], outcome
     assert outcome["section"].endswith("(1.3)") and outcome["sentence"]
