@@ -16,7 +16,8 @@ depth filter settles slowly does; SPEC.md 6 says only "until shallower than 0.02
 SPEC 1.3's rules, one fault each: `generation-stuck` (a learner restart leaves the generation as it was),
 `slow-answers` (every ground frame answered 1.5 s late, over the 1 s bound), `no-cross-refusals` (velocity_filter
 with vel_diff_steps, plan_stable_sweeps without shared_model accepted), `no-estimate-cap` (a timestamp ahead becomes
-the estimate however far), `no-resync` (PARAM_SET `resync` unknown).
+the estimate however far), `no-resync` (PARAM_SET `resync` unknown), `no-link-taken-text` (a replaced connection
+closed without its TEXT).
 """
 
 from __future__ import annotations
@@ -161,12 +162,20 @@ def no_resync() -> None:
     agent_link.is_resync = lambda message: False  # type: ignore[assignment]
 
 
+def no_link_taken_text() -> None:
+    """A replaced connection closed without the TEXT `link taken by another ground` (as a 1.1 agent does)."""
+    from simulator.serve.loop import AgentServer
+
+    AgentServer._replaced_notice = lambda self: b""  # type: ignore[method-assign]
+
+
 FAULTS: dict[str, Callable[[], None]] = {"unknown-no-ack": unknown_no_ack, "rejects-as-frames": rejects_as_frames,
                                          "silence-in-agent-time": silence_in_agent_time,
                                          "optional-unimplemented": optional_unimplemented,
                                          "slow-surface": slow_surface, "generation-stuck": generation_stuck,
                                          "slow-answers": slow_answers, "no-cross-refusals": no_cross_refusals,
-                                         "no-estimate-cap": no_estimate_cap, "no-resync": no_resync}
+                                         "no-estimate-cap": no_estimate_cap, "no-resync": no_resync,
+                                         "no-link-taken-text": no_link_taken_text}
 
 if __name__ == "__main__":
     for name in sys.argv.pop(1).split(","):

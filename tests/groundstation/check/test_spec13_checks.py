@@ -13,7 +13,7 @@ from tests.groundstation.check_helpers import BROKEN_AGENT, agent, check
 
 pytestmark = pytest.mark.slow
 SPEC_13 = ("generation.named", "generation.restart", "link.answer_time", "params.cross_refused",
-           "signing.estimate_cap", "signing.resync")
+           "signing.estimate_cap", "signing.resync", "link.taken")
 ONLY = [arg for check_id in SPEC_13 for arg in ("--only", check_id)]
 
 
@@ -32,6 +32,7 @@ def test_the_virtual_agent_passes_the_1_3_checks(tmp_path: Path) -> None:
     ("no-cross-refusals", "params.cross_refused", "wanted BAD_VALUE"),
     ("no-estimate-cap", "signing.estimate_cap", "may move the estimate by 10 s only"),
     ("no-resync", "signing.resync", "a re-sync with a wrong nonce: BAD_VALUE"),
+    ("no-link-taken-text", "link.taken", "no TEXT `link taken by another ground`"),
 ])
 def test_an_agent_lacking_a_1_3_rule_fails_its_check(tmp_path: Path, fault: str, failed: str, said: str) -> None:
     key = write_key_file(tmp_path / "dive.key")
