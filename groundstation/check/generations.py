@@ -29,8 +29,8 @@ def _beat_after(probe: Probe, start: int) -> m.Heartbeat:
     return found[1]
 
 
-@check("generation.named", MODES, """The agent sends its current generation in every HELLO and HEARTBEAT [...]
-       generation is 1 for the learner it boots with and goes up by 1 every time its learner starts afresh.""")
+@check("generation.named", MODES, """generation is 1 for the learner it boots with [...] The agent sends its current
+       generation in every HELLO and HEARTBEAT""")
 def named(probe: Probe) -> str:
     start = probe.end
     probe.send(_GROUND_HELLO)  # the agent's HELLO now (earlier checks may have restarted its learner since boot)
@@ -45,9 +45,9 @@ def named(probe: Probe) -> str:
     return f"generation {beat.generation}"
 
 
-@check("generation.restart", MODES, """[generation] goes up by 1 every time its learner starts afresh, whatever the
-       cause: CMD_RESET_MODEL, a PARAM_SET that changes a learner parameter [...] With the learner, the episode count
-       and successes restart. (Setting a parameter's current value is no change: it restarts nothing.)""", motion=True)
+@check("generation.restart", MODES, """generation is 1 for the learner it boots with and goes up by 1 [...] every
+       time its learner starts afresh, whatever the cause: CMD_RESET_MODEL, a PARAM_SET that changes a learner
+       parameter [...] With the learner, the episode count and successes restart""", motion=True)
 def restart(probe: Probe) -> str:
     reach(probe, Mode.IDLE)
     before = _beat_after(probe, probe.end).generation
@@ -70,8 +70,8 @@ def restart(probe: Probe) -> str:
 
 
 @check("link.answer_time", LINK, """From the moment the last byte of a ground frame reaches it, an agent answers
-       within 1 s of link time: a HELLO with its HELLO, a TIMESYNC request with its reply, and a command with its
-       ACK.""")
+       within 1 s of link time: a HELLO with its HELLO [...] a TIMESYNC request with its reply, and a command with
+       its ACK""")
 def answer_time(probe: Probe) -> str:
     worst = {"HELLO": 0.0, "TIMESYNC": 0.0, "PARAM_GET": 0.0}
     for _ in range(TRIES):
@@ -101,7 +101,7 @@ def _implemented(probe: Probe, name: str) -> bool:
 @check("params.cross_refused", "13 Parameters: PARAM_SET (1.3)", """Then the cross-parameter refusals, value checks
        too: velocity_filter > 0 while vel_diff_steps > 0 (or the other way round), and plan_stable_sweeps > 0 while
        shared_model = 0 [...] → BAD_VALUE, the reason naming the other parameter. An agent that does not implement
-       these optional parameters (min = max = default) never meets them.""", motion=True)
+       these optional parameters (min = max = default) never meets them""", motion=True)
 def cross_refused(probe: Probe) -> str:
     pairs = [p for p in (("vel_diff_steps", 2.0, "velocity_filter", 1.0), ("shared_model", 0.0, "plan_stable_sweeps",
                                                                            3.0))

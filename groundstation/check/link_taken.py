@@ -26,8 +26,8 @@ CLOSE_WAIT_S = 8.0  # the old connection's TEXT and close, with room for the age
 
 @check("link.taken", SECTION, """An agent with one connection slot [...] that accepts a new connection while it
        holds one first sends the old connection one TEXT, severity WARNING (2), text exactly `link taken by another
-       ground`, with a 0x00 delimiter before it (ending any partial frame), then closes it [...] so that the close is
-       not a reset that discards the TEXT.""")
+       ground`, with a 0x00 delimiter before it (ending any partial frame), then closes it [...] so that the close
+       is not a reset that discards the TEXT""")
 def taken(probe: Probe) -> str:
     url = probe.link.url
     skip_unless(url.startswith("tcp://"), "a TCP agent only (an agent behind a UART has no second connection)")

@@ -32,7 +32,7 @@ def _signer(probe: Probe, offset_s: float, step: int) -> Signer:
 
 @check("signing.estimate_cap", SECTION, """if the timestamp is higher than the current estimate (step 4), the
        estimate moves up to it, but by at most 10 s in one frame, so a clock ahead cannot carry the estimate a
-       minute per frame until every new link_id is refused as too old.""", key=True)
+       minute per frame until every new link_id is refused as too old""", key=True)
 def estimate_cap(probe: Probe) -> str:
     ahead = probe.command(_get(), signer=_signer(probe, AHEAD_S, 101))
     expect(ahead.ack is not None and ahead.ack.result == AckResult.ACCEPTED,
@@ -47,10 +47,10 @@ def estimate_cap(probe: Probe) -> str:
 
 
 @check("signing.resync", SECTION, """Every UNAUTHORIZED it answers for a timestamp [...] ends its reason with
-       `re-sync nonce` followed by the nonce [...] The re-sync is a PARAM_SET with index −1, name `resync` and value =
-       the nonce, validly signed [...] A value other than the current nonce → refuse (stale re-sync nonce,
-       UNAUTHORIZED, counted) [...] Otherwise accept [...] the agent answers ACCEPTED with a non-empty reason saying it
-       re-synced. No PARAM_VALUE follows.""", key=True)
+       re-sync nonce followed by the nonce as 8 lower-case hex digits [...] The re-sync is a PARAM_SET with index −1,
+       name resync and value = the nonce [...] validly signed [...] A value other than the current nonce → refuse
+       (stale re-sync nonce, UNAUTHORIZED, counted, not remembered in the ACK memory [...] Otherwise accept [...] the
+       agent answers ACCEPTED with a non-empty reason saying it re-synced. No PARAM_VALUE follows""", key=True)
 def resync(probe: Probe) -> str:
     old = probe.command(_get(), signer=_signer(probe, -70.0, 103))  # a new link id over 60 s behind: too old
     expect(old.ack is not None and old.ack.result == AckResult.UNAUTHORIZED,

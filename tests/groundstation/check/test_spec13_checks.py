@@ -43,3 +43,25 @@ def test_an_agent_lacking_a_1_3_rule_fails_its_check(tmp_path: Path, fault: str,
     assert outcome["result"] == "FAIL" and said in outcome["detail"], outcome
     assert outcome["section"].endswith("(1.3)") and outcome["sentence"]
     assert code == 1
+
+
+@pytest.mark.parametrize("check_id", SPEC_13)
+def test_each_1_3_check_quotes_spec_md(check_id: str) -> None:
+    """The sentence a 1.3 check prints is SPEC.md's, piece by piece (`[...]` marks what it leaves out): no check
+    tests a rule of the ground's own invention."""
+    import importlib
+    import re
+
+    from groundstation.check.registry import REGISTRY
+    from protocol.spec import SPEC_PATH
+
+    for module in ("generations", "signing_resync", "link_taken"):  # importing a module registers its checks
+        importlib.import_module(f"groundstation.check.{module}")
+
+    def plain(text: str) -> str:  # the words, without Markdown's emphasis and code marks
+        return " ".join(text.replace("`", "").replace("*", "").split())
+
+    spec = plain(SPEC_PATH.read_text(encoding="utf-8"))
+    (found,) = [c for c in REGISTRY.checks if c.id == check_id]
+    for piece in re.split(r"\s*\[\.\.\.\]\s*", found.sentence):
+        assert plain(piece) in spec, (check_id, piece)
