@@ -76,5 +76,6 @@ def test_a_new_learner_s_lost_episode_start_is_requested_though_the_old_one_had_
     _learning_episode(planner, 1, range(0, 30), start=True, end=True)
     _recovery(planner, 1, range(30, 35))
     planner.episodes.saw_generation(2)  # the restart (a HEARTBEAT naming generation 2)
+    _recovery(planner, 0, range(35, 40))
     _learning_episode(planner, 1, range(40, 60), start=False, end=True)
     assert planner.due(now_s=0.0) == [(40, 41)]
