@@ -73,7 +73,9 @@ def restart(probe: Probe) -> str:
        within 1 s of link time: a HELLO with its HELLO [...] a TIMESYNC request with its reply, and a command with
        its ACK""")
 def answer_time(probe: Probe) -> str:
-    worst = {"HELLO": 0.0, "TIMESYNC": 0.0, "PARAM_GET": 0.0}
+    # The median of TRIES answers of each kind: an agent that is slow fails, one scheduling hiccup of this machine
+    # under load (measured on this end of the link) does not.
+    times: dict[str, list[float]] = {"HELLO": [], "TIMESYNC": [], "PARAM_GET": []}
     for _ in range(TRIES):
         for name, message, answer in (
             ("HELLO", _GROUND_HELLO, m.Hello),
@@ -86,11 +88,13 @@ def answer_time(probe: Probe) -> str:
             found = probe.wait_message(answer, start, max(probe.timeouts.reply_s, 2 * ANSWER_BOUND_S))
             waited_s = time.monotonic() - sent_s
             expect(found is not None, f"{name} unanswered after {waited_s:.2f} s (the bound is {ANSWER_BOUND_S:g} s)")
-            worst[name] = max(worst[name], waited_s)
-    slowest = max(worst, key=lambda k: worst[k])
-    expect(worst[slowest] <= ANSWER_BOUND_S, f"{slowest} answered after {worst[slowest]:.2f} s, over the "
-           f"{ANSWER_BOUND_S:g} s bound (measured on this end of the link: transport time included)")
-    return ", ".join(f"{name} {seconds * 1000:.0f} ms" for name, seconds in worst.items()) + f" (worst of {TRIES})"
+            times[name].append(waited_s)
+    median = {name: sorted(seconds)[len(seconds) // 2] for name, seconds in times.items()}
+    slowest = max(median, key=lambda k: median[k])
+    expect(median[slowest] <= ANSWER_BOUND_S, f"{slowest} answered after {median[slowest]:.2f} s (median of "
+           f"{TRIES}), over the {ANSWER_BOUND_S:g} s bound (measured on this end of the link: transport time "
+           "included)")
+    return ", ".join(f"{name} {seconds * 1000:.0f} ms" for name, seconds in median.items()) + f" (median of {TRIES})"
 
 
 def _implemented(probe: Probe, name: str) -> bool:
