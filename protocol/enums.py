@@ -6,7 +6,7 @@ from enum import IntEnum, IntFlag
 
 PROTOCOL_VERSION = 1  # the major version on the wire (frame `ver`, HELLO protocol_version)
 # SPEC.md's version: the minor number is the document's, never sent, so 1.0-1.2 peers share PROTOCOL_VERSION.
-SPEC_VERSION = "1.2"
+SPEC_VERSION = "1.3"
 
 
 class FrameFlag(IntFlag):

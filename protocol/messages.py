@@ -25,6 +25,7 @@ class Hello(Message):
     node_id: U32 = wire("agent id (serial number) or ground station id")
     boot_id: U32 = wire("random, new after every reboot; a change means the peer restarted")
     name: Name = wire("human-readable node name, UTF-8", default="")
+    generation: U32 = wire("(1.3) the agent's learner generation, +1 at each learner restart (s. 6); 0 from a ground")
 
 
 @message(0x02, "HEARTBEAT", Direction.BOTH)
@@ -41,6 +42,7 @@ class Heartbeat(Message):
     log_next_sample: U32 = wire("index the next SAMPLE will get; 0 from the ground")
     episode: U32 = wire("current or last episode number; 0 from the ground")
     signing_rejects: U32 = wire("commands answered UNAUTHORIZED since boot")
+    generation: U32 = wire("(1.3) the learner generation `episode` belongs to (s. 6); 0 from the ground")
 
 
 @message(0x03, "TIMESYNC", Direction.BOTH)
@@ -107,6 +109,7 @@ class EpisodeStart(Message):
     z_tol_m: F32 = wire("half-height of the learning region", "m")
     zdot_tol_mps: F32 = wire("velocity bound of the learning region", "m/s")
     p_explore: F32 = wire("exploration probability in this episode (0..1)")
+    generation: U32 = wire("(1.3) the learner generation this episode belongs to (s. 6)")
 
 
 @message(0x22, "EPISODE_END", Direction.AGENT_TO_GROUND)
@@ -122,6 +125,7 @@ class EpisodeEnd(Message):
     duration_s: F32 = wire("time inside the learning region", "s")
     episode_return: F32 = wire("sum of rewards of the episode")
     successes: U32 = wire("successful episodes so far, this one included")
+    generation: U32 = wire("(1.3) the learner generation this episode belongs to (s. 6)")
 
 
 @message(0x23, "DUMP_CHUNK", Direction.AGENT_TO_GROUND, chunked=True)

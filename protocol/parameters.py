@@ -125,7 +125,7 @@ _ROWS = (
     _p("success_time_s", F, "s", 300.0, 1.0, 3600.0, _LEARNING, "time in the region that counts as success"),
     _p("control_dt_s", F, "s", 0.1, 0.02, 0.2, _LEARNING, "learner period (the control period)"),
     _p("action_step_deg", F, "deg", 2.1, 0.1, 20.0, _LEARNING, "gear angle change per learner action"),
-    _p("action_win_deg", F, "deg", 19.5, 0.5, 65.0, _LEARNING, "learner's gear window around neutral, +/-"),
+    _p("action_win_deg", F, "deg", 19.5, 0.5, 65.0, _LEARNING, "gear window around the episode's centre (s. 10), +/-"),
     _p("link_timeout_s", F, "s", 10.0, 0.0, 3600.0, _NEVER, "link lost after this silence (0 = never)"),
     _p("surface_on_link_loss", B, "", 0, 0, 1, _NEVER, "surface when the link is lost"),
     _p("dump_each_episode", B, "", 0, 0, 1, _NEVER, "send VALUES then POLICY after every EPISODE_END"),

@@ -267,16 +267,26 @@ def definitions() -> tuple[MessageDef, ...]:
     return tuple(_BY_ID[i].DEFINITION for i in sorted(_BY_ID))
 
 
-def canonical_description() -> str:
-    """The text the definition hash is computed from: one line per message, one per field."""
+# Fields appended in 1.3 (SPEC.md s. 14): without them the table is 1.0-1.2's, whose hash a 1.3 ground accepts
+# (a shorter payload zero-extends, so a 1.2 agent's `generation` reads 0, "not sent").
+ADDED_IN_1_3 = frozenset({("HELLO", "generation"), ("HEARTBEAT", "generation"),
+                          ("EPISODE_START", "generation"), ("EPISODE_END", "generation")})
+
+
+def canonical_description(before_1_3: bool = False) -> str:
+    """The text the definition hash is computed from: one line per message, one per field (1.2's table if asked)."""
     lines = []
     for d in definitions():
         lines.append(f"{d.msg_id:02X} {d.name} {d.direction.name} ack={int(d.needs_ack)}")
-        lines.extend(f"  {f.offset} {f.name} {f.wire.spec_name}" for f in d.fields)
+        lines.extend(f"  {f.offset} {f.name} {f.wire.spec_name}" for f in d.fields
+                     if not (before_1_3 and (d.name, f.name) in ADDED_IN_1_3))
     return "\n".join(lines) + "\n"
 
 
-def definitions_hash() -> int:
-    """First 4 bytes (little-endian u32) of SHA-256 over canonical_description(); sent in HELLO."""
-    digest = hashlib.sha256(canonical_description().encode()).digest()
+def definitions_hash(before_1_3: bool = False) -> int:
+    """First 4 bytes (little-endian u32) of SHA-256 over canonical_description(); sent in HELLO.
+
+    before_1_3: the hash a 1.0, 1.1 or 1.2 peer sends (0x69BE26C5), which a 1.3 ground still talks to.
+    """
+    digest = hashlib.sha256(canonical_description(before_1_3).encode()).digest()
     return int.from_bytes(digest[:4], "little")

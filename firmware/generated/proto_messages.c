@@ -16,11 +16,12 @@ size_t msg_hello_pack(const msg_hello_t *m, uint8_t *out) {
     wire_put_u32(out + 9, m->node_id);
     wire_put_u32(out + 13, m->boot_id);
     memcpy(out + 17, m->name, 24);
-    return 41u;
+    wire_put_u32(out + 41, m->generation);
+    return 45u;
 }
 
 void msg_hello_unpack(msg_hello_t *m, const uint8_t *payload, size_t n) {
-    uint8_t buf[41];
+    uint8_t buf[45];
     const uint8_t *p = wire_zero_extend(buf, sizeof buf, payload, n);
     m->protocol_version = p[0];
     m->node_kind = p[1];
@@ -31,6 +32,7 @@ void msg_hello_unpack(msg_hello_t *m, const uint8_t *payload, size_t n) {
     m->node_id = wire_get_u32(p + 9);
     m->boot_id = wire_get_u32(p + 13);
     memcpy(m->name, p + 17, 24);
+    m->generation = wire_get_u32(p + 41);
 }
 
 size_t msg_heartbeat_pack(const msg_heartbeat_t *m, uint8_t *out) {
@@ -44,11 +46,12 @@ size_t msg_heartbeat_pack(const msg_heartbeat_t *m, uint8_t *out) {
     wire_put_u32(out + 23, m->log_next_sample);
     wire_put_u32(out + 27, m->episode);
     wire_put_u32(out + 31, m->signing_rejects);
-    return 35u;
+    wire_put_u32(out + 35, m->generation);
+    return 39u;
 }
 
 void msg_heartbeat_unpack(msg_heartbeat_t *m, const uint8_t *payload, size_t n) {
-    uint8_t buf[35];
+    uint8_t buf[39];
     const uint8_t *p = wire_zero_extend(buf, sizeof buf, payload, n);
     m->uptime_ms = wire_get_u32(p + 0);
     m->mode = p[4];
@@ -60,6 +63,7 @@ void msg_heartbeat_unpack(msg_heartbeat_t *m, const uint8_t *payload, size_t n) 
     m->log_next_sample = wire_get_u32(p + 23);
     m->episode = wire_get_u32(p + 27);
     m->signing_rejects = wire_get_u32(p + 31);
+    m->generation = wire_get_u32(p + 35);
 }
 
 size_t msg_timesync_pack(const msg_timesync_t *m, uint8_t *out) {
@@ -161,11 +165,12 @@ size_t msg_episode_start_pack(const msg_episode_start_t *m, uint8_t *out) {
     wire_put_f32(out + 30, m->z_tol_m);
     wire_put_f32(out + 34, m->zdot_tol_mps);
     wire_put_f32(out + 38, m->p_explore);
-    return 42u;
+    wire_put_u32(out + 42, m->generation);
+    return 46u;
 }
 
 void msg_episode_start_unpack(msg_episode_start_t *m, const uint8_t *payload, size_t n) {
-    uint8_t buf[42];
+    uint8_t buf[46];
     const uint8_t *p = wire_zero_extend(buf, sizeof buf, payload, n);
     m->t_us = wire_get_u64(p + 0);
     m->episode = wire_get_u32(p + 8);
@@ -177,6 +182,7 @@ void msg_episode_start_unpack(msg_episode_start_t *m, const uint8_t *payload, si
     m->z_tol_m = wire_get_f32(p + 30);
     m->zdot_tol_mps = wire_get_f32(p + 34);
     m->p_explore = wire_get_f32(p + 38);
+    m->generation = wire_get_u32(p + 42);
 }
 
 size_t msg_episode_end_pack(const msg_episode_end_t *m, uint8_t *out) {
@@ -189,11 +195,12 @@ size_t msg_episode_end_pack(const msg_episode_end_t *m, uint8_t *out) {
     wire_put_f32(out + 23, m->duration_s);
     wire_put_f32(out + 27, m->episode_return);
     wire_put_u32(out + 31, m->successes);
-    return 35u;
+    wire_put_u32(out + 35, m->generation);
+    return 39u;
 }
 
 void msg_episode_end_unpack(msg_episode_end_t *m, const uint8_t *payload, size_t n) {
-    uint8_t buf[35];
+    uint8_t buf[39];
     const uint8_t *p = wire_zero_extend(buf, sizeof buf, payload, n);
     m->t_us = wire_get_u64(p + 0);
     m->episode = wire_get_u32(p + 8);
@@ -204,6 +211,7 @@ void msg_episode_end_unpack(msg_episode_end_t *m, const uint8_t *payload, size_t
     m->duration_s = wire_get_f32(p + 23);
     m->episode_return = wire_get_f32(p + 27);
     m->successes = wire_get_u32(p + 31);
+    m->generation = wire_get_u32(p + 35);
 }
 
 size_t msg_dump_chunk_pack(const msg_dump_chunk_t *m, uint8_t *out) {
@@ -364,14 +372,14 @@ void msg_log_request_unpack(msg_log_request_t *m, const uint8_t *payload, size_t
 }
 
 const proto_msg_info_t proto_messages[PROTO_MESSAGE_COUNT] = {
-    {0x01u, 41u, 0u, 0u, 0u},  /* HELLO */
-    {0x02u, 35u, 0u, 0u, 0u},  /* HEARTBEAT */
+    {0x01u, 45u, 0u, 0u, 0u},  /* HELLO */
+    {0x02u, 39u, 0u, 0u, 0u},  /* HEARTBEAT */
     {0x03u, 24u, 0u, 0u, 0u},  /* TIMESYNC */
     {0x04u, 4u, 1u, 0u, 0u},  /* ACK */
     {0x05u, 9u, 1u, 0u, 0u},  /* TEXT */
     {0x20u, 48u, 0u, 0u, 1u},  /* SAMPLE */
-    {0x21u, 42u, 0u, 0u, 1u},  /* EPISODE_START */
-    {0x22u, 35u, 0u, 0u, 1u},  /* EPISODE_END */
+    {0x21u, 46u, 0u, 0u, 1u},  /* EPISODE_START */
+    {0x22u, 39u, 0u, 0u, 1u},  /* EPISODE_END */
     {0x23u, 17u, 1u, 0u, 1u},  /* DUMP_CHUNK */
     {0x24u, 53u, 0u, 0u, 1u},  /* PARAM_VALUE */
     {0x25u, 20u, 0u, 0u, 1u},  /* LOG_RANGE */

@@ -7,7 +7,7 @@
 #include <stdint.h>
 
 #define PROTO_VERSION 1u
-#define PROTO_DEFINITIONS_HASH 0x69BE26C5u
+#define PROTO_DEFINITIONS_HASH 0x2BB13C39u
 #define PROTO_MAX_PAYLOAD 247u
 #define PROTO_HEADER_BYTES 5u
 #define PROTO_CRC_BYTES 2u
@@ -82,7 +82,7 @@ typedef enum {  /* ParamType */
 
 /* 0x01 HELLO: Sent unprompted by each side when a link comes up; the receiver checks version and hash. */
 #define MSG_HELLO_ID 0x01u
-#define MSG_HELLO_FIXED_BYTES 41u
+#define MSG_HELLO_FIXED_BYTES 45u
 #define MSG_HELLO_OFF_PROTOCOL_VERSION 0u
 #define MSG_HELLO_OFF_NODE_KIND 1u
 #define MSG_HELLO_OFF_DEFINITIONS_HASH 2u
@@ -92,6 +92,7 @@ typedef enum {  /* ParamType */
 #define MSG_HELLO_OFF_NODE_ID 9u
 #define MSG_HELLO_OFF_BOOT_ID 13u
 #define MSG_HELLO_OFF_NAME 17u
+#define MSG_HELLO_OFF_GENERATION 41u
 typedef struct {
     uint8_t protocol_version;
     uint8_t node_kind;
@@ -102,6 +103,7 @@ typedef struct {
     uint32_t node_id;
     uint32_t boot_id;
     char name[24];  /* UTF-8, NUL-padded, not terminated when full */
+    uint32_t generation;
 } msg_hello_t;
 /* Packs into out (room for 247 bytes); returns the payload length. */
 size_t msg_hello_pack(const msg_hello_t *m, uint8_t *out);
@@ -110,7 +112,7 @@ void msg_hello_unpack(msg_hello_t *m, const uint8_t *p, size_t n);
 
 /* 0x02 HEARTBEAT: Once per second of the sender's clock, each way; counters as SPEC.md section 4 defines them. */
 #define MSG_HEARTBEAT_ID 0x02u
-#define MSG_HEARTBEAT_FIXED_BYTES 35u
+#define MSG_HEARTBEAT_FIXED_BYTES 39u
 #define MSG_HEARTBEAT_OFF_UPTIME_MS 0u
 #define MSG_HEARTBEAT_OFF_MODE 4u
 #define MSG_HEARTBEAT_OFF_BATTERY_MV 5u
@@ -121,6 +123,7 @@ void msg_hello_unpack(msg_hello_t *m, const uint8_t *p, size_t n);
 #define MSG_HEARTBEAT_OFF_LOG_NEXT_SAMPLE 23u
 #define MSG_HEARTBEAT_OFF_EPISODE 27u
 #define MSG_HEARTBEAT_OFF_SIGNING_REJECTS 31u
+#define MSG_HEARTBEAT_OFF_GENERATION 35u
 typedef struct {
     uint32_t uptime_ms;
     uint8_t mode;
@@ -132,6 +135,7 @@ typedef struct {
     uint32_t log_next_sample;
     uint32_t episode;
     uint32_t signing_rejects;
+    uint32_t generation;
 } msg_heartbeat_t;
 /* Packs into out (room for 247 bytes); returns the payload length. */
 size_t msg_heartbeat_pack(const msg_heartbeat_t *m, uint8_t *out);
@@ -230,7 +234,7 @@ void msg_sample_unpack(msg_sample_t *m, const uint8_t *p, size_t n);
 
 /* 0x21 EPISODE_START: A learning episode begins (the learner takes over). */
 #define MSG_EPISODE_START_ID 0x21u
-#define MSG_EPISODE_START_FIXED_BYTES 42u
+#define MSG_EPISODE_START_FIXED_BYTES 46u
 #define MSG_EPISODE_START_OFF_T_US 0u
 #define MSG_EPISODE_START_OFF_EPISODE 8u
 #define MSG_EPISODE_START_OFF_SAMPLE 12u
@@ -241,6 +245,7 @@ void msg_sample_unpack(msg_sample_t *m, const uint8_t *p, size_t n);
 #define MSG_EPISODE_START_OFF_Z_TOL_M 30u
 #define MSG_EPISODE_START_OFF_ZDOT_TOL_MPS 34u
 #define MSG_EPISODE_START_OFF_P_EXPLORE 38u
+#define MSG_EPISODE_START_OFF_GENERATION 42u
 typedef struct {
     uint64_t t_us;
     uint32_t episode;
@@ -252,6 +257,7 @@ typedef struct {
     float z_tol_m;
     float zdot_tol_mps;
     float p_explore;
+    uint32_t generation;
 } msg_episode_start_t;
 /* Packs into out (room for 247 bytes); returns the payload length. */
 size_t msg_episode_start_pack(const msg_episode_start_t *m, uint8_t *out);
@@ -260,7 +266,7 @@ void msg_episode_start_unpack(msg_episode_start_t *m, const uint8_t *p, size_t n
 
 /* 0x22 EPISODE_END: A learning episode ends: failure (left the region), success (time limit reached) or aborted. */
 #define MSG_EPISODE_END_ID 0x22u
-#define MSG_EPISODE_END_FIXED_BYTES 35u
+#define MSG_EPISODE_END_FIXED_BYTES 39u
 #define MSG_EPISODE_END_OFF_T_US 0u
 #define MSG_EPISODE_END_OFF_EPISODE 8u
 #define MSG_EPISODE_END_OFF_SAMPLE 12u
@@ -270,6 +276,7 @@ void msg_episode_start_unpack(msg_episode_start_t *m, const uint8_t *p, size_t n
 #define MSG_EPISODE_END_OFF_DURATION_S 23u
 #define MSG_EPISODE_END_OFF_EPISODE_RETURN 27u
 #define MSG_EPISODE_END_OFF_SUCCESSES 31u
+#define MSG_EPISODE_END_OFF_GENERATION 35u
 typedef struct {
     uint64_t t_us;
     uint32_t episode;
@@ -280,6 +287,7 @@ typedef struct {
     float duration_s;
     float episode_return;
     uint32_t successes;
+    uint32_t generation;
 } msg_episode_end_t;
 /* Packs into out (room for 247 bytes); returns the payload length. */
 size_t msg_episode_end_pack(const msg_episode_end_t *m, uint8_t *out);

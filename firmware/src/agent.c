@@ -17,6 +17,7 @@ static const link_upcalls_t k_link_upcalls = {
     .pump_replies = pump_replies,
     .mode = modes_mode,
     .episode = modes_episode,
+    .generation = modes_generation,
 };
 
 void agent_init(uint32_t node_id, const uint8_t *key_or_null) {

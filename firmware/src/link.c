@@ -79,6 +79,7 @@ static void send_hello(void) {
     m.firmware_patch = CFG_FIRMWARE_PATCH;
     m.node_id = g_node_id;
     m.boot_id = g_boot_id;
+    m.generation = g_up->generation();
     text_add_n(&(text_buffer_t){m.name, sizeof m.name, 0}, CFG_AGENT_NAME, sizeof m.name - 1u);
     link_send(MSG_HELLO_ID, payload, msg_hello_pack(&m, payload), 0);
     g_next_hello_us = hal_link_time_us() + LINK_HELLO_REPEAT_US;
@@ -101,6 +102,7 @@ static void send_heartbeat(void) {
     m.log_next_sample = log.next_sample;
     m.episode = g_up->episode();
     m.signing_rejects = g_signing_rejects;
+    m.generation = g_up->generation();
     link_send(MSG_HEARTBEAT_ID, payload, msg_heartbeat_pack(&m, payload), 0);
 }
 

@@ -21,9 +21,10 @@ typedef struct {
     void (*command)(const frame_t *f, bool apply, verdict_t *v);
     /* Sends the reply frames one poll may send (after the frames read in that poll were handled). */
     void (*pump_replies)(void);
-    /* The mode and the episode a HEARTBEAT reports. */
+    /* The mode, the episode and the learner generation a HEARTBEAT (and HELLO) reports. */
     uint8_t (*mode)(void);
     uint32_t (*episode)(void);
+    uint32_t (*generation)(void);
 } link_upcalls_t;
 
 /* up: in static storage (the link keeps the pointer). */

@@ -55,6 +55,7 @@ typedef struct {
     uint64_t dive_start_us;
     uint64_t next_idle_sample_us;
     uint32_t successes;
+    uint32_t generation;     /* SPEC 1.3 s. 6: the learner's generation since boot, +1 at every restart */
     uint32_t episodes_left;  /* 0 = no limit */
     bool dumps_after_planning;
     float last_dt_s;         /* agent time between the last two measurements */
@@ -190,7 +191,7 @@ static void end_episode(uint8_t reason, uint16_t state) {
     uint8_t payload[MSG_EPISODE_END_FIXED_BYTES];
     msg_episode_end_t m = {
         hal_time_us(), g.episode, g.next_sample - 1u, reason, state, g.steps,
-        (float)g.steps * params_get(PARAM_CONTROL_DT_S), g.episode_return, g.successes,
+        (float)g.steps * params_get(PARAM_CONTROL_DT_S), g.episode_return, g.successes, g.generation,
     };
     link_send_logged(MSG_EPISODE_END_ID, payload, msg_episode_end_pack(&m, payload), g.next_sample - 1u, false);
     if (params_get(PARAM_DUMP_EACH_EPISODE) != 0.0f) { g.dumps_after_planning = true; }
@@ -255,7 +256,7 @@ static void begin_episode(float center_deg) {
     msg_episode_start_t m = {
         hal_time_us(), g.episode, g.next_sample, start_state, g.depth_m, g.velocity_mps,
         params_get(PARAM_TARGET_DEPTH_M), params_get(PARAM_Z_TOL_M), params_get(PARAM_ZDOT_TOL_MPS),
-        learner_p_explore(),
+        learner_p_explore(), g.generation,
     };
     link_send_logged(MSG_EPISODE_START_ID, payload, msg_episode_start_pack(&m, payload), g.next_sample, false);
 }
@@ -342,6 +343,7 @@ void modes_init(modes_episode_dumps_t episode_dumps) {
     (void)learner_configure(&c);
     recovery_init(&g.recovery, CFG_NEUTRAL_DEG);
     g.mode = MODE_IDLE;
+    g.generation = 1u;
     g.surface_pa = hal_pressure_pa();  /* P0: the agent boots at the surface */
     g.last_measure_us = hal_time_us();
     smo_reset(&g.observer, 0.0f);
@@ -377,6 +379,7 @@ uint32_t modes_step(void) {
 
 uint8_t modes_mode(void) { return g.mode; }
 uint32_t modes_episode(void) { return g.episode; }
+uint32_t modes_generation(void) { return g.generation; }
 uint32_t modes_next_sample(void) { return g.next_sample; }
 uint32_t modes_plan_waits(void) { return g.plan_waits; }
 uint32_t modes_forced_plans(void) { return g.forced_plans; }
@@ -438,7 +441,14 @@ static void restart_learner(const char *why) {
     g.dumps_after_planning = false;
     dumps_model_changed();
     reset_episode();
-    link_text(SEVERITY_INFO, why);
+    g.generation++;  /* a new chapter: its episodes are numbered from 1 again */
+    char line[TEXT_BYTES];
+    text_buffer_t t;
+    text_start(&t, line, sizeof line);
+    text_add(&t, why);
+    text_add(&t, ", generation ");
+    text_add_uint(&t, g.generation);
+    link_text(SEVERITY_INFO, line);
 }
 
 void modes_cmd_reset_model(bool apply, verdict_t *v) {
@@ -446,7 +456,7 @@ void modes_cmd_reset_model(bool apply, verdict_t *v) {
     verdict_ok(v);
     if (!apply) { return; }
     learner_reset();
-    restart_learner("model reset");
+    restart_learner("model reset: learner restarted");
 }
 
 void modes_param_set(uint16_t index, uint64_t value_bits, bool apply, verdict_t *v) {

@@ -16,6 +16,8 @@ void     modes_init(modes_episode_dumps_t episode_dumps);
 uint32_t modes_step(void);
 uint8_t  modes_mode(void);
 uint32_t modes_episode(void);
+/* The learner generation (SPEC 1.3 s. 6): 1 at boot, +1 at every learner restart. */
+uint32_t modes_generation(void);
 uint32_t modes_next_sample(void);
 /* Recovery steps that held the start depth because the last episode's planning was not done yet. */
 uint32_t modes_plan_waits(void);

@@ -11,6 +11,7 @@ from groundstation.check.errors import CheckFailed, CheckSkipped
 from groundstation.check.probe import Exchange, Probe, result_name
 from protocol import AckResult, Mode
 from protocol import messages as m
+from protocol import parameters as spec_params
 
 HOVER_DEPTH_M = 0.5  # where checks hold the agent (inside any tank the paper's agent dives in)
 DEEP_M = 0.4  # deep enough that surfacing takes the agent seconds, not one step
@@ -52,7 +53,23 @@ def set_param(probe: Probe, name: str, value: float) -> tuple[Exchange, m.ParamV
     if ex.ack.result != AckResult.ACCEPTED:
         return ex, None
     found = probe.wait_message(m.ParamValue, ex.ack_at, probe.timeouts.reply_s, lambda v: v.name == name)
+    if name in LEARNER_PARAMS:
+        await_restart(probe)
     return ex, found[1] if found is not None else None
+
+
+LEARNER_PARAMS = frozenset(p.name for p in spec_params.PARAMS if p.learner)
+RESTART_WAIT_S = 180.0  # a virtual agent on a cold compile cache, under load, builds a new learner's code this long
+
+
+def await_restart(probe: Probe) -> None:
+    """After an accepted learner change the agent may restart its learner (SPEC 1.3 s. 4, answer time: a learner
+    restart after its ACK may take long, and what arrives meanwhile is answered once it is done): a TIMESYNC
+    answered says it is done, so the next command's ACK is not waited for too briefly (a false failure)."""
+    start = probe.end
+    probe.send(m.Timesync(origin_us=1))
+    if probe.wait_message(m.Timesync, start, RESTART_WAIT_S) is None:
+        raise CheckFailed(f"no answer for {RESTART_WAIT_S:g} s after a learner parameter change")
 
 
 def require_set(probe: Probe, name: str, value: float) -> m.ParamValue:

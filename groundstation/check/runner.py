@@ -60,8 +60,8 @@ def selected(only: tuple[str, ...]) -> list[Check]:
 
 
 # The run order: what needs nothing first, what moves the agent or changes its model last.
-CHECK_MODULES = ("handshake", "junk", "timesync", "commands", "signing", "parameters", "dumps", "logreplay", "modes",
-                 "linkloss")
+CHECK_MODULES = ("handshake", "junk", "timesync", "commands", "signing", "signing_resync", "parameters", "dumps",
+                 "logreplay", "modes", "generations", "link_taken", "linkloss")
 
 
 def _run_position(c: Check) -> int:

@@ -117,7 +117,13 @@ class RunDisplay:
         for i in range(self._episodes, ends):  # above the live status line on a terminal
             episode, outcome, duration_s = status.ends[i]
             ok = sum(end[1] == "success" for end in status.ends[: i + 1])
-            printer.print(f"episode {episode}{total}: {outcome} after {duration_s:.1f} s ({ok} ok so far)",
+            chapter = max((number for start, number in status.chapter_starts if start <= i), default=1)
+            # After a learner restart the agent numbers episodes from 1 again: the line names the chapter, and the
+            # count of the run (what --episodes and the bar count: completed episodes, across restarts).
+            done = sum(end[1] in ("success", "failure") for end in status.ends[: i + 1])
+            name = f"episode {episode}{total}" if chapter == 1 else \
+                f"episode {episode} of chapter {chapter} ({done}{total} in the run)"
+            printer.print(f"{name}: {outcome} after {duration_s:.1f} s ({ok} ok so far)",
                           soft_wrap=True, highlight=False)
         self._episodes = ends
         if self._progress is not None:

@@ -32,7 +32,8 @@ if TYPE_CHECKING:
 def run_command(
     url: UrlArg = None,
     episodes: Annotated[int, typer.Option(callback=ranged(0, U32_MAX), metavar="N",
-                                          help="stop after this many episodes (0 = until Ctrl-C)")] = 0,
+                                          help="stop after this many completed episodes of the run, counted "
+                                               "across learner restarts (0 = until Ctrl-C)")] = 0,
     speed: Annotated[str | None, typer.Option(help="built-in virtual agent only: time factor or 'max'")] = None,
     seed: Annotated[int | None, typer.Option(callback=ranged(0, U32_MAX), metavar="N",
                                              help="built-in virtual agent only: random seed")] = None,

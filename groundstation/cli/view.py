@@ -183,9 +183,11 @@ def replay(
         show_default=False)],
     speed: Annotated[str, typer.Option("--speed", help="Play in agent time: 1, 10, ... or max.")] = "max",
     rrd: Annotated[Path | None, typer.Option("--rrd", help="Convert to this .rrd file (no viewer needed).")] = None,
-    start: Annotated[str | None, typer.Option("--from", help="First episode (12) or time since start (90s, 5m).")]
-    = None,
-    end: Annotated[str | None, typer.Option("--to", help="Last episode (20) or time since start (30m, 1h).")] = None,
+    start: Annotated[str | None, typer.Option("--from", help=(
+        "First episode (12; after a learner restart 2:5, chapter 2's episode 5, as dive log info numbers the "
+        "chapters) or time since start (90s, 5m)."))] = None,
+    end: Annotated[str | None, typer.Option("--to", help="Last episode (20, or 2:8) or time since start (30m, 1h).")
+                   ] = None,
     viewer: ViewerOption = None,
     web_port: WebPortOption = 9090,
     grpc_port: GrpcPortOption = 9876,

@@ -15,19 +15,27 @@ from protocol import Action, EndReason, Mode
 _REASONS = {reason.name.lower(): int(reason) for reason in EndReason}
 
 
-def _samples_and_ends(paths: list[Path]) -> tuple[list[dict[str, object]], dict[tuple[int, int], int], Recording]:
-    """Samples by (boot, index), each once, in order; episode end reasons by (boot, episode).
+Key = tuple[int, int, int]  # (boot, generation, episode), as open_recording keys an episode
+
+
+def _key(row: dict[str, object]) -> Key:
+    return int(row["boot"]), int(row["generation"]), int(row["episode"])  # type: ignore[call-overload]
+
+
+def _samples_and_ends(paths: list[Path]) -> tuple[list[dict[str, object]], dict[Key, int], Recording]:
+    """Samples by (boot, index), each once, in order; episode end reasons by (boot, generation, episode).
 
     Read through open_recording (the notebook API), so the CLI and a notebook see the same rows: sample and
-    episode numbers restart at an agent reboot, each row carries its `boot` (1, 2, ... in file order), two
-    boots are never spliced, and messages whose JSON has the wrong shape are left out.
+    episode numbers restart at an agent reboot and at a learner restart, each row carries its `boot` (1, 2, ...
+    in file order) and `generation`, two boots or chapters are never spliced, and messages whose JSON has the
+    wrong shape are left out.
     """
     recording = open_recording(*paths)
     table = recording.samples()
-    names = [name for name in table.dtype.names or () if name not in ("_seq", "_flags", "boot")]
-    columns = ["boot", *names]
+    names = [name for name in table.dtype.names or () if name not in ("_seq", "_flags", "boot", "generation")]
+    columns = ["boot", "generation", *names]
     rows = [dict(zip(columns, values, strict=True)) for values in table[columns].tolist()]
-    ends = {(int(e["boot"]), int(e["episode"])): _REASONS[str(e["outcome"])]
+    ends = {(int(e["boot"]), int(e["generation"]), int(e["episode"])): _REASONS[str(e["outcome"])]
             for e in recording.episodes() if str(e["outcome"]) in _REASONS}
     return rows, ends, recording
 
@@ -65,20 +73,19 @@ def export_npz(source: Path | list[Path], target: Path) -> int:
     """
     files, path = _files(source)
     rows, ends, recording = _samples_and_ends(files)
-    learning = [r for r in rows if r["mode"] == Mode.LEARNING and (r["boot"], r["episode"]) in ends]
+    learning = [r for r in rows if r["mode"] == Mode.LEARNING and _key(r) in ends]
     _observe(learning, recording)
     cols: dict[str, list[float]] = {k: [] for k in (
-        "boot", "episode", "state", "action", "reward", "next_state", "terminated", "truncated",
+        "boot", "generation", "episode", "state", "action", "reward", "next_state", "terminated", "truncated",
         "depth_m", "velocity_mps", "next_depth_m", "next_velocity_mps", "offset_deg", "next_offset_deg")}
     for now, nxt in zip(learning, learning[1:], strict=False):
-        if nxt["boot"] != now["boot"] or nxt["episode"] != now["episode"] \
-                or nxt["sample"] != int(now["sample"]) + 1:  # type: ignore[call-overload]
+        if _key(nxt) != _key(now) or nxt["sample"] != int(now["sample"]) + 1:  # type: ignore[call-overload]
             continue
         if now["action"] == Action.NONE:
             continue
         episode = int(now["episode"])  # type: ignore[call-overload]
-        values = {"boot": now["boot"], "episode": episode, "state": now["state"], "action": now["action"],
-                  "reward": nxt["reward"],
+        values = {"boot": now["boot"], "generation": now["generation"], "episode": episode, "state": now["state"],
+                  "action": now["action"], "reward": nxt["reward"],
                   "next_state": nxt["state"], "depth_m": now["depth_m"], "velocity_mps": now["velocity_mps"],
                   "next_depth_m": nxt["depth_m"], "next_velocity_mps": nxt["velocity_mps"],
                   "offset_deg": now["_offset_deg"], "next_offset_deg": nxt["_offset_deg"],
@@ -93,10 +100,11 @@ def export_npz(source: Path | list[Path], target: Path) -> int:
     # mark each episode's final transition by how the episode ended
     episodes = np.asarray(cols["episode"], dtype=np.int64)
     boots = np.asarray(cols["boot"], dtype=np.int64)
+    generations = np.asarray(cols["generation"], dtype=np.int64)
     terminated = np.zeros(len(episodes), dtype=bool)
     truncated = np.zeros(len(episodes), dtype=bool)
-    for (boot, episode), reason in ends.items():
-        index = np.flatnonzero((episodes == episode) & (boots == boot))
+    for (boot, generation, episode), reason in ends.items():
+        index = np.flatnonzero((episodes == episode) & (boots == boot) & (generations == generation))
         if len(index):
             terminated[index[-1]] = reason == EndReason.FAILURE
             truncated[index[-1]] = reason != EndReason.FAILURE
@@ -107,7 +115,7 @@ def export_npz(source: Path | list[Path], target: Path) -> int:
     try:
         with target.open("wb") as f:  # a file, not a name: numpy would add ".npz" to a name without it
             np.savez_compressed(
-                f, boot=boots, episode=episodes,
+                f, boot=boots, generation=generations, episode=episodes,
                 state=np.asarray(cols["state"], dtype=np.int64), action=np.asarray(cols["action"], dtype=np.int64),
                 reward=np.asarray(cols["reward"], dtype=np.float32),
                 next_state=np.asarray(cols["next_state"], dtype=np.int64),
@@ -132,8 +140,7 @@ def _observe(learning: list[dict[str, object]], recording: Recording) -> None:
         step_deg = float("nan")
     start = 0
     for end in range(1, len(learning) + 1):
-        if end < len(learning) and (learning[end]["boot"], learning[end]["episode"]) == \
-                (learning[start]["boot"], learning[start]["episode"]):
+        if end < len(learning) and _key(learning[end]) == _key(learning[start]):
             continue
         rows = learning[start:end]
         cmd = [float(r["actuator_cmd_deg"]) if r["actuator_cmd_deg"] is not None else np.nan  # type: ignore[arg-type]

@@ -8,6 +8,14 @@ from pathlib import Path
 from typing import Any
 
 from groundstation.mcap_io import RecordingContents, iter_messages
+from groundstation.recording.chapters import (
+    CHAPTER_TOPICS,
+    Chapters,
+    ChapterSummary,
+    chapter_line,
+    chapter_summaries,
+    follow_recorded,
+)
 from groundstation.recording.recorded import Boots, json_fields
 from groundstation.session.exactness import SampleIndexCheck
 from groundstation.session.gaps import SampleRanges
@@ -22,6 +30,8 @@ class EpisodeSummary:
     duration_s: float
     episode_return: float
     backfilled: bool
+    boot: int = 1
+    generation: int = 1  # the learner's chapter in its boot: an episode is keyed (boot, generation, episode)
 
 
 @dataclass
@@ -60,6 +70,7 @@ class RecordingSummary:
     agent: dict[str, str] = field(default_factory=dict)
     parameters: dict[str, str] = field(default_factory=dict)
     boots: list[BootSummary] = field(default_factory=list)
+    chapters: list[ChapterSummary] = field(default_factory=list)  # per (boot, learner generation)
     malformed: int = 0  # messages whose JSON had the wrong shape (skipped)
     damaged_chunks: int = 0  # chunks skipped because their data was damaged
     part: int = 0  # of a split recording (dive run --split-mb/--split-minutes): 1, 2, ...; 0 = not split
@@ -105,6 +116,7 @@ def summarize(path: Path, progress: Callable[[int, int], None] | None = None) ->
                                messages=totals.messages, frames_lost=totals.frames_lost, rejects=totals.rejects,
                                topics=totals.topics, malformed=totals.malformed, damaged_chunks=totals.damaged_chunks)
     summary.episodes = [_episode(body) for body in totals.episodes]
+    summary.chapters = _chapters(totals.chapters, summary.episodes)
     finished = []
     for counts in totals.boots:
         boot = BootSummary(counts.boot, counts.samples, counts.backfilled, counts.held.missing(), counts.impossible,
@@ -119,6 +131,7 @@ def summarize_stream(path: Path) -> RecordingSummary:
     info = RecordingContents()
     summary = RecordingSummary(str(path), complete=True)
     boots = Boots()
+    chapters = Chapters()
     boot = _Boot(1)
     finished: list[BootSummary] = []
     first_ns = last_ns = None
@@ -151,7 +164,10 @@ def summarize_stream(path: Path) -> RecordingSummary:
         elif msg.topic == "/agent/EPISODE_END":
             body = json_fields(msg, integers=("episode", "reason", "steps"), numbers=("duration_s", "episode_return"))
             if body is not None:
-                summary.episodes.append(_episode(body))
+                summary.episodes.append(_episode(follow_recorded(chapters, boots.current, msg.topic, msg.data)
+                                                 or body))
+        elif msg.topic in CHAPTER_TOPICS[1:]:  # TEXT, ACK, EPISODE_START: where a chapter begins
+            body = follow_recorded(chapters, boots.current, msg.topic, msg.data)
         elif msg.topic == "/agent/HELLO":
             # The agent's HELLO on connect and its answer to ours are one session: the first after a start or a loss.
             if new_session:
@@ -161,6 +177,7 @@ def summarize_stream(path: Path) -> RecordingSummary:
                 finished.append(boot.finish())
                 boot = _Boot(boots.current, boots.boot_id)
             boot.summary.boot_id = boots.boot_id  # the first HELLO of a file without a header names boot 1
+            follow_recorded(chapters, boots.current, msg.topic, msg.data)
         elif msg.topic == "/event":
             body = json_fields(msg)
             if body is not None and body.get("kind") == "link_lost":
@@ -175,6 +192,7 @@ def summarize_stream(path: Path) -> RecordingSummary:
         if body is None:
             summary.malformed += 1
     finished.append(boot.finish())
+    summary.chapters = _chapters(chapters, summary.episodes)
     summary.complete = not info.truncated
     summary.damaged_chunks = info.damaged_chunks
     _finish(summary, finished, first_ns, last_ns, first_us, last_us, info.metadata)
@@ -185,14 +203,19 @@ def _episode(body: dict[str, Any]) -> EpisodeSummary:
     reason = body["reason"]
     outcome = EndReason(reason).name.lower() if reason in (1, 2, 3) else str(reason)
     return EpisodeSummary(body["episode"], outcome, body["steps"], body["duration_s"] or 0.0,
-                          body["episode_return"] or 0.0, bool(body.get("_backfilled")))
+                          body["episode_return"] or 0.0, bool(body.get("_backfilled")), int(body.get("boot", 1)),
+                          int(body.get("generation", 1)))
+
+
+def _chapters(chapters: Chapters, episodes: list[EpisodeSummary]) -> list[ChapterSummary]:
+    return chapter_summaries(chapters.restarts, [(e.boot, e.generation, e.outcome) for e in episodes])
 
 
 def _finish(summary: RecordingSummary, finished: list[BootSummary], first_ns: int | None, last_ns: int | None,
             first_us: int | None, last_us: int | None, metadata: dict[str, list[dict[str, str]]]) -> None:
     """What both readers derive alike: totals over boots, durations, episodes in order, header fields."""
     summary.boots = [b for b in finished if b.samples or b.samples_impossible or len(finished) == 1]
-    summary.episodes.sort(key=lambda e: e.episode)
+    summary.episodes.sort(key=lambda e: (e.boot, e.generation, e.episode))
     summary.successes = sum(e.outcome == "success" for e in summary.episodes)
     summary.samples = sum(b.samples for b in finished)
     summary.samples_backfilled = sum(b.samples_backfilled for b in finished)
@@ -237,7 +260,17 @@ def format_summary(s: RecordingSummary) -> str:
                         (s.damaged_chunks, "damaged chunks (skipped; the rest was read)")):
         if count:
             lines.append(f"  {count} {what}")
+    # Episode numbers restart with a learner (and a boot): each chapter's figures are its own, and its episodes
+    # follow a line that says where the learner restarted.
+    chaptered = len(s.chapters) > 1 or any(c.why for c in s.chapters)
+    if chaptered:
+        lines.extend(f"    {chapter_line(n, c)}" for n, c in enumerate(s.chapters, 1))
+    chapter = (1, 1) if chaptered else None
     for e in s.episodes:
+        if chapter is not None and (e.boot, e.generation) != chapter:
+            chapter = (e.boot, e.generation)
+            number, heading = next((n, c) for n, c in enumerate(s.chapters, 1) if (c.boot, c.generation) == chapter)
+            lines.append(f"  -- {chapter_line(number, heading)}")
         lines.append(f"    {e.episode:5d}  {e.outcome:8s} {e.steps:6d} steps  {e.duration_s:8.1f} s  "
                      f"return {e.episode_return:9.1f}{'  (backfilled)' if e.backfilled else ''}")
     return "\n".join(lines)

@@ -27,6 +27,7 @@ from groundstation.mcap_io.indexed import (
     IndexedFile,
     iter_indexed_chunks,
 )
+from groundstation.recording.chapters import CHAPTER_TOPICS, Chapters, follow_recorded
 from groundstation.recording.columns import record_dtype
 from groundstation.recording.recorded import Boots, json_fields
 from groundstation.session.exactness import MAX_SAMPLE_RATE_HZ, SAMPLE_SLACK
@@ -38,7 +39,7 @@ from protocol.frame import MIN_INNER
 SAMPLE_TOPIC, RAW_RX_TOPIC = "/agent/SAMPLE", "/raw/rx"
 # The few topics decoded one message at a time (about 1 in 30 messages of a run); the rest are only counted.
 HEARTBEAT_TOPIC = "/agent/HEARTBEAT"
-CONTROL_TOPICS = (HEARTBEAT_TOPIC, "/agent/EPISODE_END", "/agent/HELLO", "/event", "/link")
+CONTROL_TOPICS = (HEARTBEAT_TOPIC, "/agent/EPISODE_END", "/event", "/link", *CHAPTER_TOPICS)
 _SAMPLE = record_dtype(m.Sample.DEFINITION)
 _SAMPLE_INNER = MIN_INNER + _SAMPLE.itemsize
 _FIELD_AT = {name: 5 + int(spec[1]) for name, spec in (_SAMPLE.fields or {}).items()}  # in the inner frame
@@ -114,6 +115,7 @@ class IndexedTotals:
     rejects: int = 0
     malformed: int = 0
     episodes: list[dict[str, Any]] = field(default_factory=list)
+    chapters: Chapters = field(default_factory=Chapters)
     boots: list[BootCounts] = field(default_factory=list)
     damaged_chunks: int = 0
 
@@ -137,7 +139,9 @@ class _State:
         if topic == "/agent/EPISODE_END":
             body = json_fields(msg, integers=("episode", "reason", "steps"), numbers=("duration_s", "episode_return"))
             if body is not None:
-                t.episodes.append(body)
+                t.episodes.append(follow_recorded(t.chapters, self.boots.current, topic, msg.data) or body)
+        elif topic in CHAPTER_TOPICS[1:]:  # TEXT, ACK, EPISODE_START: where a chapter begins
+            body = follow_recorded(t.chapters, self.boots.current, topic, msg.data)
         elif topic == "/agent/HELLO":
             if self.new_session:
                 t.sessions += 1
@@ -147,6 +151,7 @@ class _State:
                 t.boots.append(self.boot)
                 self.heartbeat = None
             self.boot.boot_id = self.boots.boot_id  # the first HELLO of a file without a header names boot 1
+            follow_recorded(t.chapters, self.boots.current, topic, msg.data)
         elif topic == "/event":
             body = json_fields(msg)
             if body is not None and body.get("kind") == "link_lost":

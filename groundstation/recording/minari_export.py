@@ -10,7 +10,8 @@ Each episode becomes one Minari episode in the terms of `DivingAgent-v0` (simula
 - terminated: the episode ended in failure (left the learning region); truncated: success (the time
   limit) or aborted by a command.
 
-Episodes are told apart by boot and episode number (several files or boots make one dataset). An
+Episodes are told apart by boot, learner generation and episode number (several files, boots or learner
+restarts make one dataset; each step's infos name them). An
 episode with a hole in its samples that backfill never filled is left out, not invented, and so is
 an episode that has no EPISODE_END (still open when the recording stopped).
 """
@@ -188,7 +189,8 @@ def episode_buffers(recording: Recording, buffer_type: type) -> tuple[list[Any],
         if row["outcome"] not in {r.name.lower() for r in EndReason}:
             left_out += 1
             continue
-        rows = learning[(learning["boot"] == row["boot"]) & (learning["episode"] == row["episode"])]
+        rows = learning[(learning["boot"] == row["boot"]) & (learning["generation"] == row["generation"])
+                        & (learning["episode"] == row["episode"])]
         if len(rows) < 2 or np.any(np.diff(rows["sample"]) != 1) or rows["sample"][-1] != row["last_sample"]:
             left_out += 1  # a hole backfill never filled, or its end is missing: leave it out
             continue
@@ -211,7 +213,9 @@ def _buffer(buffer_type: type, episode_id: int, rows: NDArray[np.void], outcome:
         id=episode_id, observations=observations, actions=actions,
         rewards=rows["reward"][1:].astype(np.float64), terminations=terminations, truncations=truncations,
         # Lists, not 1-D arrays: minari 0.5's arrow storage cannot read back a 1-D info array.
-        infos={"state": rows["state"].tolist(), "sample": rows["sample"].tolist(), "t_us": rows["t_us"].tolist()},
+        infos={"state": rows["state"].tolist(), "sample": rows["sample"].tolist(), "t_us": rows["t_us"].tolist(),
+               "boot": rows["boot"].tolist(), "generation": rows["generation"].tolist(),
+               "episode": rows["episode"].tolist()},
     )
 
 

@@ -5,10 +5,12 @@
     OUT/agent_HEARTBEAT/NAME.parquet, OUT/ground_CMD_START/..., OUT/event/...: every other JSON topic
 
 Every row carries `recording` (NAME), `boot` (1, 2, ... in the recording), `boot_id` (the agent's, hex),
-`host_time_ns` and, for the agent's messages, its own clock `t_us`; the ground's rows (markers, events, link
-statistics with RTT, loss and backfill) carry the agent's clock as `agent_t_us`, modes and actions their names,
-samples their episode's target (recording/analyst_columns.py). Each file's schema metadata holds the
-session's header (`dive.parameters`, `dive.agent`, `dive.session`, `dive.environment`, as JSON). One file per
+`generation` for the agent's messages (samples and episodes included: the learner's chapter in its boot, an
+episode is keyed by boot, generation and episode), `host_time_ns` and, for the agent's messages, its own clock
+`t_us`; the ground's rows (markers, events, link statistics with RTT, loss and backfill) carry the agent's clock
+as `agent_t_us`, modes and actions their names, samples their episode's target (recording/analyst_columns.py).
+Each file's schema metadata holds the session's header (`dive.parameters`, `dive.agent`, `dive.session`,
+`dive.environment`, as JSON). One file per
 recording in one folder per table, with the same columns and types, is what pandas (`read_parquet(OUT/"samples")`),
 polars (`scan_parquet("OUT/samples/*.parquet")`) and DuckDB (`FROM 'OUT/samples/*.parquet'`) read as one table.
 """
@@ -73,8 +75,10 @@ def export_parquet(recording: Recording, name: str, out_dir: Path) -> dict[str, 
         columns["boot"] = pa.array(boots.astype(np.int64))
         columns["boot_id"] = pa.array([boot_ids.get(int(b)) for b in boots], pa.string())
         single = float32_fields(topics.get(table, ""))  # the episodes' duration and return: EPISODE_END's
+        if "generation" in fields:
+            columns["generation"] = _column(pa, rows["generation"])
         for field in fields:
-            if field in _LEFT_OUT or field == "boot":
+            if field in _LEFT_OUT or field in ("boot", "generation"):
                 continue
             columns[field] = _column(pa, rows[field], field in single)
             if field in LABELLED and rows.dtype[field].kind in "iu":

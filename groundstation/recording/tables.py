@@ -11,9 +11,12 @@
 Every row carries `host_time_ns` (when the ground station received it) and, for agent messages, the
 agent's own `t_us`. A recording that spans an agent reboot is told apart by `boot` (1, 2, ... in file
 order, from the agents' HELLOs as `dive log info` counts them; `boot_ids` gives each one's boot id):
-sample and episode numbers restart with a boot. Samples received twice (live and backfilled) appear
-once; messages whose JSON has the wrong shape are counted in `malformed` and left out. The ground's own records
-(/link, /event, ...) nest objects: their fields are columns named by path (`link_rtt_median_ms`, `data_alarm`).
+sample and episode numbers restart with a boot. Agent messages also carry `generation`, the learner's
+chapter within its boot (chapters.py): episode numbers restart with a learner restart too, so an episode is
+keyed by (boot, generation, episode); `restarts` says where each chapter began and whether it was inferred.
+Samples received twice (live and backfilled) appear once; messages whose JSON has the wrong shape are
+counted in `malformed` and left out. The ground's own records (/link, /event, ...) nest objects: their fields
+are columns named by path (`link_rtt_median_ms`, `data_alarm`).
 """
 
 from __future__ import annotations
@@ -28,6 +31,7 @@ from numpy.typing import NDArray
 
 from groundstation.errors import RecordingError
 from groundstation.mcap_io import RecordedMessage, RecordingContents, iter_messages
+from groundstation.recording.chapters import Chapters, Restart
 from groundstation.recording.recorded import Boots, header_boot_id, json_fields
 from protocol import EndReason
 
@@ -79,11 +83,13 @@ class Recording:
         self._raw: list[tuple[str, int, int, int, RecordedMessage]] = []  # topic, boot, host ns, agent us, msg
         self.boot_ids: dict[int, int] = {}  # boot number -> the agent's boot_id
         self.malformed = 0  # JSON messages of the wrong shape, left out of the tables
+        self.restarts: list[Restart] = []  # the learner restarts, in file order (a new chapter each)
         self._read()
 
     # ------------------------------------------------------------------ reading
     def _read(self) -> None:
         boots = Boots()
+        chapters = Chapters()
         seen_samples: set[tuple[int, int]] = set()
         for path in self.files:
             info = RecordingContents()
@@ -115,8 +121,14 @@ class Recording:
                 if not msg.topic.startswith("/agent/"):  # the agent's messages are flat; the ground's records nest
                     body = _flat(body)
                 body["boot"], body["host_time_ns"] = boot, msg.log_time_ns
+                if msg.topic.startswith("/agent/"):
+                    body["generation"] = chapters.follow(boot, msg.topic, body)
                 self._topics.setdefault(msg.topic, _Rows()).rows.append(body)
             self.contents.append(info)
+        self.restarts = chapters.restarts
+        by_index = chapters.sample_generations()
+        for row in self._rows(SAMPLE_TOPIC):  # by index, not arrival: a backfilled sample arrives after a restart
+            row["generation"] = by_index.generation(row["boot"], int(row["sample"]))
 
     # ------------------------------------------------------------------ what it holds
     @property
@@ -168,25 +180,26 @@ class Recording:
         return _structured(rows.rows)
 
     def samples(self) -> NDArray[np.void]:
-        """SAMPLEs, one row per (boot, sample index), in boot then sample order."""
+        """SAMPLEs, one row per (boot, sample index), in boot then sample order, each with its `generation`."""
         table = self.table(SAMPLE_TOPIC)
         if len(table) == 0:
             return table
         return table[np.lexsort((table["sample"], table["boot"]))]
 
     def episodes(self) -> NDArray[np.void]:
-        """One row per episode: boot, episode, outcome, start/end sample and agent time, steps, return."""
-        starts = {(int(r["boot"]), int(r["episode"])): r for r in self._rows(EPISODE_START_TOPIC)}
-        ends = {(int(r["boot"]), int(r["episode"])): r for r in self._rows(EPISODE_END_TOPIC)}
-        dtype = [("boot", "<i8"), ("episode", "<i8"), ("outcome", "<U8"), ("first_sample", "<i8"),
-                 ("last_sample", "<i8"), ("start_t_us", "<i8"), ("end_t_us", "<i8"), ("steps", "<i8"),
-                 ("duration_s", "<f8"), ("episode_return", "<f8"), ("backfilled", "?")]
+        """One row per episode, keyed (boot, generation, episode): outcome, start/end sample and agent time, steps,
+        return."""
+        starts = {episode_key(r): r for r in self._rows(EPISODE_START_TOPIC)}
+        ends = {episode_key(r): r for r in self._rows(EPISODE_END_TOPIC)}
+        dtype = [("boot", "<i8"), ("generation", "<i8"), ("episode", "<i8"), ("outcome", "<U8"),
+                 ("first_sample", "<i8"), ("last_sample", "<i8"), ("start_t_us", "<i8"), ("end_t_us", "<i8"),
+                 ("steps", "<i8"), ("duration_s", "<f8"), ("episode_return", "<f8"), ("backfilled", "?")]
         keys = sorted(set(starts) | set(ends))
         out = np.zeros(len(keys), dtype=dtype)
         for i, key in enumerate(keys):
             start, end = starts.get(key, {}), ends.get(key, {})
             out[i] = (
-                key[0], key[1], _OUTCOMES.get(int(end.get("reason", 0)), "open" if not end else "?"),
+                key[0], key[1], key[2], _OUTCOMES.get(int(end.get("reason", 0)), "open" if not end else "?"),
                 start.get("sample", -1), end.get("sample", -1), start.get("t_us", -1), end.get("t_us", -1),
                 end.get("steps", 0), end.get("duration_s", np.nan), end.get("episode_return", np.nan),
                 bool(start.get("_backfilled") or end.get("_backfilled")),
@@ -232,6 +245,11 @@ class Recording:
     def _rows(self, topic: str) -> list[dict[str, Any]]:
         rows = self._topics.get(topic)
         return rows.rows if rows else []
+
+
+def episode_key(row: dict[str, Any]) -> tuple[int, int, int]:
+    """An episode's key in every data path: (boot, generation, episode)."""
+    return int(row["boot"]), int(row.get("generation", 1)), int(row["episode"])
 
 
 def open_recording(*paths: str | Path) -> Recording:

@@ -20,6 +20,7 @@ from groundstation.recording.recorder import Recorder, RecorderConfig
 from groundstation.run.alarms import AlarmConfig, Alarms
 from groundstation.run.history import History, HistoryConfig
 from groundstation.run.hub import Hub
+from groundstation.run.learner_restarts import LearnerRestarts
 from groundstation.safe_output import one_line
 from groundstation.session.agent_session import Session, SessionConfig
 from groundstation.session.events import EventKind, LinkEvent, Received, Sent, SessionListener
@@ -69,6 +70,9 @@ class RunStatus:
     messages: list[str] = field(default_factory=list)
     hub: str = ""  # hub://RUN once local tools can attach
     ends: list[tuple[int, str, float]] = field(default_factory=list)  # (episode, outcome, duration s) in order
+    # Learner restarts (SPEC 1.3 s. 6): the index into `ends` where each chapter after the first begins, and its
+    # number; the agent numbers the new chapter's episodes from 1, the run counts on (completed, --episodes).
+    chapter_starts: list[tuple[int, int]] = field(default_factory=list)
     agent: AgentStatus = field(default_factory=AgentStatus)  # what the status line shows of the agent
     alarm_flag: str = ""  # the status line's alarm field (run/alarms.py: until acknowledged)
     stopped: str = ""  # what the run found the agent doing when it was stopped, and what it did about it
@@ -88,16 +92,24 @@ class _Progress:
     def __init__(self, status: RunStatus) -> None:
         self.status = status
         self.changed = threading.Event()
-        self._episodes: set[int] = set()
+        # Each EPISODE_END once, live or backfilled: by (generation, episode, its last sample), as a learner
+        # restart numbers episodes from 1 again (a 1.2 agent's generation is 0; the sample index still differs).
+        self._episodes: set[tuple[int, int, int]] = set()
+        self.restarts = LearnerRestarts()
 
     def on_received(self, received: Received) -> None:
         msg = received.message
         if not received.backfilled:
             self.status.agent.update(msg)
+            line = self.restarts.received(msg)
+            if line is not None:
+                self.status.chapter_starts.append((len(self.status.ends), self.restarts.chapter.number))
+                self.status.messages.append(line)
+                self.changed.set()
         if isinstance(msg, m.Sample):
             self.status.samples += 1
-        elif isinstance(msg, m.EpisodeEnd) and msg.episode not in self._episodes:
-            self._episodes.add(msg.episode)
+        elif isinstance(msg, m.EpisodeEnd) and (msg.generation, msg.episode, msg.sample) not in self._episodes:
+            self._episodes.add((msg.generation, msg.episode, msg.sample))
             s = self.status
             s.episodes += 1
             s.successes += msg.reason == EndReason.SUCCESS
@@ -108,7 +120,7 @@ class _Progress:
             self.changed.set()
 
     def on_sent(self, sent: Sent) -> None:
-        pass
+        self.restarts.sent(sent.message)
 
     def on_event(self, event: LinkEvent) -> None:
         if event.kind == EventKind.STATS:
@@ -143,8 +155,9 @@ class _AgentWatch:
     BACKFILL_AT_SURFACE_S = 3.0  # wait after the last backfilled sample before a restart (at most 4x in all)
     BATTERY_MARGIN_V = 0.005  # HEARTBEAT.battery_mv is whole millivolts: 3.399 V reads as 3.40 at 3.40 V
 
-    def __init__(self, session: Session, episodes: int, status: RunStatus) -> None:
+    def __init__(self, session: Session, episodes: int, status: RunStatus, restarts: LearnerRestarts) -> None:
         self.session, self.episodes, self.status = session, episodes, status
+        self.chapters = restarts  # the run's count across learner restarts
         self.first_episode = 0
         self.left_idle = False
         self.restarts = 0
@@ -155,6 +168,7 @@ class _AgentWatch:
     def start(self) -> None:
         beat = self._wait_unless_surfacing()
         self.first_episode = self._episode_before = beat.episode if beat is not None else 0
+        self.chapters.started_at(self.first_episode)
         if beat is not None and beat.mode in (Mode.LEARNING, Mode.RECOVERING):
             self.status.messages.append(f"the agent is already learning (episode {beat.episode}): recording it")
             self.left_idle = True
@@ -183,7 +197,7 @@ class _AgentWatch:
             # the heartbeat from before CMD_START; an IDLE one that counts more episodes is from after it (an agent
             # that surfaced at once, between two heartbeats)
             return False
-        done = beat.episode - self.first_episode
+        done = self.chapters.run_episodes(beat.episode)  # the run's, across learner restarts
         if self.episodes and done >= self.episodes:
             return True
         if self._operator is not None:
@@ -359,7 +373,7 @@ def run(config: RunConfig, on_progress: Callable[[RunStatus], None] | None = Non
         for name in ("target_depth_m", "success_time_s"):  # the status line's target and success time
             if name in session.params:
                 status.agent.param(name, session.params.get(name).value)
-        watch = _AgentWatch(session, config.episodes, status)
+        watch = _AgentWatch(session, config.episodes, status, progress.restarts)
         watch.hub = hub
         watch.start()
         try:

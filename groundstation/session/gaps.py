@@ -84,6 +84,16 @@ class EpisodeFrames:
         self.ends: set[int] = set()
         self._learning: dict[int, tuple[int, int]] = {}  # episode -> (first, last) LEARNING sample index seen
         self._latest_sample = -1
+        self._generation = 0
+
+    def saw_generation(self, generation: int) -> None:
+        """A learner restart (SPEC 1.3 s. 6) numbers the episodes from 1 again: what is looked for starts afresh, or
+        the new learner's episode 1 would pass for the old one's, its lost frames never asked for."""
+        if generation and self._generation and generation != self._generation:
+            self.starts.clear()
+            self.ends.clear()
+            self._learning.clear()
+        self._generation = generation or self._generation
 
     def saw_sample(self, sample: int, episode: int, learning: bool) -> None:
         self._latest_sample = max(self._latest_sample, sample)

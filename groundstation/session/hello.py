@@ -31,8 +31,13 @@ def incompatibility(hello: m.Hello) -> str | None:
     if hello.protocol_version != PROTOCOL_VERSION:
         return (f"the agent speaks protocol version {hello.protocol_version}, this ground station speaks "
                 f"version {PROTOCOL_VERSION}")
-    if hello.definitions_hash != definitions_hash():
+    if hello.definitions_hash not in (definitions_hash(), definitions_hash(before_1_3=True)):
         return (f"the agent's message table (hash {hello.definitions_hash:08x}, firmware "
                 f"{hello.firmware_major}.{hello.firmware_minor}.{hello.firmware_patch}) differs from ours "
                 f"(hash {definitions_hash():08x}, dive {tool_version()})")
     return None
+
+
+def sends_generation(hello: m.Hello) -> bool:
+    """A 1.3 agent numbers its learner generations (SPEC.md s. 6); a 1.0-1.2 agent's `generation` fields read 0."""
+    return hello.definitions_hash == definitions_hash()

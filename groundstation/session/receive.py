@@ -159,6 +159,8 @@ class ReceiveLoop(SessionCore):
             if not backfilled:
                 self._saw_mode(msg.mode)
         elif isinstance(msg, _SEQUENCED):
+            if not backfilled:
+                self.backfill.episodes.saw_generation(msg.generation)
             (self.backfill.episodes.starts if isinstance(msg, m.EpisodeStart) else self.backfill.episodes.ends).add(
                 msg.episode)
             key = (msg.MSG_ID, msg.episode, msg.sample)
@@ -174,6 +176,7 @@ class ReceiveLoop(SessionCore):
                 return  # another agent: nothing of it reaches the recording
         elif isinstance(msg, m.Heartbeat):
             self.last_heartbeat = msg
+            self.backfill.episodes.saw_generation(msg.generation)
             self._saw_mode(msg.mode)
             self.backfill.saw_log_window(msg.log_first_sample, msg.log_next_sample)
             # what the planner believes of the claim, not the claim: a next index near 2^32 must not make every

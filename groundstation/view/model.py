@@ -140,6 +140,8 @@ class ViewModel:
         self._grid_cells: int | None = None  # known from the first dump
         self._durations: deque[float] = deque(maxlen=MOVING_AVERAGE_EPISODES)
         self._curve: deque[tuple[int, float]] = deque(maxlen=CURVE_EPISODES)  # (episode, duration), by-episode curve
+        self._generation = 0  # the learner's (SPEC 1.3 s. 6); 0 until named (never, by a 1.2 agent)
+        self._last_start = 0  # the last episode started in this chapter
         self._dumps = DumpAssembler()
         self._values: NDArray[np.float32] | None = None  # the latest VALUES dump
         self._untried: NDArray[np.bool_] | None = None  # the states the latest POLICY dump says were never left
@@ -328,7 +330,23 @@ class ViewModel:
             return (zdot / 2, -1.0, "outside")
         return (state % zdot + 0.5, state // zdot + 0.5, "agent")
 
+    def _chapter(self, generation: int, episode: int, start: bool, host_time_ns: int) -> None:
+        """A learner restart numbers the episodes from 1 again: the learning curves start afresh (one curve per
+        chapter: the mean and the by-episode bars never mix two learners), and the log says where."""
+        new = bool(generation and self._generation and generation != self._generation) or \
+            (not generation and start and 0 < episode <= self._last_start)  # a 1.2 agent: its numbers went back
+        self._generation = generation or self._generation
+        if new:
+            self._durations.clear()
+            self._curve.clear()
+            named = f"generation {generation}" if generation else "inferred: the agent sends no generation"
+            self._row("log/events", (f"the learner restarted ({named}): a new chapter, its episodes numbered from 1; "
+                                     "the learning curves start afresh", "WARN"), host_time_ns)
+        if start:
+            self._last_start = episode
+
     def _episode_start(self, e: m.EpisodeStart, host_time_ns: int) -> None:
+        self._chapter(e.generation, e.episode, True, host_time_ns)
         self._agent_time_s = e.t_us / 1e6
         self._episode, self._step, self._depth_m = e.episode, 0, e.depth_m
         self._region = Region(e.target_depth_m, e.z_tol_m, e.zdot_tol_mps)
@@ -338,6 +356,7 @@ class ViewModel:
         self._row("log/events", (text, "INFO"), host_time_ns)
 
     def _episode_end(self, e: m.EpisodeEnd, host_time_ns: int) -> None:
+        self._chapter(e.generation, e.episode, False, host_time_ns)
         self._agent_time_s = e.t_us / 1e6
         self._episode = e.episode
         outcome = _OUTCOME.get(e.reason, "aborted")

@@ -19,7 +19,16 @@ from groundstation.recording.files import RecordingParts as Parts
 from groundstation.recording.files import group_recordings
 from groundstation.view.errors import ReplayError
 from groundstation.view.model import Batch, ViewModel
-from protocol import PROTOCOL_VERSION, FrameError, FrameFlag, Message, PayloadError, UnknownMessageError, message_class
+from protocol import (
+    PROTOCOL_VERSION,
+    FrameError,
+    FrameFlag,
+    Message,
+    NodeKind,
+    PayloadError,
+    UnknownMessageError,
+    message_class,
+)
 from protocol import messages as m
 from protocol.crc import CRC_INIT
 from protocol.enums import INCOMPATIBLE_FLAGS_MASK
@@ -32,20 +41,28 @@ _UNIT_S = {"s": 1.0, "m": 60.0, "min": 60.0, "h": 3600.0}
 
 @dataclass(frozen=True, slots=True)
 class Bound:
-    """One end of a replay range: an episode number, or a time since the recording's start."""
+    """One end of a replay range: an episode number of a chapter, or a time since the recording's start.
+
+    A learner restart (SPEC 1.3 s. 6) or a reboot numbers the episodes from 1 again: the chapter (1, 2, ... in the
+    recording, as `dive log info` numbers them) tells the two learners' episode 5 apart.
+    """
 
     episode: int | None = None
     offset_s: float | None = None
+    chapter: int = 1
 
 
 def parse_bound(text: str) -> Bound:
-    """`12` or `e12` is episode 12; `90s`, `5m`, `1.5h` is a time since the start of the recording."""
+    """`12` or `e12` is episode 12 (of the first chapter); `2:5` is chapter 2's episode 5; `90s`, `5m`, `1.5h` is a
+    time since the start of the recording."""
     text = text.strip().lower()
-    if text.removeprefix("e").isdigit():
-        return Bound(episode=int(text.removeprefix("e")))
+    chapter, _, episode = text.rpartition(":")
+    if episode.removeprefix("e").isdigit() and (not chapter or chapter.isdigit() and int(chapter) >= 1):
+        return Bound(episode=int(episode.removeprefix("e")), chapter=int(chapter) if chapter else 1)
     match = _TIME.match(text)
     if match is None:
-        raise ReplayError(f"bad range bound {text!r}: give an episode (12) or a time (90s, 5m, 1h)")
+        raise ReplayError(f"bad range bound {text!r}: give an episode (12, or 2:5 for chapter 2's episode 5) or a "
+                          "time (90s, 5m, 1h)")
     return Bound(offset_s=float(match.group(1)) * _UNIT_S[match.group(2)])
 
 
@@ -59,6 +76,37 @@ class Item:
     feed: Callable[[ViewModel], None]
     setup: bool = False  # state the view needs whatever the window (a parameter: the grid's size), no rows
     before: bool = False  # before the window: fed for the state it leaves (dumps, learning curve), not shown
+    generation: int = 0  # the learner generation the frame names (SPEC 1.3), 0 if none
+    starts_episode: bool = False
+    boot_id: int | None = None  # an agent HELLO's
+
+
+class _ChapterCount:
+    """Chapters in file order: a new one where the learner generation changes, the boot changes, or (a 1.2 agent,
+    no generation) an episode starts with a number not above the last one's."""
+
+    def __init__(self) -> None:
+        self.chapter = 1
+        self._generation = 0
+        self._boot_id: int | None = None
+        self._last_start = 0
+
+    def follow(self, item: Item) -> int:
+        new = False
+        if item.boot_id is not None:
+            new = self._boot_id is not None and item.boot_id != self._boot_id
+            self._boot_id = item.boot_id
+            self._generation = 0 if new else self._generation
+        if item.generation:
+            new = new or (self._generation != 0 and item.generation != self._generation)
+            self._generation = item.generation
+        elif item.starts_episode and item.episode is not None and 0 < item.episode <= self._last_start:
+            new = True
+        if new:
+            self.chapter, self._last_start = self.chapter + 1, 0
+        if item.starts_episode and item.episode is not None:
+            self._last_start = item.episode
+        return self.chapter
 
 
 def _decode(inner: bytes) -> tuple[Message, int] | None:
@@ -81,7 +129,10 @@ def _frame_item(log_time_ns: int, inner: bytes) -> Item | None:
         model.feed(message, log_time_ns, flags=flags)
 
     return Item(log_time_ns, None if t_us is None else t_us / 1e6, getattr(message, "episode", None), feed,
-                isinstance(message, m.ParamValue))
+                setup=isinstance(message, m.ParamValue), generation=getattr(message, "generation", 0),
+                starts_episode=isinstance(message, m.EpisodeStart),
+                boot_id=message.boot_id if isinstance(message, m.Hello) and message.node_kind == NodeKind.AGENT
+                else None)
 
 
 def _json_item(topic: str, log_time_ns: int, data: bytes) -> Item | None:
@@ -119,8 +170,9 @@ def check_order(start: Bound | None, end: Bound | None) -> None:
     """A reversed window is one clear line before anything is read or written."""
     if start is None or end is None:
         return
-    if start.episode is not None and end.episode is not None and start.episode > end.episode:
-        raise ReplayError(f"--from episode {start.episode} is after --to episode {end.episode}")
+    if start.episode is not None and end.episode is not None and \
+            (start.chapter, start.episode) > (end.chapter, end.episode):
+        raise ReplayError(f"--from {_named(start)} is after --to {_named(end)}")
     if start.offset_s is not None and end.offset_s is not None and start.offset_s > end.offset_s:
         raise ReplayError(f"--from {start.offset_s:g} s is after --to {end.offset_s:g} s (agent time)")
 
@@ -142,6 +194,10 @@ class Tally:
                               f"of agent time and episodes up to {self.last_episode}")
 
 
+def _named(bound: Bound) -> str:
+    return f"episode {bound.episode}" + (f" of chapter {bound.chapter}" if bound.chapter > 1 else "")
+
+
 def select(items: Iterator[Item], start: Bound | None, end: Bound | None,
            tally: Tally | None = None) -> Iterator[Item]:
     """Only the items inside [start, end]: episodes by the agent's episode number, times in agent time.
@@ -154,10 +210,12 @@ def select(items: Iterator[Item], start: Bound | None, end: Bound | None,
     first_s: float | None = None
     latest_s = 0.0
     episode = 0
+    chapters = _ChapterCount()
     for item in items:
         if item.setup:
             yield item
             continue
+        chapter = chapters.follow(item)
         if item.agent_time_s is not None:
             first_s = item.agent_time_s if first_s is None else first_s
             latest_s = item.agent_time_s
@@ -166,12 +224,12 @@ def select(items: Iterator[Item], start: Bound | None, end: Bound | None,
         if tally is not None:
             tally.span_s, tally.last_episode = max(tally.span_s, offset_s), max(tally.last_episode, episode)
         if start is not None and (
-            (start.episode is not None and episode < start.episode)
+            (start.episode is not None and (chapter, episode) < (start.chapter, start.episode))
             or (start.offset_s is not None and offset_s < start.offset_s)
         ):
             yield dataclasses.replace(item, before=True)  # for the heatmaps and curve the window opens on
             continue
-        if end is not None and end.episode is not None and episode > end.episode:
+        if end is not None and end.episode is not None and (chapter, episode) > (end.chapter, end.episode):
             break
         if end is not None and end.offset_s is not None and offset_s > end.offset_s:
             continue

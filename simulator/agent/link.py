@@ -162,7 +162,7 @@ class AgentLink:
         self.send(messages.Hello(
             protocol_version=PROTOCOL_VERSION, node_kind=int(NodeKind.AGENT), definitions_hash=definitions_hash(),
             firmware_major=major, firmware_minor=minor, firmware_patch=patch, node_id=self.node_id,
-            boot_id=self.boot_id, name="sim-agent",
+            boot_id=self.boot_id, name="sim-agent", generation=self._prog.generation,
         ))
 
     def heartbeat(self) -> None:
@@ -171,7 +171,7 @@ class AgentLink:
             uptime_ms=(prog.t_us // 1000) & 0xFFFFFFFF, mode=int(prog.mode),
             battery_mv=int(prog.hw.battery_v * 1000), rx_frames=stats.frames, rx_rejects=stats.rejects,
             rx_lost=stats.lost, log_first_sample=self.ring.first_sample, log_next_sample=prog.next_sample,
-            episode=prog.episode, signing_rejects=self.signing_rejects & 0xFFFFFFFF,
+            episode=prog.episode, signing_rejects=self.signing_rejects & 0xFFFFFFFF, generation=prog.generation,
         ))
 
     def tick(self) -> None:

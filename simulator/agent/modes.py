@@ -94,6 +94,7 @@ class ModeMachine:
         self.velocity_mps = 0.0
         self.pressure_pa = hw.read_pressure_pa()
         self.successes = 0
+        self.generation = 1  # SPEC 1.3 s. 6: the learner's generation since boot, +1 at every learner restart
         self.episodes_left = 0  # 0 = no limit
         self._dive_start_us = 0
         self._hold_depth_m = 0.0  # recovery / hover / pause set point
@@ -261,6 +262,7 @@ class ModeMachine:
             t_us=self.hw.t_us, episode=self.episode, sample=self.next_sample, start_state=start_state,
             depth_m=self.depth_m, velocity_mps=self.velocity_mps, target_depth_m=self.params.target_depth_m,
             z_tol_m=c.z_tol_m, zdot_tol_mps=c.zdot_tol_mps, p_explore=self.learner.p_explore,
+            generation=self.generation,
         ), self.next_sample, False)
 
     def _learning_step(self, dt: float) -> None:
@@ -308,7 +310,7 @@ class ModeMachine:
         self.down.log_frame(messages.EpisodeEnd(
             t_us=self.hw.t_us, episode=self.episode, sample=self.next_sample - 1, reason=int(reason),
             end_state=state, steps=self._steps, duration_s=self._steps * self.params.control_period_s,
-            episode_return=self._return, successes=self.successes,
+            episode_return=self._return, successes=self.successes, generation=self.generation,
         ), self.next_sample - 1, False)
         if self.mission.dump_each_episode:
             self.down.episode_dumps()
@@ -339,8 +341,13 @@ class ModeMachine:
             return
         self.learner = Learner(self.config, self.rng)
         self._bind_learner(self.config)
+        self.restarted_learner(f"{name} changed: learner restarted")
+
+    def restarted_learner(self, why: str) -> None:
+        """A new learner (any cause): a new generation, its episodes numbered from 1 again (SPEC 1.3 s. 6)."""
+        self.generation = (self.generation + 1) & 0xFFFFFFFF
         self.down.model_changed()
         self.successes = 0
         self._reset_episode()
-        self.text(f"{name} changed: learner restarted")
+        self.text(f"{why}, generation {self.generation}")
 

@@ -71,10 +71,7 @@ class OnboardProgram(ModeMachine):
         if self.mode == Mode.LEARNING:
             return _not_allowed(self.mode)
         self.learner.reset()
-        self.down.model_changed()
-        self.successes = 0
-        self._reset_episode()
-        self.text("model reset")
+        self.restarted_learner("model reset: learner restarted")
         return OK
 
     def set_param(self, index: int, value: float) -> Verdict:

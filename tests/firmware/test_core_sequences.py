@@ -18,6 +18,7 @@ from tests.firmware.core_build import use_firmware_cache
 from tests.protocol.sequence_rules import (
     Frames,
     check_episode_order,
+    check_learner_restart,
     check_reused_seq_is_executed,
     check_session_start,
     shown,
@@ -79,11 +80,11 @@ def _ground(example: dict[str, Any]) -> Frames:
 
 @pytest.fixture(scope="module")
 def answers(tmp_path_factory: pytest.TempPathFactory) -> tuple[list[Frames], list[int]]:
-    """The C agent's run through the three examples (the script of tests/vectors/generate_sequences.sequences)."""
+    """The C agent's run through the four examples (the script of tests/vectors/generate_sequences.sequences)."""
     use_firmware_cache(tmp_path_factory)
     r = CRecorder()
     r.take()  # its HELLO at power-up, before any link
-    session_g, reconnect_g, episode_g = (_ground(e) for e in EXAMPLES)
+    session_g, reconnect_g, episode_g, restart_g = (_ground(e) for e in EXAMPLES)
     r.agent.link_up()
     for frame in session_g:
         r.send(frame)
@@ -106,7 +107,18 @@ def answers(tmp_path_factory: pytest.TempPathFactory) -> tuple[list[Frames], lis
     r.steps(3)
     r.send(stop)
     r.steps(1)
-    return [session, reconnect, elide(r.take())], r.replayed
+    episode = elide(r.take())
+    r.until(lambda: r.mode == Mode.IDLE)
+    r.take()
+    reset, start, stop = restart_g  # 1.3: CMD_RESET_MODEL, then an episode of the new learner, stopped
+    r.send(reset)
+    r.until(lambda: any(f.get("msg") == "HEARTBEAT" for f in r.frames))
+    r.send(start)
+    r.until(lambda: r.mode == Mode.LEARNING)
+    r.steps(3)
+    r.send(stop)
+    r.steps(1)
+    return [session, reconnect, episode, elide(r.take())], r.replayed
 
 
 def _kinds(frames: Frames) -> list[tuple[str, str]]:
@@ -114,7 +126,7 @@ def _kinds(frames: Frames) -> list[tuple[str, str]]:
 
 
 def test_the_c_agent_follows_the_session_and_reconnect_rules(answers: tuple[list[Frames], list[int]]) -> None:
-    (session, reconnect, _), _ = answers
+    (session, reconnect, *_), _ = answers
     check_session_start(session)
     check_session_start(reconnect)
     check_reused_seq_is_executed(session, reconnect)
@@ -122,6 +134,11 @@ def test_the_c_agent_follows_the_session_and_reconnect_rules(answers: tuple[list
 
 def test_the_c_agent_follows_the_episode_rules(answers: tuple[list[Frames], list[int]]) -> None:
     check_episode_order(answers[0][2])
+
+
+def test_the_c_agent_numbers_a_new_generation_after_a_learner_restart(
+        answers: tuple[list[Frames], list[int]]) -> None:
+    check_learner_restart(answers[0][3])
 
 
 @pytest.mark.parametrize("index", [0, 1], ids=["session start", "reconnect"])

@@ -12,6 +12,12 @@ optional parameters of SPEC.md 13, `start_at_rest` and those from `shared_model`
 `start_at_rest` is 0, it recovers before every episode as a real agent does), `slow-surface` (SURFACING lasts at
 least 1 s of agent time, at the surface too: a CMD_SURFACE in IDLE shows SURFACING for a second, as an agent whose
 depth filter settles slowly does; SPEC.md 6 says only "until shallower than 0.02 m").
+
+SPEC 1.3's rules, one fault each: `generation-stuck` (a learner restart leaves the generation as it was),
+`slow-answers` (every ground frame answered 1.5 s late, over the 1 s bound), `no-cross-refusals` (velocity_filter
+with vel_diff_steps, plan_stable_sweeps without shared_model accepted), `no-estimate-cap` (a timestamp ahead becomes
+the estimate however far), `no-resync` (PARAM_SET `resync` unknown), `no-link-taken-text` (a replaced connection
+closed without its TEXT).
 """
 
 from __future__ import annotations
@@ -98,10 +104,78 @@ def slow_surface() -> None:
     OnboardProgram._enter = enter  # type: ignore[method-assign]
 
 
+def generation_stuck() -> None:
+    """A learner restart that does not count: the 1.3 rule an agent moved from 1.2 may miss."""
+    from simulator.agent.modes import ModeMachine
+
+    original = ModeMachine.restarted_learner
+
+    def restarted(self: ModeMachine, why: str) -> None:
+        original(self, why)
+        self.generation -= 1
+
+    ModeMachine.restarted_learner = restarted  # type: ignore[method-assign]
+
+
+SLOW_ANSWER_S = 1.5
+
+
+def slow_answers() -> None:
+    """Every ground frame answered 1.5 s late (as an agent compiling its kernels before it answers would be)."""
+    import time
+
+    original = Link.receive
+
+    def receive(self: Link, data: bytes) -> None:
+        time.sleep(SLOW_ANSWER_S)
+        original(self, data)
+
+    Link.receive = receive  # type: ignore[method-assign]
+
+
+def no_cross_refusals() -> None:
+    """velocity_filter with vel_diff_steps (and plan_stable_sweeps without shared_model) stored, not refused."""
+    from simulator.agent.program import OK, OnboardProgram
+
+    original = OnboardProgram.set_param
+
+    def set_param(self: OnboardProgram, index: int, value: float) -> tuple[AckResult, str]:
+        verdict = original(self, index, value)
+        if verdict[0] == AckResult.BAD_VALUE and self.table.defs[index].name in ("velocity_filter",
+                                                                                  "plan_stable_sweeps"):
+            self.table.values[index] = value  # kept on the list, never applied to the learner
+            return OK
+        return verdict
+
+    OnboardProgram.set_param = set_param  # type: ignore[method-assign]
+
+
+def no_estimate_cap() -> None:
+    """1.1's rule: a timestamp higher than the estimate becomes the estimate, however far ahead (no 10 s cap)."""
+    import protocol.signing
+
+    protocol.signing.ESTIMATE_STEP_S = 1e9  # type: ignore[misc]
+
+
+def no_resync() -> None:
+    """No signed re-sync: PARAM_SET `resync` is an unknown parameter (BAD_VALUE), as for a 1.1 agent."""
+    agent_link.is_resync = lambda message: False  # type: ignore[assignment]
+
+
+def no_link_taken_text() -> None:
+    """A replaced connection closed without the TEXT `link taken by another ground` (as a 1.1 agent does)."""
+    from simulator.serve.loop import AgentServer
+
+    AgentServer._replaced_notice = lambda self: b""  # type: ignore[method-assign]
+
+
 FAULTS: dict[str, Callable[[], None]] = {"unknown-no-ack": unknown_no_ack, "rejects-as-frames": rejects_as_frames,
                                          "silence-in-agent-time": silence_in_agent_time,
                                          "optional-unimplemented": optional_unimplemented,
-                                         "slow-surface": slow_surface}
+                                         "slow-surface": slow_surface, "generation-stuck": generation_stuck,
+                                         "slow-answers": slow_answers, "no-cross-refusals": no_cross_refusals,
+                                         "no-estimate-cap": no_estimate_cap, "no-resync": no_resync,
+                                         "no-link-taken-text": no_link_taken_text}
 
 if __name__ == "__main__":
     for name in sys.argv.pop(1).split(","):

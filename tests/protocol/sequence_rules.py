@@ -59,3 +59,20 @@ def check_episode_order(frames: Frames) -> None:
     assert aborted["fields"]["sample"] == samples[-1]
     assert aborted["fields"]["episode"] == natural["fields"]["episode"] + 1
     assert next(f for f in frames[ends[1]:] if f["msg"] == "SAMPLE")["fields"]["mode"] == Mode.SURFACING
+
+
+def check_learner_restart(frames: Frames) -> None:
+    """SPEC 1.3 s. 6: after an accepted CMD_RESET_MODEL every frame carries the next generation, the first
+    HEARTBEAT says episode 0, and the new learner's first episode is episode 1, its START and END of that
+    generation."""
+    frames = shown(frames)
+    reset = next(i for i, f in enumerate(frames) if f["dir"] == "g" and f["msg"] == "CMD_RESET_MODEL")
+    ack = next(f for f in frames[reset:] if f["dir"] == "a" and f["msg"] == "ACK")
+    assert ack["fields"]["result"] == AckResult.ACCEPTED
+    after = [f for f in frames[reset:] if f["dir"] == "a" and "generation" in f["fields"]]
+    generations = {f["fields"]["generation"] for f in after}
+    assert len(generations) == 1 and generations.pop() >= 2, after
+    beat = next(f for f in after if f["msg"] == "HEARTBEAT")
+    assert beat["fields"]["episode"] == 0
+    episodes = [(f["msg"], f["fields"]["episode"]) for f in after if f["msg"].startswith("EPISODE_")]
+    assert episodes[:2] == [("EPISODE_START", 1), ("EPISODE_END", 1)]

@@ -8,7 +8,13 @@ import json
 import pytest
 
 from protocol import StreamDecoder
-from tests.protocol.sequence_rules import check_episode_order, check_reused_seq_is_executed, check_session_start, shown
+from tests.protocol.sequence_rules import (
+    check_episode_order,
+    check_learner_restart,
+    check_reused_seq_is_executed,
+    check_session_start,
+    shown,
+)
 from tests.vectors.generate_sequences import SEQUENCES_PATH, render
 
 EXAMPLES = [json.loads(line) for line in SEQUENCES_PATH.read_text(encoding="utf-8").splitlines()]
@@ -36,3 +42,7 @@ def test_a_session_starts_with_hellos_and_a_reused_seq_is_executed_in_the_next()
 
 def test_an_episode_starts_and_ends_in_the_order_spec_6_fixes() -> None:
     check_episode_order(EXAMPLES[2]["frames"])
+
+
+def test_a_learner_restart_is_a_new_generation_with_episodes_from_1() -> None:
+    check_learner_restart(EXAMPLES[3]["frames"])

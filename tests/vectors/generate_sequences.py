@@ -5,7 +5,7 @@ Each line is one example: `name` and `frames`, in the order they crossed the lin
 SAMPLEs in the middle of an episode is left out as one `{"elided": N}`. The agent is the virtual agent (seeded, its
 boot_id fixed), so its bytes are reproducible; another agent's `t_us`, depths and states differ, but the order,
 the message kinds and the fields SPEC.md fixes (modes, `episode`, `sample`, `reason`, `action` 255 on the ending
-step, ACK results) are what every 1.2 agent sends.
+step, ACK results, `generation`) are what every 1.3 agent sends.
 """
 
 from __future__ import annotations
@@ -137,11 +137,25 @@ def sequences() -> list[dict[str, Any]]:
     r.send(messages.Stop())
     r.steps(1)
     episode = elide(list(r.frames))
+    # A learner restart (1.3): CMD_RESET_MODEL in IDLE; the next HEARTBEAT and episode carry generation 2, the
+    # episode numbered 1 again.
+    r.until(lambda: r.mode() == Mode.IDLE)
+    r.frames.clear()
+    r.send(messages.ResetModel())
+    r.until(lambda: any(f.get("msg") == "HEARTBEAT" for f in r.frames))
+    r.send(messages.StartLearning(max_episodes=0))
+    r.until(lambda: r.mode() == Mode.LEARNING)
+    r.steps(3)
+    r.send(messages.Stop())
+    r.steps(1)
+    restart = elide(list(r.frames))
     return [
         {"name": "a session's start (SPEC.md 4, sessions)", "frames": session},
         {"name": "a reconnect: ACK memory emptied, the missed SAMPLEs replayed (SPEC.md 4, 5, 7)",
          "frames": reconnect},
         {"name": "an episode's start and end, then one aborted by CMD_STOP (SPEC.md 6, episodes)", "frames": episode},
+        {"name": "a learner restart: a new generation, episodes from 1 again (SPEC.md 6, learner generations)",
+         "frames": restart},
     ]
 
 

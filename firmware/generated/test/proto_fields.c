@@ -17,6 +17,7 @@ const proto_field_t proto_fields[] = {
     {0x01u, 9u, 3u, "node_id"},
     {0x01u, 13u, 3u, "boot_id"},
     {0x01u, 17u, 11u, "name"},
+    {0x01u, 41u, 3u, "generation"},
     {0x02u, 0u, 3u, "uptime_ms"},
     {0x02u, 4u, 1u, "mode"},
     {0x02u, 5u, 2u, "battery_mv"},
@@ -27,6 +28,7 @@ const proto_field_t proto_fields[] = {
     {0x02u, 23u, 3u, "log_next_sample"},
     {0x02u, 27u, 3u, "episode"},
     {0x02u, 31u, 3u, "signing_rejects"},
+    {0x02u, 35u, 3u, "generation"},
     {0x03u, 0u, 4u, "origin_us"},
     {0x03u, 8u, 4u, "receive_us"},
     {0x03u, 16u, 4u, "transmit_us"},
@@ -60,6 +62,7 @@ const proto_field_t proto_fields[] = {
     {0x21u, 30u, 9u, "z_tol_m"},
     {0x21u, 34u, 9u, "zdot_tol_mps"},
     {0x21u, 38u, 9u, "p_explore"},
+    {0x21u, 42u, 3u, "generation"},
     {0x22u, 0u, 4u, "t_us"},
     {0x22u, 8u, 3u, "episode"},
     {0x22u, 12u, 3u, "sample"},
@@ -69,6 +72,7 @@ const proto_field_t proto_fields[] = {
     {0x22u, 23u, 9u, "duration_s"},
     {0x22u, 27u, 9u, "episode_return"},
     {0x22u, 31u, 3u, "successes"},
+    {0x22u, 35u, 3u, "generation"},
     {0x23u, 0u, 3u, "dump_id"},
     {0x23u, 4u, 1u, "kind"},
     {0x23u, 5u, 3u, "episode"},
@@ -102,7 +106,7 @@ const proto_field_t proto_fields[] = {
     {0x8Bu, 0u, 3u, "first_sample"},
     {0x8Bu, 4u, 3u, "end_sample"},
 };
-const size_t proto_field_count = 93u;
+const size_t proto_field_count = 97u;
 
 /* Unpacks a payload with the generated function of its message and packs it again. */
 size_t proto_repack(uint8_t msg_id, const uint8_t *payload, size_t n, uint8_t *out) {

@@ -12,8 +12,9 @@ from groundstation.recording.recorder import Recorder, RecorderConfig
 from groundstation.session.events import EventKind, LinkEvent, Received
 from groundstation.session.hello import ground_hello
 from learning import learner_preset
-from protocol import FrameEncoder, StreamDecoder
+from protocol import Frame, FrameEncoder, StreamDecoder, definitions_hash
 from protocol import messages as m
+from protocol.frame import build_inner
 from simulator.agent.mission import MissionConfig
 from simulator.agent.onboard import OnboardAgent, PythonAgent
 from simulator.parameters import preset
@@ -31,11 +32,16 @@ def _agent(preset_name: str, firmware: str, seed: int, write: list[bytes]) -> On
 
 
 def record_onboard(path: Path, preset_name: str, firmware: str = "python", seed: int = 1, episodes: int = 3,
-                   max_steps: int = 200_000, until_bytes: int = 0, split_bytes: int = 0, dumps: bool = False
-                   ) -> list[Path]:
+                   max_steps: int = 200_000, until_bytes: int = 0, split_bytes: int = 0, dumps: bool = False,
+                   restart_after: int = 0, as_1_2: bool = False, restart_text: bool = True) -> list[Path]:
     """Record the agent learning until `episodes` episodes ended (or `max_steps` steps, or `until_bytes` on disk)
     into `path` (its parts with `split_bytes`: the recorder's split option); with `dumps`, a VALUES and POLICY dump
-    after each episode, as `dive run` asks for. The files written."""
+    after each episode, as `dive run` asks for. The files written.
+
+    restart_after: after that many episodes, pause, set a learner parameter (gamma: the learner restarts, SPEC 1.3
+    s. 6) and start again, as on a tank day. as_1_2: recorded as a 1.2 agent would send it (its 1.2 table hash, no
+    generation: 0); without restart_text its TEXT about the restart is lost too.
+    """
     wire: list[bytes] = []
     agent = _agent(preset_name, firmware, seed, wire)
     agent.link_up()
@@ -54,6 +60,13 @@ def record_onboard(path: Path, preset_name: str, firmware: str = "python", seed:
     try:
         recorder.on_event(LinkEvent(EventKind.CONNECTED, START_NS, url))
         while ended < episodes and steps < max_steps:
+            if restart_after and ended == restart_after:
+                restart_after = 0
+                for command in (m.Pause(), m.ParamSet(index=-1, value=0.98, name="gamma")):
+                    agent.receive(ground.encode(command).wire)
+                    if agent.work_after_ack:
+                        agent.finish_command()
+                agent.receive(ground.encode(m.StartLearning(max_episodes=0)).wire)
             agent.step()
             steps += 1
             if until_bytes and steps % 4096 == 0 and sum(p.stat().st_size for p in recorder.paths) >= until_bytes:
@@ -66,8 +79,28 @@ def record_onboard(path: Path, preset_name: str, firmware: str = "python", seed:
                     if len(parameters) == message.count:
                         recorder.set_parameters(parameters)
                 ended += isinstance(message, m.EpisodeEnd)
+                if as_1_2:
+                    frame = _as_1_2(frame, restart_text)
+                    if frame is None:
+                        continue
                 host_ns = START_NS + agent.t_us * 1000
                 recorder.on_received(Received(frame, host_ns, host_ns, False))
     finally:
         recorder.close()
     return recorder.paths
+
+
+def _as_1_2(frame: Frame, restart_text: bool) -> Frame | None:
+    """The frame as a 1.2 agent sends it: no generation (0), its table's hash; None for a lost restart TEXT."""
+    message = frame.message
+    if isinstance(message, m.Text) and "restarted" in message.text and not restart_text:
+        return None
+    values = message.to_dict()
+    if "generation" not in values:
+        return frame
+    values["generation"] = 0
+    if isinstance(message, m.Hello):
+        values["definitions_hash"] = definitions_hash(before_1_3=True)
+    old = type(message).from_dict(values)
+    inner = build_inner(frame.flags, frame.seq, frame.msg_id, old.pack())
+    return Frame(frame.flags, frame.seq, frame.msg_id, old, inner)

@@ -67,3 +67,15 @@ def test_a_gap_is_lost_only_once_the_agents_log_no_longer_holds_it() -> None:
     planner.saw_log_window(1000, 2010)  # the log was overwritten up to 1000 (LOG_RANGE / HEARTBEAT says so)
     assert planner.lost() == 900
     assert planner.fetchable() == [(1000, 2000)]
+
+
+def test_a_new_learner_s_lost_episode_start_is_requested_though_the_old_one_had_its_number() -> None:
+    """SPEC 1.3: after a learner restart episode 1 comes again; its lost EPISODE_START is not the old episode 1's."""
+    planner = BackfillPlanner()
+    planner.episodes.saw_generation(1)
+    _learning_episode(planner, 1, range(0, 30), start=True, end=True)
+    _recovery(planner, 1, range(30, 35))
+    planner.episodes.saw_generation(2)  # the restart (a HEARTBEAT naming generation 2)
+    _recovery(planner, 0, range(35, 40))
+    _learning_episode(planner, 1, range(40, 60), start=False, end=True)
+    assert planner.due(now_s=0.0) == [(40, 41)]

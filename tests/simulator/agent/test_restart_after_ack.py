@@ -31,4 +31,4 @@ def test_the_ack_leaves_before_the_learner_restarts() -> None:
     assert not agent.work_after_ack
     assert agent.program.learner is not old_learner and agent.program.learner.config.shared_model
     texts = [f.message.text for f in received if isinstance(f.message, messages.Text)]
-    assert "shared_model changed: learner restarted" in texts
+    assert "shared_model changed: learner restarted, generation 2" in texts  # SPEC 1.3: the new generation
