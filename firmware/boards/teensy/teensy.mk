@@ -60,7 +60,11 @@ $(error TEENSY_LIBS_DIR=$(TEENSY_LIBS_DIR) holds no Wire/WireKinetis.cpp: give t
 endif
 endif
 
-.PHONY: teensy teensy-sketch teensy-variant teensy-core
+.PHONY: teensy teensy-sketch teensy-variant teensy-core teensy-core-dir
+
+# The core `make teensy` would link against (empty: none found, the stubs), for the tests and for a user who asks.
+teensy-core-dir:
+	@echo "$(TEENSY_CORE_DIR)"
 
 $(ARENA_TOOL): $(TEENSY_DIR)/arena_size.c $(LEARNER_SRC) $(FIRMWARE)/src/learner.h
 	@mkdir -p $(dir $@)
