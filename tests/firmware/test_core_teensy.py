@@ -16,7 +16,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.firmware.core_build import FIRMWARE
+from tests.firmware.core_build import FIRMWARE, session_folder
 
 pytestmark = pytest.mark.slow
 FLASH_BYTES = 256 * 1024
@@ -63,10 +63,10 @@ def _core_dir() -> Path:
 def images(tmp_path_factory: pytest.TempPathFactory) -> Images:
     """`make -j2 teensy` once for the whole session: the first xdist worker builds under a lock, the other reuses."""
     core_dir = _core_dir()
-    shared = tmp_path_factory.getbasetemp().parent  # the same folder for every worker of this session
-    build = shared / "teensy-images"
-    report = shared / "teensy-images.txt"
-    with open(shared / "teensy-images.lock", "w") as lock:
+    shared = session_folder(tmp_path_factory, "teensy")
+    build = shared / "build"
+    report = shared / "make-teensy.txt"
+    with open(shared / "lock", "w") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)
         if not report.exists():
             done = subprocess.run(["make", "-s", "-j2", "-C", str(FIRMWARE), "teensy", f"BUILD={build}"],

@@ -25,6 +25,10 @@
 static const uint16_t TCP_PORT = 23;
 static const uint32_t UART_BAUD = 115200;
 static const size_t CHUNK_BYTES = 256;
+// The UART's receive buffer (the core's default is 256 B, 22 ms of 115200 baud): a client.write() waits while Wi-Fi
+// is slow to take bytes, and the agent's bursts (a reply stream, 16 frames per poll) must wait in RAM meanwhile, not
+// overflow. 4 KB is 0.36 s of the UART; the ESP8266 has RAM to spare (the core's WiFiTelnetToSerial uses 1 KB).
+static const size_t UART_RX_BYTES = 4096;
 static const uint32_t CLOSING_LINGER_MS = 2000;  // a replaced client is stopped when it closes, or after this
 
 WiFiServer server(TCP_PORT);
@@ -57,6 +61,7 @@ static void service_closing() {
 
 void setup() {
     Serial.begin(UART_BAUD);  // UART0 (GPIO1 TX, GPIO3 RX) to the Teensy's RX1 / TX1
+    Serial.setRxBufferSize(UART_RX_BYTES);
 #ifdef BRIDGE_AP_MODE
     WiFi.mode(WIFI_AP);
     WiFi.softAP(WIFI_SSID, WIFI_PASSWORD);
@@ -71,7 +76,7 @@ void setup() {
 
 void loop() {
     if (server.hasClient()) {
-        WiFiClient newcomer = server.available();
+        WiFiClient newcomer = server.accept();
         if (client.connected()) { tell_replaced(client); } else { client.stop(); }  // the newcomer replaces it
         client = newcomer;
         client.setNoDelay(true);
