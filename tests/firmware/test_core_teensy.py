@@ -18,7 +18,7 @@ import pytest
 
 from tests.firmware.core_build import FIRMWARE, session_folder
 
-pytestmark = pytest.mark.slow
+pytestmark = [pytest.mark.slow, pytest.mark.timeout(900)]  # the first test waits for the session's build
 FLASH_BYTES = 256 * 1024
 RAM_BYTES = 64 * 1024
 RAM_ORIGIN = 0x1FFF8000
