@@ -13,7 +13,8 @@
 #
 # The core is found through TEENSY_CORE_DIR (the teensy3 folder, with mk20dx256.ld) and TEENSY_LIBS_DIR (the folder
 # holding Wire/). By default the first of: ../shared/vendor/teensyduino beside the repository (CI's copy), PlatformIO's
-# framework-arduinoteensy, the Arduino IDE's Teensyduino board package (the newest). Where none is found, the
+# framework-arduinoteensy, the Arduino IDE 2's Teensyduino board package (the newest; Linux, then macOS), the
+# Teensyduino installer's copy inside an Arduino 1.8 folder (~/arduino-*, /opt/arduino-*). Where none is found, the
 # variants link against compile_check/ (declarations and empty stubs): a size estimate whose image is not flashable,
 # so no .hex is written (also with TEENSY_CORE_DIR set empty).
 
@@ -44,7 +45,10 @@ SKETCH_CORE = $(SKETCH_DIR)/src/core
 TEENSY_VENDOR := $(abspath $(FIRMWARE)/../../shared/vendor/teensyduino)
 TEENSY_CORE_SEARCH := $(TEENSY_VENDOR)/cores/teensy3 \
 	$(HOME)/.platformio/packages/framework-arduinoteensy/cores/teensy3 \
-	$(lastword $(sort $(wildcard $(HOME)/.arduino15/packages/teensy/hardware/avr/*/cores/teensy3)))
+	$(lastword $(sort $(wildcard $(HOME)/.arduino15/packages/teensy/hardware/avr/*/cores/teensy3))) \
+	$(lastword $(sort $(wildcard $(HOME)/Library/Arduino15/packages/teensy/hardware/avr/*/cores/teensy3))) \
+	$(lastword $(sort $(wildcard $(HOME)/arduino-*/hardware/teensy/avr/cores/teensy3 \
+	    /opt/arduino-*/hardware/teensy/avr/cores/teensy3)))
 ifeq ($(origin TEENSY_CORE_DIR),undefined)
 TEENSY_CORE_DIR := $(firstword $(foreach d,$(TEENSY_CORE_SEARCH),$(if $(wildcard $(d)/mk20dx256.ld),$(d))))
 else ifneq ($(TEENSY_CORE_DIR),)
