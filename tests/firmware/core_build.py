@@ -64,3 +64,12 @@ def c_agent(*transport: str, seed: int) -> Iterator[str]:
     finally:
         child.terminate()
         child.wait(10)
+
+
+def session_folder(tmp_path_factory: pytest.TempPathFactory, name: str) -> Path:
+    """A folder of this test session that its xdist workers share (each worker has a temp folder of its own inside
+    the session's), for a build made once per session under a lock."""
+    base = tmp_path_factory.getbasetemp()
+    folder = (base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base) / name
+    folder.mkdir(parents=True, exist_ok=True)
+    return folder

@@ -11,12 +11,15 @@
 // stopped: a close with unread bytes is a reset, and a reset would discard the TEXT unread. This is what the
 // virtual agent does too (simulator/serve/transport.py, tell_replaced).
 //
-// Build with the ESP8266 Arduino core (board "Generic ESP8266 Module" or the module you have). Set your
-// network in bridge_config.h (not in the repository; see bridge_config.example.h). The generated header is
-// outside the sketch folder, which the Arduino tools copy before compiling: from the repository's top, give them
-// its folder (the property Arduino's platform specification names for extra C++ flags; not tried here, no core)
+// Build with the ESP8266 Arduino core 3.x, as its users do (docs/firmware.md walks through it). Set your network in
+// bridge_config.h (not in the repository; see bridge_config.example.h). The generated header is outside the sketch
+// folder, so the build is told where it is:
+//   pio run -d firmware/esp8266 -t upload      (firmware/esp8266/platformio.ini: ESP-01 1 MB, or -e esp12e)
 //   arduino-cli compile --fqbn esp8266:esp8266:generic --build-property "compiler.cpp.extra_flags=-I$PWD/firmware/generated" firmware/esp8266/esp8266_bridge
-// or copy firmware/generated/link_taken_frame.h beside this file (and again after protocol/ changes).
+// (arduino-cli from the repository's top; or copy firmware/generated/link_taken_frame.h beside this file, and again
+// after protocol/ changes). Not built for the ESP8266 itself here (no Xtensa toolchain): CI compiles this file with
+// warnings as errors against the same core's host emulation and runs it between `dive` and the agents
+// (tests/firmware/test_esp8266_bridge.py).
 #include <ESP8266WiFi.h>
 
 #include "bridge_config.h"  // WIFI_SSID, WIFI_PASSWORD; optional BRIDGE_AP_MODE to be an access point instead
@@ -25,6 +28,10 @@
 static const uint16_t TCP_PORT = 23;
 static const uint32_t UART_BAUD = 115200;
 static const size_t CHUNK_BYTES = 256;
+// The UART's receive buffer (the core's default is 256 B, 22 ms of 115200 baud): a client.write() waits while Wi-Fi
+// is slow to take bytes, and the agent's bursts (a reply stream, 16 frames per poll) must wait in RAM meanwhile, not
+// overflow. 4 KB is 0.36 s of the UART; the ESP8266 has RAM to spare (the core's WiFiTelnetToSerial uses 1 KB).
+static const size_t UART_RX_BYTES = 4096;
 static const uint32_t CLOSING_LINGER_MS = 2000;  // a replaced client is stopped when it closes, or after this
 
 WiFiServer server(TCP_PORT);
@@ -57,6 +64,7 @@ static void service_closing() {
 
 void setup() {
     Serial.begin(UART_BAUD);  // UART0 (GPIO1 TX, GPIO3 RX) to the Teensy's RX1 / TX1
+    Serial.setRxBufferSize(UART_RX_BYTES);
 #ifdef BRIDGE_AP_MODE
     WiFi.mode(WIFI_AP);
     WiFi.softAP(WIFI_SSID, WIFI_PASSWORD);
@@ -71,7 +79,7 @@ void setup() {
 
 void loop() {
     if (server.hasClient()) {
-        WiFiClient newcomer = server.available();
+        WiFiClient newcomer = server.accept();
         if (client.connected()) { tell_replaced(client); } else { client.stop(); }  // the newcomer replaces it
         client = newcomer;
         client.setNoDelay(true);
