@@ -115,7 +115,7 @@ def run_command(
             show = display.show if fox is None else _attaching(display.show, fox, key)
             # Foxglove publishes from the run's own session: the frames, commands and alarms the recording gets
             result = run(config, show, stop=stop, listeners=[*([view] if view is not None else []),
-                                                             *([fox.channels] if fox is not None else [])])
+                                                             *([fox.listener] if fox is not None else [])])
         # After the status line has ended (a path written under a live display was glued to its last line), before
         # a served web viewer waits: the path is printed however the run ends.
         for path in result.paths:

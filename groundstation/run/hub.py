@@ -29,8 +29,10 @@ import time
 from collections import OrderedDict
 
 from groundstation.errors import LinkError
+from groundstation.links.hub_auth import FULL as HUB_FULL
 from groundstation.links.hub_auth import HubAuthError, HubSide
 from groundstation.links.hub_events import FANNED_OUT, GROUND_FLAG, ground_text
+from groundstation.links.peer import peer_is_owner
 from groundstation.run.history import History
 from groundstation.run.hub_clients import EMERGENCY, FORWARDED, HANDSHAKE_S, MAX_CLIENTS, MAX_REJECTS, HubClient
 from groundstation.run.marker import CONFIRMATION as MARKER_CONFIRMATION
@@ -74,6 +76,7 @@ class Hub:
         self._thread = threading.Thread(target=self._serve, name="dive-hub", daemon=True)
         self.markers = 0
         self.clients_served = 0
+        self.refused_users = 0  # connections from another user's processes, closed at accept
         # The last command a tool sent that takes the agent out of learning (CMD_SURFACE, STOP, HOVER, PAUSE), or
         # None after a tool's CMD_START: the run must not start learning again behind an operator's back.
         self.taken_over: str | None = None
@@ -190,9 +193,19 @@ class Hub:
             sock, peer = self._listener.accept()
         except OSError:
             return
+        if peer_is_owner(sock) is False:
+            # another user's process: it cannot hold the token (the announcement is 0600), and it must not take
+            # the slots the owner's `dive surface` needs (issue 38 N2); where the kernel cannot tell, the token decides
+            self.refused_users += 1
+            with contextlib.suppress(OSError):
+                sock.close()
+            return
         with self._lock:
             full = len(self._clients) >= MAX_CLIENTS
-        if full:  # bounded: a flood of connections costs the run nothing but this
+        if full:  # bounded: a flood of connections costs the run nothing but this, and the tool is told why
+            with contextlib.suppress(OSError):
+                sock.setblocking(False)
+                sock.send(HUB_FULL)
             with contextlib.suppress(OSError):
                 sock.close()
             return
