@@ -152,8 +152,9 @@ def test_a_taken_default_port_is_an_error_and_the_server_names_itself(monkeypatc
     code = ("import socket, sys, time\ns = socket.create_server(('127.0.0.1', 0))\nprint(s.getsockname()[1], "
             "flush=True)\ntime.sleep(30)\n")
     other_user = os.geteuid() == 0 and SYSTEM_PYTHON is not None  # else this user plays the impostor
-    impostor = subprocess.Popen([SYSTEM_PYTHON if other_user else sys.executable, "-c", code], cwd="/",
-                                stdout=subprocess.PIPE, text=True, **(as_another_user() if other_user else {}))
+    python = (SYSTEM_PYTHON or sys.executable) if other_user else sys.executable
+    impostor = subprocess.Popen([python, "-c", code], cwd="/", stdout=subprocess.PIPE, text=True,
+                                **(as_another_user() if other_user else {}))
     try:
         assert impostor.stdout is not None
         taken = int(impostor.stdout.readline())
