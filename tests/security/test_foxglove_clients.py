@@ -12,6 +12,7 @@ import subprocess
 import sys
 import threading
 import time
+from pathlib import Path
 
 import pytest
 
@@ -173,3 +174,31 @@ def test_a_taken_default_port_is_an_error_and_the_server_names_itself(monkeypatc
             assert fox.server_info["name"] == f"dive run sim:// #{tag}"
     finally:
         live.close()
+
+
+def test_clients_that_vanish_print_nothing_on_the_runs_terminal() -> None:
+    """The SDK printed a line per WebSocket client that went away untidily ("Error receiving from client ...") onto
+    the run's terminal: hundreds in a flood. Now none, whichever port they tore down."""
+    serve = ("import sys\nfrom groundstation.view.foxglove.live import FoxgloveLive\n"
+             "live = FoxgloveLive(0, 't')\nprint(live.port, live.server.port, flush=True)\n"
+             "sys.stdin.readline()\nlive.close()\n")
+    root = Path(__file__).resolve().parents[2]
+    server = subprocess.Popen([sys.executable, "-c", serve], cwd=root, env={**os.environ, "PYTHONPATH": str(root)},
+                              stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        assert server.stdout is not None and server.stdin is not None
+        ports = [int(port) for port in server.stdout.readline().split()]
+        assert len(ports) == 2, server.stderr.read() if server.stderr else ""
+        for port in ports:
+            for _ in range(20):
+                client = Client(port)
+                client.sock.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, b"\1\0\0\0\0\0\0\0")  # a reset
+                client.sock.sendall(b"\x82\x05ab")  # and a frame torn off
+                client.sock.close()
+        time.sleep(0.5)
+        _, said = server.communicate("\n", timeout=30)
+    finally:
+        if server.poll() is None:
+            server.kill()
+            server.wait(10)
+    assert server.returncode == 0 and said == "", said[-2000:]
