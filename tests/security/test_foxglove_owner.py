@@ -72,3 +72,25 @@ def test_another_user_gets_nothing_from_foxglove_at_either_port(tmp_path: Path, 
     assert not [c for c in executed if c in COMMANDS], executed
     [recording] = (tmp_path / "rec").glob("*.mcap")
     assert read_recording(recording, {"/marker"}).messages == []  # no INTRUDER marker in the owner's recording
+
+
+def test_another_users_silent_connections_do_not_keep_the_owner_out() -> None:
+    """The door's limits are the owner's alone: another user's 100 silent connections (each held until it is
+    answered or closed) are counted apart, and the owner's app gets in at once. (A guard on the door's own limits:
+    the SDK's server before it had none to take.)"""
+    fox = FoxgloveLive(0, "test")
+    hold = ("import socket, time\nheld = []\nfor _ in range(100):\n"
+            f"    try: held.append(socket.create_connection(('127.0.0.1', {fox.port}), timeout=1))\n"
+            "    except OSError: pass\nprint(len(held), flush=True)\ntime.sleep(6)\n")
+    squatter = subprocess.Popen([SYSTEM_PYTHON or sys.executable, "-c", hold], cwd="/", stdout=subprocess.PIPE,
+                                text=True, **as_another_user())
+    try:
+        assert squatter.stdout is not None
+        assert int(squatter.stdout.readline()) > 0
+        with FoxgloveClient.connected(fox.port) as owner:
+            assert owner.pump(lambda: bool(owner.server_info), 5)
+        assert fox.gate.counts.admitted == 1
+    finally:
+        squatter.kill()
+        squatter.wait(10)
+        fox.close()

@@ -37,6 +37,7 @@ REQUEST_LIMIT = 8192  # an HTTP upgrade request is a few hundred bytes
 REQUEST_TIMEOUT_S = 3.0  # a connection that has not sent its request by then is closed
 CLIENT_BUFFER_BYTES = 4 * 1024 * 1024  # queued for one client before it is dropped as too slow
 INNER_CONNECT_S = 2.0
+FOREIGN_PENDING = 64  # another user's connections waiting to be answered 403; more are closed at accept
 OWNER_CHANNEL_ID = 0xFFFF_FFF0  # far from the ids the Foxglove app gives its own channels (from 1 up)
 _END = b"\r\n\r\n"
 _FORBIDDEN = b"HTTP/1.1 403 Forbidden\r\nContent-Length: 0\r\nConnection: close\r\n\r\n"
@@ -58,6 +59,7 @@ class GateCounts:
 class _Door:
     client: socket.socket
     accepted_s: float
+    owner: bool | None  # the kernel's answer at accept (links/peer.py); None: it cannot tell, the token decides
     request: bytearray = field(default_factory=bytearray)
     inner: socket.socket | None = None
     response: bytearray = field(default_factory=bytearray)
@@ -136,13 +138,18 @@ class FoxgloveGate:
             sock, _ = self._listener.accept()
         except OSError:
             return
-        if len(self._doors) >= 2 * MAX_CLIENTS + 16:  # requests not yet read count too: a flood costs one close
-            self.counts.refused_full += 1
+        # whose it is, asked once at accept: another user's connections are counted apart, so that a flood of them
+        # never takes the slots the owner's app needs (they are answered 403 once their request is read)
+        owner = peer_is_owner(sock)
+        foreign = sum(1 for door in self._doors if door.owner is False)
+        ours = len(self._doors) - foreign
+        if (owner is False and foreign >= FOREIGN_PENDING) or (owner is not False and ours >= 2 * MAX_CLIENTS + 16):
+            self.counts.refused_full += 1  # a flood costs one close each
             with contextlib.suppress(OSError):
                 sock.close()
             return
         sock.setblocking(False)
-        door = _Door(sock, time.monotonic())
+        door = _Door(sock, time.monotonic(), owner)
         self._doors.append(door)
         self._selector.register(sock, selectors.EVENT_READ, (door, True))
 
@@ -196,9 +203,8 @@ class FoxgloveGate:
             self._open_inner(door)
 
     def _admits(self, door: _Door) -> bool:
-        owner = peer_is_owner(door.client)
-        if owner is not None:
-            return owner
+        if door.owner is not None:
+            return door.owner
         path = bytes(door.request[4:door.request.find(b" ", 4)])  # GET <path> HTTP/1.1
         return hmac.compare_digest(path.strip(b"/").split(b"?")[0], self.token.encode())
 
