@@ -9,8 +9,9 @@ Two `dive run sim://?speed=S --foxglove 0` jobs in turn, the same seed, in this 
   dropped or refused), 4 clients flapping their /agent/SAMPLE subscription, and a flood of malformed bytes on every
   listener at once (random bytes as new connections to the Foxglove port and the hub port; random frames after a
   valid WebSocket upgrade), all for the whole run.
-After `--seconds` of streaming the owner's `dive surface` is timed (the command's wall time, its start included),
-then the run is stopped with Ctrl-C. Printed for both: SAMPLEs recorded per second of streaming (first to last
+After `--seconds` of streaming the owner's CMD_SURFACE is timed from a tool's session on the run's hub (sent to
+ACK), then `dive surface` (the command's wall time, its interpreter's start included), then the run is stopped
+with Ctrl-C. Printed for both: SAMPLEs recorded per second of streaming (first to last
 SAMPLE in the recording), samples lost (missing indices between the first and last recorded, and the run's own
 "samples lost" line), peak memory (VmHWM of the `dive run` process), the surface's time; and attack / control.
 Every attacker's loop is bounded in count and time; traffic goes to 127.0.0.1 only.
@@ -55,8 +56,9 @@ class Figures:
     missing: int  # indices missing between the first and the last recorded
     said_lost: int  # the run's own "N samples lost" / "not backfilled" lines
     peak_mb: float
-    surface_s: float
+    surface_s: float  # `dive surface`'s wall time, its interpreter's start included
     surface_ok: bool
+    ack_s: float  # CMD_SURFACE sent to its ACK, from a tool's session attached to the run's hub (nan: no ACK)
 
 
 def _hub_port(runtime: Path) -> int | None:
@@ -144,6 +146,24 @@ def _junk(ports: Callable[[], list[int]], until: threading.Event) -> None:
     _loop(until, 0.02, step)
 
 
+def _surface_ack_s(runtime: Path) -> float:
+    """The owner's CMD_SURFACE through the run's hub, as `dive surface` sends it: seconds from sending to its ACK."""
+    from groundstation.errors import GroundStationError
+    from groundstation.links import make_link
+    from groundstation.session import control
+    from groundstation.session.agent_session import Session, SessionConfig
+
+    os.environ["DIVE_RUNTIME_DIR"] = str(runtime)
+    try:
+        with Session(make_link("hub://"), SessionConfig(backfill=False, fetch_params=False)) as session:
+            began = time.monotonic()
+            answer = control.surface(session)
+            return time.monotonic() - began if answer.accepted else float("nan")
+    except GroundStationError as e:
+        print(f"  the tool's surface failed: {e}")
+        return float("nan")
+
+
 def job(folder: Path, speed: int, seed: int, seconds: float, attack: bool) -> Figures:
     runtime = folder / "runtime"
     env = {**os.environ, "DIVE_RUNTIME_DIR": str(runtime), "DIVE_CACHE_DIR": str(folder / "cache"),
@@ -176,9 +196,12 @@ def job(folder: Path, speed: int, seed: int, seconds: float, attack: bool) -> Fi
             if i == FLAPPERS - 1:
                 time.sleep(2.0)
     time.sleep(seconds)
+    ack_s = _surface_ack_s(runtime)
     began = time.monotonic()
     surfaced = subprocess.run([*DIVE, "surface"], env=env, capture_output=True, text=True, timeout=60)
     surface_s = time.monotonic() - began
+    if surfaced.returncode != 0:
+        print(f"  ({'attack' if attack else 'control'}) dive surface: {surfaced.stderr.strip()[-300:]}")
     peak_mb = _peak_mb(proc.pid)
     until.set()
     proc.send_signal(2)
@@ -196,7 +219,7 @@ def job(folder: Path, speed: int, seed: int, seconds: float, attack: bool) -> Fi
     times = [msg.log_time_ns for msg in samples]
     rate = len(samples) / max(1e-9, (max(times) - min(times)) / 1e9)
     missing = (indices[-1] - indices[0] + 1 - len(indices)) if indices else 0
-    return Figures(rate, missing, said, peak_mb, surface_s, surfaced.returncode == 0)
+    return Figures(rate, missing, said, peak_mb, surface_s, surfaced.returncode == 0, ack_s)
 
 
 def main() -> None:
@@ -212,10 +235,12 @@ def main() -> None:
           "on the Foxglove and hub ports")
     for name, f in (("control", control), ("attack", attacked)):
         print(f"{name:8s} {f.rate:7.0f} SAMPLEs/s recorded, {f.missing} missing, {f.said_lost} said lost, peak "
-              f"{f.peak_mb:6.1f} MB, dive surface {'ACKed' if f.surface_ok else 'FAILED'} in {f.surface_s:.2f} s")
+              f"{f.peak_mb:6.1f} MB, CMD_SURFACE ACKed {f.ack_s:.3f} s after it was sent; `dive surface` "
+              f"{'exit 0' if f.surface_ok else 'FAILED'} in {f.surface_s:.2f} s (its start included)")
     extra_mb = attacked.peak_mb - control.peak_mb
     print(f"attack / control: rate {attacked.rate / control.rate:.3f}, memory {extra_mb:+.1f} "
-          f"MB ({attacked.peak_mb / control.peak_mb:.2f}x), surface {attacked.surface_s / control.surface_s:.2f}x; "
+          f"MB ({attacked.peak_mb / control.peak_mb:.2f}x), surface ACK {attacked.ack_s / control.ack_s:.2f}x, "
+          f"`dive surface` {attacked.surface_s / control.surface_s:.2f}x; "
           f"load average {os.getloadavg()[0]:.1f}")
 
 
