@@ -202,3 +202,23 @@ def test_clients_that_vanish_print_nothing_on_the_runs_terminal() -> None:
             server.kill()
             server.wait(10)
     assert server.returncode == 0 and said == "", said[-2000:]
+
+
+def test_where_the_kernel_cannot_name_a_peer_the_printed_secret_path_is_the_key(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """N1 on a machine without /proc/net/tcp (macOS): the door lets through only a client that asks for the run's
+    secret path, which the address printed to the owner carries."""
+    from groundstation.view.foxglove import gate
+
+    monkeypatch.setattr(gate, "peer_is_owner", lambda sock: None)
+    monkeypatch.setattr(live_module, "table_readable", lambda: False)
+    live = FoxgloveLive(0, "test")
+    try:
+        assert live.address == f"ws://127.0.0.1:{live.port}/{live.gate.token}"
+        guess = Client(live.port)  # the bare port, as a guess
+        assert "403" in guess.status, guess.status
+        guess.sock.close()
+        with FoxgloveClient.connected(live.port, path=f"/{live.gate.token}") as owner:
+            assert owner.pump(lambda: bool(owner.server_info), 5)
+    finally:
+        live.close()
