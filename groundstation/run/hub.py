@@ -202,7 +202,13 @@ class Hub:
             return
         with self._lock:
             full = len(self._clients) >= MAX_CLIENTS
-        if full:  # bounded: a flood of connections costs the run nothing but this, and the tool is told why
+            waiting = [c for c in self._clients if not c.attached]
+        if full and waiting:
+            # the oldest connection still in its handshake makes room: a flood of junk (or of slow handshakes) under
+            # load must not keep the owner's `dive surface` out, and a real tool's handshake takes a round trip
+            self._drop(min(waiting, key=lambda c: c.accepted_s))
+            full = False
+        if full:  # every slot a tool that proved the token: the new one is told why, and asks again
             with contextlib.suppress(OSError):
                 sock.setblocking(False)
                 sock.send(HUB_FULL)
