@@ -222,3 +222,28 @@ def test_where_the_kernel_cannot_name_a_peer_the_printed_secret_path_is_the_key(
             assert owner.pump(lambda: bool(owner.server_info), 5)
     finally:
         live.close()
+
+
+def test_dump_images_go_to_the_owners_subscribed_clients_alone() -> None:
+    """N1: the value and policy images were broadcast to every subscriber; now each goes to the clients that came
+    through the door and subscribed, and a client at the SDK's own port behind it gets none."""
+    import struct
+
+    from groundstation.session.dumps import Dump
+    from groundstation.view.foxglove.images import POLICY_TOPIC
+    from protocol import DumpKind
+
+    live = FoxgloveLive(0, "test")
+    try:
+        with FoxgloveClient.connected(live.port) as owner, FoxgloveClient.connected(live.server.port) as behind:
+            assert owner.pump(lambda: POLICY_TOPIC in owner.channels) and behind.pump(lambda: POLICY_TOPIC in
+                                                                                     behind.channels)
+            mine, theirs = owner.subscribe(POLICY_TOPIC), behind.subscribe(POLICY_TOPIC)
+            time.sleep(0.5)  # the subscriptions reach the server
+            live.channels.publish_dump(Dump(1, DumpKind.VALUES, 7, struct.pack("<101f", *range(101))), time.time_ns())
+            live.channels.publish_dump(Dump(2, DumpKind.POLICY, 7, bytes([0, 1, 255] * 33 + [0, 0])), time.time_ns())
+            assert owner.pump(lambda: len(owner.messages.get(mine, [])) == 1, 5)
+            behind.pump(lambda: False, 1.0)
+            assert behind.messages.get(theirs, []) == []
+    finally:
+        live.close()

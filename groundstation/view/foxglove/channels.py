@@ -187,11 +187,12 @@ class FoxgloveChannels:
         messages: a client that connects late sees the learning curve, the heatmaps and the last minutes whole,
         in order and once. The history is encoded and sent outside the lock (live messages of the topic that come
         meanwhile wait for it, at most MAX_HELD_BACK), each message encoded once for all replays."""
+        if self.images.replay(topic, sink_id):  # an image's topic: its newest image, then each new one
+            with self._publish:
+                self._ready.setdefault(topic, set()).add(sink_id)
+            return
         channel = self._channels.get(topic)
-        if self.images.replay(topic, sink_id) or channel is None:
-            if channel is not None:
-                with self._publish:
-                    self._ready.setdefault(topic, set()).add(sink_id)
+        if channel is None:
             return
         with self._publish:
             kept = self.history.snapshot(topic)  # what a live message after this point is not in

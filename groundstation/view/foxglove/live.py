@@ -95,8 +95,6 @@ class FoxgloveLive:
         self._attached = threading.Event()
         self.failures: list[str] = []  # what went wrong after the start, for the run's terminal (attach_in_background)
         self.channels = FoxgloveChannels(self.context, self._parameter_changed, self._failed)
-        # the run's session hands its frames over and goes on: encoding and sending are the publisher thread's
-        self.listener = Handoff(self.channels, HANDOFF_FRAMES, "dive-foxglove-publish")
         self.markers = MarkerWatch()
         self.parameters = ParameterBridge(self.attached_session, self.warn)
         self.controls = Controls(self.attached_session, self.markers, self.warn, self.is_owner)
@@ -124,6 +122,8 @@ class FoxgloveLive:
             raise FoxglovePortError(f"the Foxglove server cannot start ({e})") from None
         self.gate.start(self.server.port)
         self.port = self.gate.port
+        # the run's session hands its frames over and goes on: encoding and sending are the publisher thread's
+        self.listener = Handoff(self.channels, HANDOFF_FRAMES, "dive-foxglove-publish")
         threading.Thread(target=self._subscriptions, name="dive-foxglove-subscriptions", daemon=True).start()
         self._closed = threading.Event()
         self._say: Callable[[str], None] | None = None
