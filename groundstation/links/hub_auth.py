@@ -73,6 +73,11 @@ class HubSide:
     def __repr__(self) -> str:
         return f"HubSide(done={self.done})"  # never the token
 
+    @property
+    def greeted(self) -> bool:
+        """A valid first line came: a tool mid-handshake, not bytes that are none (the hub evicts those first)."""
+        return self._tool_nonce is not None
+
     def feed(self, data: bytes) -> tuple[bytes, bytes]:
         """(what to send the tool, bytes after the handshake: frames); HubAuthError when it is no handshake."""
         self._buffer += data

@@ -206,7 +206,8 @@ class Hub:
         if full and waiting:
             # the oldest connection still in its handshake makes room: a flood of junk (or of slow handshakes) under
             # load must not keep the owner's `dive surface` out, and a real tool's handshake takes a round trip
-            self._drop(min(waiting, key=lambda c: c.accepted_s))
+            # (one that never sent a valid greeting before one mid-handshake: a tool's proof may be on its way)
+            self._drop(min(waiting, key=lambda c: (c.handshake.greeted, c.accepted_s)))
             full = False
         if full:  # every slot a tool that proved the token: the new one is told why, and asks again
             with contextlib.suppress(OSError):
