@@ -87,6 +87,7 @@ class FoxgloveChannels:
         self._ready: dict[str, set[int]] = {}
         # (topic, sink) whose history is being sent: the live messages that came meanwhile, sent after it
         self._replaying: dict[tuple[str, int], list[tuple[int, Body]]] = {}
+        self.replayed = 0  # messages the last subscribed() sent (its history), for the replay budget (live.py)
         self.held_back_dropped = 0  # live messages past MAX_HELD_BACK while a history was sent: dropped, counted
         self._dumps = DumpAssembler()
         self.images = DumpImages(context, self.sinks)
@@ -190,6 +191,7 @@ class FoxgloveChannels:
         if self.images.replay(topic, sink_id):  # an image's topic: its newest image, then each new one
             with self._publish:
                 self._ready.setdefault(topic, set()).add(sink_id)
+            self.replayed = 1
             return
         channel = self._channels.get(topic)
         if channel is None:
@@ -201,6 +203,7 @@ class FoxgloveChannels:
             channel.log(entry.encoded(), log_time=entry.host_time_ns, sink_id=sink_id)
         with self._publish:
             held = self._replaying.pop((topic, sink_id), None)
+            self.replayed = len(kept)
             if held is None:
                 return  # unsubscribed meanwhile
             for host_ns, body in held:

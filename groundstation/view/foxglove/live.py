@@ -45,6 +45,7 @@ _STATUS_ID = "dive"
 ATTACH_WAIT_S = 5.0  # a call while the server attaches waits this long for the agent before it is refused
 OWNERS_REMEMBERED = 4096  # client ids that came through the door (ids are never reused: the oldest are forgotten)
 REPLAY_SPACING_S = 1.0  # a client's topic is sent its history at most this often (a flapping subscription)
+REPLAY_MESSAGES_PER_S = 20_000  # history messages sent per second, all clients together (10 000 SAMPLEs: 0.5 s)
 HANDOFF_FRAMES = 65_536  # frames waiting for the publisher thread before the newest are dropped (and counted)
 
 
@@ -124,8 +125,8 @@ class FoxgloveLive:
         self.port = self.gate.port
         # the run's session hands its frames over and goes on: encoding and sending are the publisher thread's
         self.listener = Handoff(self.channels, HANDOFF_FRAMES, "dive-foxglove-publish")
-        threading.Thread(target=self._subscriptions, name="dive-foxglove-subscriptions", daemon=True).start()
         self._closed = threading.Event()
+        threading.Thread(target=self._subscriptions, name="dive-foxglove-subscriptions", daemon=True).start()
         self._say: Callable[[str], None] | None = None
 
     @property
@@ -208,7 +209,13 @@ class FoxgloveLive:
             for key in sorted(pending):
                 if now_s >= replayed_s.get(key, 0.0) + REPLAY_SPACING_S:
                     pending.discard(key)
+                    self.channels.replayed = 0
                     self.channels.subscribed(*key)
+                    sent = self.channels.replayed
+                    # a budget for all clients together: each history's sending costs the process's CPU (and so,
+                    # on a loaded machine, the session's reader thread) however many clients come and go
+                    if self._closed.wait(sent / REPLAY_MESSAGES_PER_S):
+                        return
                     replayed_s[key] = now_s = time.monotonic()
             for key in [key for key, when_s in replayed_s.items() if now_s - when_s > REPLAY_SPACING_S]:
                 del replayed_s[key]
