@@ -137,11 +137,15 @@ def open_foxglove(port: int, name: str) -> FoxgloveLive:
 
 @contextmanager
 def closing_foxglove(live: FoxgloveLive | None) -> Iterator[None]:
+    """Close the server however the run ends; what its door and publisher refused or dropped, in one line."""
     try:
         yield
     finally:
         if live is not None:
             live.close()
+            said = live.refusals()
+            if said:
+                typer.echo(f"Foxglove: {said}", err=True)
 
 
 @contextmanager

@@ -138,6 +138,8 @@ def test_slow_readers_are_bounded_in_number_and_each_in_its_queue() -> None:
                 live.channels._send(channel, SAMPLE, time.time_ns(), functools.partial(bytes, body))
             time.sleep(0.05)
         assert live.gate.counts.dropped_slow == MAX_CLIENTS, live.gate.counts
+        said = live.refusals()  # the run's last line about its Foxglove clients
+        assert f"{MAX_CLIENTS} clients dropped for not reading" in said and "4 refused as too many" in said, said
     finally:
         for reader in readers:
             reader.sock.close()

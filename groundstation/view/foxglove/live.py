@@ -137,6 +137,17 @@ class FoxgloveLive:
     def is_owner(self, client_id: int) -> bool:
         return client_id in self.owners
 
+    def refusals(self) -> str:
+        """What the door refused or dropped and the publisher could not keep up with ("" if nothing), counted."""
+        counts = self.gate.counts
+        parts = [f"{n} {what}" for n, what in (
+            (counts.refused_user, "connections of another user refused"),
+            (counts.refused_full, "refused as too many"),
+            (counts.dropped_slow, "clients dropped for not reading"),
+            (self.listener.dropped, "frames not published (the publisher fell behind)"),
+            (self.channels.held_back_dropped, "live messages dropped while a history was sent")) if n]
+        return ", ".join(parts)
+
     def attach(self, url: str, key: bytes | None, publish: bool = True) -> Session:
         """Connect the session the parameters and services use to `url` (hub://RUN for a run's hub); raises as a
         tool's connect does (one line). `publish`: what it receives goes to the channels (`dive view`); a run
