@@ -22,6 +22,8 @@ import threading
 import time
 from pathlib import Path
 
+from websockets.exceptions import WebSocketException
+
 from groundstation.recording.info import summarize
 from tests.groundstation.foxglove_client import FoxgloveClient
 from tests.reliability.recordings import DIVE_MAIN, dive, read
@@ -49,7 +51,7 @@ def _watched_run(*args: str, received: list[int]) -> subprocess.CompletedProcess
     first = proc.stderr.readline()
     port = int(re.search(r"ws://127\.0\.0\.1:(\d+)", first).group(1))  # type: ignore[union-attr]
 
-    def watch() -> None:
+    def watch_once() -> None:
         with FoxgloveClient.connected(port) as fox:
             subscribed: list[int] = []
 
@@ -60,6 +62,15 @@ def _watched_run(*args: str, received: list[int]) -> subprocess.CompletedProcess
 
             fox.pump(until, 1800)
             received.append(len(fox.messages.get(subscribed[0], [])) if subscribed else 0)
+
+    def watch() -> None:
+        for _ in range(30):  # the run's start (the simulator's, a loaded machine) can outlast one connect's wait
+            try:
+                watch_once()
+                return
+            except (OSError, WebSocketException) as e:
+                print(f"  the Foxglove client: {type(e).__name__}: {e}; connecting again", file=sys.stderr)
+                time.sleep(1.0)
 
     watcher = threading.Thread(target=watch, daemon=True)
     watcher.start()
