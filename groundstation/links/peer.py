@@ -65,8 +65,9 @@ def table_readable() -> bool:
 
 
 def peer_is_owner(sock: socket.socket) -> bool | None:
-    """True: the peer runs as our user; False: as another (or it cannot be found on a machine that can tell);
-    None: this machine cannot tell (no /proc): decide by a secret instead."""
+    """True: the peer runs as our user (or as root, who can read the run's token and its key files anyway: a
+    `sudo dive surface` still reaches the run); False: as another (or it cannot be found on a machine that can
+    tell); None: this machine cannot tell (no /proc): decide by a secret instead."""
     if not table_readable():
         return None
-    return peer_uid(sock) == os.geteuid()
+    return peer_uid(sock) in (os.geteuid(), 0)
