@@ -11,7 +11,8 @@ REQUEST_TIMEOUT_S are closed unanswered. A client that is let through is piped t
 ephemeral loopback port, and its first WebSocket frame there is ours: a client-channel advertisement whose topic
 holds a secret of this process (`owner_topic`), which the server's listener takes as the proof that this client
 came through the door (live.py). A connection straight to that inner port (anyone can find it) never sends it, and
-is given no channel data, no parameter and no service (live.py, channels.py): it sees the channel and service names.
+is given no channel data, no parameter and no service (live.py, channels.py): it sees the problems-list lines
+(the SDK broadcasts them) and the channel and service names.
 
 A client that does not read is not queued for without end: once CLIENT_BUFFER_BYTES wait for it, it is dropped (and
 counted); the SDK's queue for it stays empty because this door reads it.
