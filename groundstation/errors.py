@@ -19,6 +19,10 @@ class UnknownSchemeError(LinkError, ValueError):
     """A link URL whose scheme no backend handles."""
 
 
+class BadUrlError(UnknownSchemeError):
+    """A link URL that cannot be read (a port outside 0-65535, a bracket not closed): bad usage, exit 2."""
+
+
 class IncompatibleAgentError(LinkError):
     """The agent speaks another protocol version or another message table."""
 

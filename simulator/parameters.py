@@ -13,6 +13,8 @@ from typing import Any
 from learning.spec import KernelSpec, kernel_tuple_type, to_kernel_tuple
 from simulator.errors import ParamsError
 
+MAX_FILE_BYTES = 1024 * 1024  # a parameter or plant file is a few KiB
+
 
 @dataclass(frozen=True)
 class PlantParams:
@@ -134,9 +136,19 @@ def with_overrides(params: PlantParams, overrides: dict[str, Any]) -> PlantParam
 
 def _read_table(path: Path, key: str) -> dict[str, Any]:
     try:
-        text = path.read_bytes()
+        with path.open("rb") as f:
+            text = f.read(MAX_FILE_BYTES + 1)  # bounded: `sim://?plant=/dev/zero` once grew to 20 GB (issue 38 N6)
+    except OSError as e:
+        raise ParamsError(f"cannot read parameter file {path}: {e}") from e
+    if len(text) > MAX_FILE_BYTES:
+        raise ParamsError(f"parameter file {path} is over {MAX_FILE_BYTES // 1024} KiB: not a parameter file")
+    try:
         data = json.loads(text) if path.suffix.lower() == ".json" else tomllib.loads(text.decode())
-    except (OSError, UnicodeDecodeError, ValueError) as e:
+    except UnicodeDecodeError:
+        raise ParamsError(f"cannot read parameter file {path}: not UTF-8 text") from None
+    except RecursionError:
+        raise ParamsError(f"cannot read parameter file {path}: nested too deeply to be a parameter file") from None
+    except ValueError as e:
         raise ParamsError(f"cannot read parameter file {path}: {e}") from e
     if not isinstance(data, dict):
         raise ParamsError(f"parameter file {path} must hold a table of {key} = value")

@@ -216,6 +216,10 @@ def mark(text: Annotated[str, typer.Argument(help="what happened (recorded on /m
     from groundstation.links.runs import find_run
     from groundstation.run.marker import send_marker
 
+    try:
+        text.encode()
+    except UnicodeEncodeError:  # bytes from argv that are no UTF-8 (a shell's $'\xff'): surrogates Python kept
+        raise UsageError("the marker's text is not UTF-8: write it as text") from None
     info = find_run(run.removeprefix("hub://") if run else None)
     send_marker(info, text, tool=tool_name())
     where = f" ({info.recording})" if info.recording else ""

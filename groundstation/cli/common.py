@@ -12,7 +12,7 @@ import typer
 from rich.text import Text
 
 from groundstation.cli.validate import UsageError
-from groundstation.errors import GroundStationError
+from groundstation.errors import BadUrlError, GroundStationError
 from groundstation.safe_output import SafeConsole, one_line
 from groundstation.session.keys import resolve_key
 
@@ -31,7 +31,7 @@ def one_line_errors(func: F) -> F:
     def wrapper(*args: Any, **kwargs: Any) -> Any:
         try:
             return func(*args, **kwargs)
-        except UsageError as e:
+        except (UsageError, BadUrlError) as e:  # a URL that cannot be read is bad usage too (README: exit 2)
             err.print(Text.assemble(("dive:", "bold red"), " ", one_line(str(e))), soft_wrap=True)
             raise typer.Exit(2) from None
         except (GroundStationError, OSError) as e:
@@ -55,7 +55,8 @@ def hostile_data_reason(error: RecursionError | OverflowError) -> str:
 
 
 @contextmanager
-def agent_session(url: str | None, key_file: Path | None = None, reconnect: bool = False) -> Iterator[Session]:
+def agent_session(url: str | None, key_file: Path | None = None, reconnect: bool = False,
+                  fetch_params: bool = True) -> Iterator[Session]:
     """A session with *the* agent: the URL given, else $DIVE_URL, else the running `dive run` (never a new sim).
 
     `reconnect`: a command whose link drops before its ACK is sent again on a new connection (the controls: an
@@ -65,7 +66,8 @@ def agent_session(url: str | None, key_file: Path | None = None, reconnect: bool
     from groundstation.session.agent_session import Session, SessionConfig
 
     session = Session(make_link(attach_url(url)),
-                      SessionConfig(reconnect=reconnect, backfill=False, key=resolve_key(key_file), name=tool_name()))
+                      SessionConfig(reconnect=reconnect, backfill=False, key=resolve_key(key_file), name=tool_name(),
+                                    fetch_params=fetch_params))
     with session:
         yield session
 

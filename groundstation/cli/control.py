@@ -22,8 +22,8 @@ if TYPE_CHECKING:
     from groundstation.session.control import Answer
 
 
-def _run(url: str | None, key_file: Path | None, act: Callable[[Session], Answer]) -> None:
-    with agent_session(url, key_file, reconnect=True) as s:
+def _run(url: str | None, key_file: Path | None, act: Callable[[Session], Answer], fetch_params: bool = True) -> None:
+    with agent_session(url, key_file, reconnect=True, fetch_params=fetch_params) as s:
         out.print(act(s).raise_if_refused().line, soft_wrap=True, highlight=False)
 
 
@@ -98,7 +98,9 @@ def confirm_reset(what: str, yes: bool, flag: str = "--yes") -> None:
 @one_line_errors
 def surface(url: UrlArg = None, key_file: KeyFileOption = None) -> None:
     """Emergency surface: maximum volume now, in any mode."""
-    _run(url, key_file, control.surface)
+    # no PARAM_LIST first: a keyed agent refuses it unsigned, and runs an unsigned CMD_SURFACE on purpose (SPEC 1.2):
+    # the one command that must work without the key did not (issue 38 N9)
+    _run(url, key_file, control.surface, fetch_params=False)
 
 
 @one_line_errors

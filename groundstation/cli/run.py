@@ -18,10 +18,13 @@ from groundstation.cli.signals import stop_on_signals
 from groundstation.cli.validate import UsageError, check_presets, parse_speed
 from groundstation.run.alarm_limits import DEPTH_LIMIT_M, LINK_LOST_S
 from groundstation.safe_output import printable
+from groundstation.session.handoff import Handoff
 from groundstation.session.keys import KeyFileOption, resolve_key
 from groundstation.view.options import Viewer, ranged
 
 U32_MAX = 2**32 - 1  # CMD_START's max_episodes and the simulator's seed are U32
+
+VIEW_HANDOFF_FRAMES = 65_536  # frames waiting for the live view before the newest are not shown (and counted)
 
 if TYPE_CHECKING:
     from groundstation.run.job import RunStatus
@@ -122,12 +125,23 @@ def run_command(
                        alarms=AlarmConfig(link_lost_s=alarm_link_lost, silent_s=alarm_link_lost, depth_m=alarm_depth))
     stop, signalled, ack = threading.Event(), list[str](), threading.Event()
     with stop_on_signals(stop, signalled), view_cli.closing_foxglove(fox), view_cli.closing_view(view, signalled):
-        with RunDisplay(err, episodes, f"connecting to {url}", virtual=url.startswith("sim://")) as display, \
-                AckKey(ack) if display.live else contextlib.nullcontext():
-            show = display.show if fox is None else _attaching(display.show, fox, key)
-            # Foxglove publishes from the run's own session: the frames, commands and alarms the recording gets
-            result = run(config, show, stop=stop, listeners=[*([view] if view is not None else []),
-                                                             *([fox.channels] if fox is not None else [])], ack=ack)
+        # the live view is fed from a thread of its own: a slow viewer never holds up the session that records
+        rerun = Handoff(view, VIEW_HANDOFF_FRAMES, "dive-rerun-publish") if view is not None else None
+        try:
+            with RunDisplay(err, episodes, f"connecting to {url}", virtual=url.startswith("sim://")) as display, \
+                    AckKey(ack) if display.live else contextlib.nullcontext():
+                show = display.show if fox is None else _attaching(display.show, fox, key)
+                # Foxglove publishes from the run's own session: the frames, commands and alarms the recording gets
+                result = run(config, show, stop=stop, listeners=[*([rerun] if rerun is not None else []),
+                                                                 *([fox.listener] if fox is not None else [])],
+                             ack=ack)
+        finally:
+            if rerun is not None:
+                rerun.close(5.0)  # what is queued reaches the view before it closes
+        if rerun is not None and (rerun.failure or rerun.dropped):
+            err.print(f"the live view {'stopped: ' + rerun.failure if rerun.failure else 'fell behind'}"
+                      f"{f' ({rerun.dropped} frames not shown)' if rerun.dropped else ''}; the recording is complete",
+                      style="yellow", soft_wrap=True)
         # After the status line has ended (a path written under a live display was glued to its last line), before
         # a served web viewer waits: the path is printed however the run ends.
         for path in result.paths:

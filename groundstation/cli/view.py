@@ -120,29 +120,32 @@ LIVE_LAYOUT = "docs/foxglove/live-layout.json"
 
 
 def open_foxglove(port: int, name: str) -> FoxgloveLive:
-    """The Foxglove server, bound now (before any agent is started): a port given that is in use is one line and
-    exit 2; the default one in use (a second `dive view --foxglove` beside a run's) moves to a free port."""
-    from groundstation.view.foxglove.live import DEFAULT_PORT, FoxgloveLive, FoxglovePortError
+    """The Foxglove server, bound now (before any agent is started): a port in use, the default one too, is one line
+    and exit 2. The default one is not moved to a free port: another user who took 8765 first would then be the
+    server the operator's app connects to (issue 38 N5). The printed name's #tag is this server's alone: the
+    Foxglove app shows the server's name, so the operator can tell theirs from an impostor."""
+    from groundstation.view.foxglove.live import FoxgloveLive, FoxglovePortError
 
     try:
         live = FoxgloveLive(port, name)
     except FoxglovePortError as e:
-        if port != DEFAULT_PORT:
-            raise UsageError(str(e)) from None
-        live = FoxgloveLive(0, name)
-        typer.echo(f"the default --foxglove port {DEFAULT_PORT} is in use: using {live.port}", err=True)
+        raise UsageError(str(e)) from None
     typer.echo(f"Foxglove: {live.address} (Foxglove app: Open connection, Foxglove WebSocket, this URL; layout: "
-               f"{LIVE_LAYOUT}); local users only", err=True)
+               f"{LIVE_LAYOUT}); server name ends #{live.fingerprint}; your user only", err=True)
     return live
 
 
 @contextmanager
 def closing_foxglove(live: FoxgloveLive | None) -> Iterator[None]:
+    """Close the server however the run ends; what its door and publisher refused or dropped, in one line."""
     try:
         yield
     finally:
         if live is not None:
             live.close()
+            said = live.refusals()
+            if said:
+                typer.echo(f"Foxglove: {said}", err=True)
 
 
 @contextmanager

@@ -9,9 +9,9 @@ import time
 from abc import ABC, abstractmethod
 from types import TracebackType
 from typing import Self
-from urllib.parse import urlsplit
+from urllib.parse import SplitResult, urlsplit
 
-from groundstation.errors import LinkError, UnknownSchemeError
+from groundstation.errors import BadUrlError, LinkError, UnknownSchemeError
 
 DEFAULT_URL = "sim://"
 # scheme -> "module:Class"; imported only when a URL with that scheme is opened (pyserial, subprocess...)
@@ -126,8 +126,19 @@ def default_url() -> str:
     return os.environ.get("DIVE_URL") or DEFAULT_URL
 
 
+def split_url(url: str) -> SplitResult:
+    """urlsplit, its port read too: a URL it cannot read is one BadUrlError (exit 2), not a ValueError from deep in
+    a command (issue 38 N7: `tcp://127.0.0.1:99999`, `tcp://[::1`)."""
+    try:
+        parts = urlsplit(url)
+        parts.port  # noqa: B018 read for its check: out of range raises here
+    except ValueError as e:
+        raise BadUrlError(f"bad link URL {url!r}: {e}") from None
+    return parts
+
+
 def link_class(url: str) -> type[Link]:
-    scheme = urlsplit(url).scheme.lower() if "://" in url else ""
+    scheme = split_url(url).scheme.lower() if "://" in url else ""
     if url.startswith("/dev/"):
         scheme = "serial"
     target = _BACKENDS.get(scheme)

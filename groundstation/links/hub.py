@@ -6,7 +6,9 @@ the run's announcement file (groundstation/links/runs.py), looked up again on ev
 
 from __future__ import annotations
 
-from groundstation.links.hub_auth import HubAuthError, tool_side
+import time
+
+from groundstation.links.hub_auth import HubAuthError, HubFullError, HubProofError, tool_side
 from groundstation.links.runs import hub_address, withdraw
 from groundstation.links.tcp import TcpLink, parse_host_port
 
@@ -15,6 +17,8 @@ from groundstation.links.tcp import TcpLink, parse_host_port
 # one command in five (the size of Linux's delayed ACK: a window that small seems to reopen only with one); 16 KiB:
 # p50 7.7 ms, p95 15.0 ms, max 17.3 ms against 10.6, 62.7 and 63.9 (benchmarks/link_latency_bench.py, load ~1).
 HUB_RECEIVE_BUFFER_BYTES = 16 * 1024
+FULL_RETRIES = 3  # a full hub is asked again this many times, FULL_RETRY_S apart, before the tool gives up
+FULL_RETRY_S = 1.0
 MARKER_CONFIRMATION = "marker recorded"  # the TEXT a hub answers a tool's marker (TEXT) with, once it is recorded
 
 
@@ -27,6 +31,16 @@ class HubLink(TcpLink):
         self.run = info
 
     def _connect(self) -> None:
+        for attempt in range(FULL_RETRIES + 1):
+            try:
+                self._attach()
+                return
+            except HubFullError:
+                if attempt == FULL_RETRIES:
+                    raise
+                time.sleep(FULL_RETRY_S)  # a tool ends and frees its slot: the owner's `dive surface` gets in
+
+    def _attach(self) -> None:
         info, address = hub_address(self.url)
         self.host, self.port = parse_host_port(address)
         super()._connect()
@@ -35,7 +49,8 @@ class HubLink(TcpLink):
             sock.setblocking(True)
             tool_side(sock, info.token, f"hub://{info.run} ({address})")
             sock.setblocking(False)
-        except HubAuthError:
+        except HubAuthError as e:
             self._disconnect()
-            withdraw(info)  # whatever answers there, it is not that run: its announcement is stale
+            if isinstance(e, HubProofError):
+                withdraw(info)  # a wrong proof: whatever answers there, it is not that run; its announcement is stale
             raise

@@ -24,6 +24,7 @@ import time
 from groundstation.errors import LinkError
 
 GREETING = b"DIVE-HUB/1 "
+FULL = b"DIVE-HUB/1 FULL\n"  # the hub's one line to a connection it has no slot for, before it closes it
 TOKEN_BYTES = 32
 NONCE_HEX = 32
 LINE_LIMIT = 160  # the longest line either side sends is 97 bytes: more before a newline is not a handshake
@@ -32,6 +33,15 @@ HANDSHAKE_TIMEOUT_S = 3.0
 
 class HubAuthError(LinkError):
     """The other side of a hub connection did not prove it holds the run's token."""
+
+
+class HubProofError(HubAuthError):
+    """It answered the handshake with a proof that is wrong: whatever listens there is not the run. Only this
+    withdraws a run's announcement: a reset, a timeout or a full hub says nothing about whose port it is (N2)."""
+
+
+class HubFullError(HubAuthError):
+    """The run's hub has no slot free (its tools' connections): try again later."""
 
 
 def new_token() -> str:
@@ -62,6 +72,11 @@ class HubSide:
 
     def __repr__(self) -> str:
         return f"HubSide(done={self.done})"  # never the token
+
+    @property
+    def greeted(self) -> bool:
+        """A valid first line came: a tool mid-handshake, not bytes that are none (the hub evicts those first)."""
+        return self._tool_nonce is not None
 
     def feed(self, data: bytes) -> tuple[bytes, bytes]:
         """(what to send the tool, bytes after the handshake: frames); HubAuthError when it is no handshake."""
@@ -103,11 +118,18 @@ def tool_side(sock: socket.socket, token: str, who: str, timeout_s: float = HAND
             if not chunk or len(line) + len(chunk) >= LINE_LIMIT:
                 break
             line += chunk
+        if line == FULL:
+            raise HubFullError(f"{who} is full: every tool slot of the run is taken (close a `dive view` or "
+                               "`dive status --watch`, then try again)")
+        if not line.endswith(b"\n"):
+            raise HubAuthError(f"{who} closed the hub handshake without an answer (a loaded machine? try again)")
         hub_nonce, _, proof = line.rstrip(b"\n").partition(b" ")
         if not _nonce_ok(hub_nonce) or not hmac.compare_digest(proof, _proof(token, b"hub", tool_nonce, hub_nonce)):
-            raise HubAuthError(f"{who} did not prove it holds the run's token: it is not that run (the run has "
-                               "ended and another program has its port?)")
+            raise HubProofError(f"{who} did not prove it holds the run's token: it is not that run (the run has "
+                                "ended and another program has its port?)")
         sock.sendall(_proof(token, b"tool", tool_nonce, hub_nonce) + b"\n")
+    except HubAuthError:
+        raise  # a LinkError is an OSError: not to be wrapped again below
     except TimeoutError as e:
         raise HubAuthError(f"{who} did not answer the hub handshake within {timeout_s:g} s") from e
     except OSError as e:

@@ -21,7 +21,7 @@ from pathlib import Path
 from urllib.parse import urlsplit
 
 from groundstation.errors import LinkError
-from groundstation.links import DEFAULT_URL
+from groundstation.links import DEFAULT_URL, split_url
 
 HUB_SCHEME = "hub"
 RUNTIME_DIR_VARIABLE = "DIVE_RUNTIME_DIR"
@@ -159,7 +159,7 @@ def hub_address(url: str) -> tuple[RunInfo, str]:
 
 def _agent_key(url: str) -> tuple[str, str] | None:
     """What names one agent in a URL (scheme, host:port or device), None for a URL that starts its own (sim://)."""
-    parts = urlsplit(url)
+    parts = split_url(url)
     if parts.scheme in ("tcp", "socket", "rfc2217"):
         host = (parts.hostname or "").lower()
         host = "127.0.0.1" if host in ("localhost", "::1") else host

@@ -4,10 +4,9 @@ from __future__ import annotations
 
 import select
 import socket
-from urllib.parse import urlsplit
 
 from groundstation.errors import LinkError, LinkTimeout
-from groundstation.links import Link
+from groundstation.links import Link, split_url
 
 CONNECT_TIMEOUT_S = 3.0
 # A small, fixed receive buffer (set before connecting, so the kernel does not autotune it to megabytes): when the
@@ -20,11 +19,8 @@ RECEIVE_BUFFER_BYTES = 2 * 1024
 
 
 def parse_host_port(url: str) -> tuple[str, int]:
-    parts = urlsplit(url)
-    try:
-        port = parts.port
-    except ValueError as e:
-        raise LinkError(f"{url}: bad port ({e})") from e
+    parts = split_url(url)
+    port = parts.port
     if not parts.hostname or port is None:
         raise LinkError(f"{url}: expected tcp://HOST:PORT")
     return parts.hostname, port

@@ -32,8 +32,10 @@ from collections import OrderedDict
 from collections.abc import Callable
 
 from groundstation.errors import LinkError
+from groundstation.links.hub_auth import FULL as HUB_FULL
 from groundstation.links.hub_auth import HubAuthError, HubSide
 from groundstation.links.hub_events import ACK_REQUEST, FANNED_OUT, GROUND_FLAG, ground_text, parse_ground_text
+from groundstation.links.peer import peer_is_owner
 from groundstation.run.echo import echo
 from groundstation.run.history import History
 from groundstation.run.hub_clients import EMERGENCY, FORWARDED, HANDSHAKE_S, MAX_CLIENTS, MAX_REJECTS, HubClient
@@ -79,6 +81,7 @@ class Hub:
         self._thread = threading.Thread(target=self._serve, name="dive-hub", daemon=True)
         self.markers = 0
         self.clients_served = 0
+        self.refused_users = 0  # connections from another user's processes, closed at accept
         # The last command a tool sent that takes the agent out of learning (CMD_SURFACE, STOP, HOVER, PAUSE), or
         # None after a tool's CMD_START: the run must not start learning again behind an operator's back.
         self.taken_over: str | None = None
@@ -203,9 +206,26 @@ class Hub:
             sock, peer = self._listener.accept()
         except OSError:
             return
+        if peer_is_owner(sock) is False:
+            # another user's process: it cannot hold the token (the announcement is 0600), and it must not take
+            # the slots the owner's `dive surface` needs (issue 38 N2); where the kernel cannot tell, the token decides
+            self.refused_users += 1
+            with contextlib.suppress(OSError):
+                sock.close()
+            return
         with self._lock:
             full = len(self._clients) >= MAX_CLIENTS
-        if full:  # bounded: a flood of connections costs the run nothing but this
+            waiting = [c for c in self._clients if not c.attached]
+        if full and waiting:
+            # the oldest connection still in its handshake makes room: a flood of junk (or of slow handshakes) under
+            # load must not keep the owner's `dive surface` out, and a real tool's handshake takes a round trip
+            # (one that never sent a valid greeting before one mid-handshake: a tool's proof may be on its way)
+            self._drop(min(waiting, key=lambda c: (c.handshake.greeted, c.accepted_s)))
+            full = False
+        if full:  # every slot a tool that proved the token: the new one is told why, and asks again
+            with contextlib.suppress(OSError):
+                sock.setblocking(False)
+                sock.send(HUB_FULL)
             with contextlib.suppress(OSError):
                 sock.close()
             return
@@ -290,7 +310,9 @@ class Hub:
         # HEARTBEAT and ACK from a tool: the run's own session speaks for the ground
 
     def _check_command(self, client: _Client, message: Message, seq: int, inner: bytes) -> None:
-        problem = client.signature_problem(inner)
+        # CMD_SURFACE from the owner's tool (it proved the token) needs no signature: a keyed agent runs it unsigned on
+        # purpose (SPEC 1.2), and `dive surface` without the key must work through the run too (issue 38 N9)
+        problem = None if isinstance(message, EMERGENCY) else client.signature_problem(inner)
         if problem is not None:
             with self._lock:
                 client.refuse(message, seq, AckResult.UNAUTHORIZED, problem)

@@ -162,7 +162,9 @@ class BackfillPlanner:
         """The end of the agent's log it claims, as far as the samples seen make it possible (at most MAX_LOG_SAMPLES
         past the highest received). The run's end (end_limit) does not cut it: that limits what is wanted, not what
         the agent may send, and a SAMPLE after the run's end is a true one (recorded raw)."""
-        return next_sample if self.held.end is None else min(next_sample, self.held.end + MAX_LOG_SAMPLES)
+        # before any sample a claim is believed as far as a log from index 0 could reach: a lie near 2^32 in the first
+        # HEARTBEAT once reached the run's last line as 4 294 966 578 samples not backfilled (issue 38 N8)
+        return min(next_sample, (self.held.end or 0) + MAX_LOG_SAMPLES)
 
     def finish_at(self) -> int:
         """The run is over: want nothing from the index the agent has reached now on; returns that index."""
@@ -172,7 +174,9 @@ class BackfillPlanner:
     def missing(self) -> list[tuple[int, int]]:
         if self.held.first is None:
             return []
-        end = max(self.known_end, self.held.end or 0)
+        held_end = self.held.end or 0
+        # known_end was believed from samples seen then; a log ends at most MAX_LOG_SAMPLES past what is held now
+        end = max(min(self.known_end, held_end + MAX_LOG_SAMPLES), held_end)
         return self.held.missing(end=end if self.end_limit is None else min(end, self.end_limit))
 
     def lost(self) -> int:

@@ -17,6 +17,8 @@ from groundstation.session.params import ParamTable
 
 PLANT_TABLE = "plant"  # a plant file's figures (`dive fit`): the simulator's, not the agent's
 
+MAX_FILE_BYTES = 1024 * 1024  # a parameter file is a few KiB; a plant file (`dive fit`) too
+
 
 def read_params(path: Path) -> dict[str, str]:
     """name -> value text (booleans as true/false), for Session.set_param."""
@@ -44,19 +46,28 @@ def has_plant_table(path: Path) -> bool:
 
 def _read_table(path: Path) -> dict[str, object]:
     try:
-        text = path.read_text()
+        with path.open("rb") as f:
+            raw = f.read(MAX_FILE_BYTES + 1)  # bounded: `--params /dev/zero` once grew to 20 GB (issue 38 N6)
     except OSError as e:
         raise ParameterError(f"cannot read parameter file {path}: {e.strerror or e}") from e
+    if len(raw) > MAX_FILE_BYTES:
+        raise ParameterError(f"{path}: larger than {MAX_FILE_BYTES // 1024} KiB: not a parameter file")
+    try:
+        text = raw.decode()
+    except UnicodeDecodeError:
+        raise ParameterError(f"{path}: not UTF-8 text: not a parameter file") from None
     if text.lstrip().startswith("{"):  # a JSON object (older files): still read
         try:
             data = json.loads(text)
-        except ValueError as e:
-            raise ParameterError(f"{path}: not valid JSON ({e})") from e
+        except (ValueError, RecursionError) as e:
+            raise ParameterError(f"{path}: not valid JSON ({type(e).__name__})") from None
     else:
         try:
             data = tomllib.loads(text)
         except tomllib.TOMLDecodeError as e:
             raise ParameterError(f"{path}: not valid TOML ({e}); write `name = value` lines") from e
+        except RecursionError:
+            raise ParameterError(f"{path}: nested too deeply to be a parameter file") from None
     if not isinstance(data, dict):
         raise ParameterError(f"{path}: expected `name = value` lines")
     return data

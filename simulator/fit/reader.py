@@ -100,9 +100,11 @@ def _read_file(path: Path, boot: int, rows: dict[tuple[int, int], tuple[float, .
     returns the boot id the file ends in."""
     channels: dict[int, Channel] = {}
     malformed = 0
+    records = 0
     try:
         with open(path, "rb") as stream:
             for record in StreamReader(stream, skip_magic=False).records:
+                records += 1
                 if isinstance(record, Channel):
                     channels[record.id] = record
                     continue
@@ -138,6 +140,8 @@ def _read_file(path: Path, boot: int, rows: dict[tuple[int, int], tuple[float, .
     except OSError as e:
         raise FitError(f"cannot read {path}: {e.strerror or e}") from e
     except (McapError, ValueError, EOFError, KeyError, IndexError, struct.error, ZstdError) as e:
+        if records <= 1:  # not one record past the header: an empty, random or magic-only file (issue 38 N10)
+            raise FitError(f"{path}: not an MCAP recording (empty, or no record after its start)") from None
         # A cut-short recording (a crash) or a damaged chunk: what came before it is still good data.
         notes.append(f"{path}: read up to damage ({type(e).__name__}: {e}); the samples before it are used")
     if malformed:

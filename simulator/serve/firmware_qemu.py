@@ -24,7 +24,7 @@ import struct
 import subprocess
 import threading
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from types import TracebackType
 
@@ -68,7 +68,7 @@ class QemuConfig:
     speed: float | None = None  # times real time; None = as fast as the emulated CPU goes
     seed: int | None = None  # sensor noise and the learner's tie-break stream (default: random)
     node_id: int = 0  # 0: the board's default
-    key: bytes | None = None  # the 32-byte signing key: commands must then be signed
+    key: bytes | None = field(default=None, repr=False)  # the 32-byte signing key: never printed
     bench: bool = False  # print instruction counts on UART1 (with icount)
     icount: bool = False  # -icount shift=0: virtual time counts instructions (1 ns each)
     diag_path: Path | None = None  # where UART1 (the board's diagnostics) goes; None = discarded

@@ -46,7 +46,7 @@ class ServeConfig:
     pty: bool = False
     speed: float | None = 1.0  # None = as fast as possible
     seed: int | None = None
-    key: bytes | None = None  # signing key: commands must be signed (SPEC s. 12)
+    key: bytes | None = field(default=None, repr=False)  # signing key: commands must be signed (SPEC s. 12)
     mark_file: Path | None = None  # where the signing mark survives a restart (SPEC s. 12)
     firmware: str = "python"  # the on-board program: python (the reference), c (firmware/ host build)
     baud: int | None = None  # bytes to the ground leave at a UART's rate (10 bits a byte); None = as fast as taken

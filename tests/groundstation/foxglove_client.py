@@ -38,11 +38,12 @@ class FoxgloveClient:
 
     @classmethod
     @contextmanager
-    def connected(cls, port: int) -> Iterator[FoxgloveClient]:
-        """A client of the server on 127.0.0.1:PORT, speaking the subprotocol the Foxglove app offers."""
+    def connected(cls, port: int, path: str = "") -> Iterator[FoxgloveClient]:
+        """A client of the server on 127.0.0.1:PORT (PATH: the run's secret where the kernel cannot name a peer),
+        speaking the subprotocol the Foxglove app offers."""
         # close_timeout: a client subscribed to SAMPLEs at --speed max has a backlog in front of the server's close
         # frame; waiting the default 10 s for it tests nothing
-        with connect(f"ws://127.0.0.1:{port}", subprotocols=[SUBPROTOCOL],  # type: ignore[list-item]
+        with connect(f"ws://127.0.0.1:{port}{path}", subprotocols=[SUBPROTOCOL],  # type: ignore[list-item]
                      open_timeout=5, close_timeout=0.5) as ws:
             yield cls(ws)
 

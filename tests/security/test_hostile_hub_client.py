@@ -258,12 +258,14 @@ def test_a_keyed_runs_hub_lends_its_key_to_nobody(tmp_path: object) -> None:
             with tool() as keyless, pytest.raises(CommandError, match="UNAUTHORIZED"):
                 keyless.command(m.ParamSet(index=-1, value=0.2, name="z_tol_m"))
             with tool(key=bytes(KEY_SIZE)) as wrong, pytest.raises(CommandError, match="UNAUTHORIZED"):
-                wrong.command(m.Surface())
+                wrong.command(m.StartLearning(max_episodes=0))
+            with tool() as keyless:  # but CMD_SURFACE needs no key (SPEC 1.2; issue 38 N9): anyone may bring it up
+                keyless.command(m.Surface())
             with tool(key=key) as owner:
                 owner.command(m.Surface())
     finally:
         agent.close()
-    assert _commands(agent) == ["CMD_SURFACE"]
+    assert _commands(agent) == ["CMD_SURFACE", "CMD_SURFACE"]
 
 
 def test_without_a_run_a_tool_says_so_in_one_line() -> None:

@@ -23,6 +23,8 @@ from protocol import Message
 from protocol import messages as m
 from protocol.cobs import cobs_decode
 
+MAX_HELD_BACK = 20_000  # live messages of a topic held for one client while its history is sent
+
 
 class MarkerWatch:
     """A session listener on a run's hub that notes its confirmation of a marker (`mark` service) and its answer to
@@ -89,11 +91,16 @@ class FoxgloveChannels:
         self._rx: dict[type[Message], tuple[foxglove.Channel, str]] = {}  # and its topic
         self._tx: dict[type[Message], tuple[foxglove.Channel, str]] = {}
         self.history = ChannelHistory(history)
-        # whom each topic is sent to: clients whose history is sent; held while sending, so none comes between
+        # whom each topic is sent to: clients whose history is sent. Held only to note a message or a client, never
+        # while a history is encoded or sent: the publisher (and so the session, once) waited 0.3 s a subscription
         self._publish = threading.Lock()
         self._ready: dict[str, set[int]] = {}
+        # (topic, sink) whose history is being sent: the live messages that came meanwhile, sent after it
+        self._replaying: dict[tuple[str, int], list[tuple[int, Body]]] = {}
+        self.replayed = 0  # messages the last subscribed() sent (its history), for the replay budget (live.py)
+        self.held_back_dropped = 0  # live messages past MAX_HELD_BACK while a history was sent: dropped, counted
         self._dumps = DumpAssembler()
-        self.images = DumpImages(context)
+        self.images = DumpImages(context, self.sinks)
         self._on_parameter = on_parameter
         self._on_failure = on_failure
         self.failure: str | None = None
@@ -193,24 +200,48 @@ class FoxgloveChannels:
                 data = body()
                 for sink_id in ready:
                     channel.log(data, log_time=host_ns, sink_id=sink_id)
+            for (replaying, _), held in self._replaying.items():
+                if replaying == topic:
+                    if len(held) < MAX_HELD_BACK:
+                        held.append((host_ns, body))
+                    else:
+                        self.held_back_dropped += 1
+
+    def sinks(self, topic: str) -> list[int]:
+        """The clients (their sinks) `topic` is sent to now."""
+        with self._publish:
+            return list(self._ready.get(topic, ()))
 
     # ------------------------------------------------------------------ a client subscribed (FoxgloveLive's thread)
     @_publishing
     def subscribed(self, topic: str, sink_id: int) -> None:
         """`topic`'s history to the one client whose sink is `sink_id` (the SDK's client id), then its live
         messages: a client that connects late sees the learning curve, the heatmaps and the last minutes whole,
-        in order and once. Live messages wait while it is sent (a few ms; at most max_per_topic messages)."""
-        if self.images.replay(topic, sink_id):
-            return  # the images are broadcast: the newest one again, at worst twice, draws the same picture
+        in order and once. The history is encoded and sent outside the lock (live messages of the topic that come
+        meanwhile wait for it, at most MAX_HELD_BACK), each message encoded once for all replays."""
+        if self.images.replay(topic, sink_id):  # an image's topic: its newest image, then each new one
+            with self._publish:
+                self._ready.setdefault(topic, set()).add(sink_id)
+            self.replayed = 1
+            return
         channel = self._channels.get(topic)
         if channel is None:
             return
         with self._publish:
-            for host_ns, body in self.history.replay(topic):
-                channel.log(body, log_time=host_ns, sink_id=sink_id)
+            kept = self.history.snapshot(topic)  # what a live message after this point is not in
+            self._replaying[(topic, sink_id)] = []
+        for entry in kept:
+            channel.log(entry.encoded(), log_time=entry.host_time_ns, sink_id=sink_id)
+        with self._publish:
+            held = self._replaying.pop((topic, sink_id), None)
+            self.replayed = len(kept)
+            if held is None:
+                return  # unsubscribed meanwhile
+            for host_ns, body in held:
+                channel.log(body(), log_time=host_ns, sink_id=sink_id)
             self._ready.setdefault(topic, set()).add(sink_id)
 
     def unsubscribed(self, topic: str, sink_id: int) -> None:
         with self._publish:
             self._ready.get(topic, set()).discard(sink_id)
-
+            self._replaying.pop((topic, sink_id), None)

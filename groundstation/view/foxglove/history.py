@@ -3,7 +3,6 @@ the last minutes of telemetry (bounded in time and count), as run/history.py giv
 
 from __future__ import annotations
 
-import functools
 import threading
 from collections import deque
 from collections.abc import Callable
@@ -27,12 +26,28 @@ CLIENT_BACKLOG = 65_536
 
 
 Body = Callable[[], bytes]  # a message's JSON, encoded only when a client asks for it
-Kept = tuple[int, Body]  # (host time ns, body): a plain tuple, as one is made for every frame
+
+
+class Kept:
+    """One kept message: its time and its body, encoded at most once (a client that subscribes again, or another
+    client, is sent the same bytes: a flapping subscription costs sends, not JSON encoding, issue 38 N3)."""
+
+    __slots__ = ("body", "host_time_ns")
+
+    def __init__(self, host_time_ns: int, body: Body | bytes) -> None:
+        self.host_time_ns = host_time_ns
+        self.body = body
+
+    def encoded(self) -> bytes:
+        body = self.body
+        if not isinstance(body, bytes):
+            body = self.body = body()
+        return body
 
 
 class ChannelHistory:
-    """Per topic, the recent messages as (time, body encoder): keep() runs on the session's reader thread for every
-    frame, so it only appends; replay() runs on the server's thread when a client subscribes."""
+    """Per topic, the recent messages as (time, body encoder): keep() runs on the publisher's thread for every
+    frame, so it only appends; snapshot() is taken when a client subscribes and encoded outside every lock."""
 
     def __init__(self, config: FoxgloveHistoryConfig | None = None) -> None:
         self.config = config or FoxgloveHistoryConfig()
@@ -40,27 +55,30 @@ class ChannelHistory:
         self._topics: dict[str, deque[Kept]] = {}
         self._window_ns = int(self.config.window_s * 1e9)
 
-    def keep(self, topic: str, host_time_ns: int, body: Body) -> None:
+    def keep(self, topic: str, host_time_ns: int, body: Body | bytes) -> None:
         with self._lock:
             kept = self._topics.get(topic)
             if kept is None:
                 kept = self._topics[topic] = deque(maxlen=self._bound(topic))
-            kept.append((host_time_ns, body))
+            kept.append(Kept(host_time_ns, body))
             if topic not in WHOLE:
                 oldest_ns = host_time_ns - self._window_ns
-                while kept and kept[0][0] < oldest_ns:
+                while kept and kept[0].host_time_ns < oldest_ns:
                     kept.popleft()
 
     def keep_bytes(self, topic: str, host_time_ns: int, body: bytes) -> None:
-        self.keep(topic, host_time_ns, functools.partial(bytes, body))
+        self.keep(topic, host_time_ns, body)
 
     def _bound(self, topic: str) -> int:
         if topic.startswith(LAST_ONLY_PREFIX):
             return 1
         return self.config.max_whole if topic in WHOLE else self.config.max_per_topic
 
+    def snapshot(self, topic: str) -> list[Kept]:
+        """`topic`'s kept messages, oldest first, not yet encoded (a copy of the list: cheap under the lock)."""
+        with self._lock:
+            return list(self._topics.get(topic, ()))
+
     def replay(self, topic: str) -> list[tuple[int, bytes]]:
         """(host time ns, JSON body) of `topic`'s kept messages, oldest first."""
-        with self._lock:
-            kept = list(self._topics.get(topic, ()))
-        return [(host_time_ns, body()) for host_time_ns, body in kept]
+        return [(kept.host_time_ns, kept.encoded()) for kept in self.snapshot(topic)]

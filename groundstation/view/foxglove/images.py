@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 from foxglove import Context
 from foxglove.channels import RawImageChannel
@@ -26,7 +28,9 @@ def scaled(cells: NDArray[np.uint8], pixels: int = IMAGE_PIXELS) -> NDArray[np.u
 class DumpImages:
     """Draws VALUES and POLICY dumps over the learner's grid (rows: depth, shallow on top; columns: velocity)."""
 
-    def __init__(self, context: Context) -> None:
+    def __init__(self, context: Context, sinks: Callable[[str], list[int]] | None = None) -> None:
+        # to whom an image goes: each subscribed owner's client (sinks(topic)); None: every subscriber (tests)
+        self._sinks = sinks
         self._value = RawImageChannel(VALUE_TOPIC, context=context)
         self._policy = RawImageChannel(POLICY_TOPIC, context=context)
         self._grid = dict(DEFAULT_GRID)  # the agent's values replace the defaults as its PARAM_VALUEs arrive
@@ -68,7 +72,11 @@ class DumpImages:
         image = RawImage(timestamp=stamp, frame_id=f"episode {episode}", width=width, height=height,
                          encoding="rgb8", step=3 * width, data=pixels.tobytes())
         self._last[channel.topic()] = (image, host_ns)
-        channel.log(image, log_time=host_ns)
+        if self._sinks is None:
+            channel.log(image, log_time=host_ns)
+        else:  # never broadcast: a client that did not come through the door (gate.py) subscribes too
+            for sink_id in self._sinks(channel.topic()):
+                channel.log(image, log_time=host_ns, sink_id=sink_id)
         self.published += 1
 
     def replay(self, topic: str, sink_id: int) -> bool:

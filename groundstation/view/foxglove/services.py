@@ -80,10 +80,11 @@ class Controls:
     """The services' handlers, each on the session the server is attached to (None until it is)."""
 
     def __init__(self, session: Callable[[], Session | None], markers: MarkerWatch,
-                 warn: Callable[[str], None]) -> None:
+                 warn: Callable[[str], None], is_owner: Callable[[int], bool] = lambda client_id: True) -> None:
         self._session = session
         self._markers = markers
         self._warn = warn
+        self._is_owner = is_owner  # whether a client came through the door (live.py): nobody else commands
 
     def services(self) -> list[Service]:
         return [Service(name, handler=self._handler(name), schema=ServiceSchema(
@@ -94,6 +95,8 @@ class Controls:
         act = getattr(self, f"_{name}")
 
         def handle(call: ServiceRequest) -> bytes:
+            if not self._is_owner(call.client_id):
+                raise ServiceError("not the run's owner")  # no warning in the owner's problems list either
             try:
                 body = _request(call)
                 s = self._session()

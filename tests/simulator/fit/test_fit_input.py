@@ -46,7 +46,7 @@ def test_a_missing_recording_is_one_line(tmp_path: Path) -> None:
 def test_a_file_that_is_not_mcap_is_one_line(tmp_path: Path) -> None:
     bad = tmp_path / "noise.mcap"
     bad.write_bytes(np.random.default_rng(1).bytes(5000))
-    _one_line_failure(_fit_here(str(bad)), "no SAMPLE messages")
+    _one_line_failure(_fit_here(str(bad)), "not an MCAP recording")
 
 
 def test_a_recording_without_diving_says_there_is_nothing_to_fit(tmp_path: Path) -> None:

@@ -247,27 +247,6 @@ def test_a_policy_redraws_its_episodes_values_with_the_untried_cells_grey() -> N
         server.stop()
 
 
-def test_the_default_port_taken_moves_to_a_free_one_and_says_so(monkeypatch: pytest.MonkeyPatch,
-                                                                 capsys: pytest.CaptureFixture[str]) -> None:
-    """A second `dive view --foxglove` beside a run's server on the default port gets a port of its own."""
-    from groundstation.cli.view import open_foxglove
-    from groundstation.view.foxglove import live as live_module
-
-    with socket.socket() as taken:
-        taken.bind(("127.0.0.1", 0))
-        taken.listen()
-        default = taken.getsockname()[1]
-        monkeypatch.setattr(live_module, "DEFAULT_PORT", default)  # the test's own port, never a fixed one
-        live = open_foxglove(default, "test")
-        try:
-            assert live.port not in (default, 0)
-            said = capsys.readouterr().err
-            assert f"the default --foxglove port {default} is in use: using {live.port}" in said
-            assert f"Foxglove: ws://127.0.0.1:{live.port}" in said
-        finally:
-            live.close()
-
-
 def test_publishing_that_fails_stops_publishing_not_the_run() -> None:
     """On a run's own session a listener that raises stops the run; Foxglove's publisher says so once instead."""
     import foxglove
