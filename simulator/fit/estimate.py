@@ -1,5 +1,7 @@
-"""The whole fit: actuator rate from the gear's own record, the hull by least squares, the sensor's noise, and
-which figures the data could identify (and what excitation would identify the others)."""
+"""The whole fit: actuator rate and dead band from the gear's own record, the hull, backlash and pressure lag by
+least squares of the depth, the sensor's noise and its colour from the residuals, the residuals' diagnostics
+(intervals widened where they fail), and which figures the data could identify (and what would identify the
+others)."""
 
 from __future__ import annotations
 
@@ -7,10 +9,13 @@ import time
 from collections.abc import Iterable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.stats import chi2
 
+from protocol import Mode
 from simulator.fit.model import HULL_FIELDS, Z95, EvalHook, HullFit, fit_hull
 from simulator.fit.reader import FitError, ReadHook, Samples, read_samples
 from simulator.fit.windows import Windows, cut_windows
@@ -18,6 +23,15 @@ from simulator.parameters import PlantParams, neutral_alpha_deg
 
 NEUTRAL = "neutral_angle_deg"  # reported beside trim_error_fraction, which it is a function of
 MIN_RATE_MOVES = 5  # saturated gear moves needed to measure the actuator's rate
+MIN_DEAD_BAND_PAIRS = 20  # held commands the motor did (and did not) follow, needed to bracket the dead band
+# Where the least squares starts the gear's play and the port's lag: off 0, where |x| has no slope to leave by.
+START_BACKLASH_DEG, START_LAG_S = 0.5, 0.05
+LJUNG_BOX_LAGS = 10
+WHITE_P = 0.01  # Ljung-Box p-value below which the prewhitened residuals are not white ..
+WHITE_RHO = 0.05  # .. if an autocorrelation is also this large (24000 samples find 0.02, which costs nothing)
+MAGNITUDE_LIMIT = 1.25  # residual RMS against the sensor noise the depth's own second differences show
+MAX_PHI = 0.99  # a lag-1 autocorrelation nearer 1 than this is drift, not noise: prewhitening stops there
+MIN_EPISODES = 5  # learning episodes' starts needed to measure the hand-over offset
 
 
 @dataclass(frozen=True)
@@ -31,6 +45,15 @@ class Estimate:
     needs: str = ""  # when not identified: the excitation that would identify it
 
 
+@dataclass(frozen=True)
+class Diagnostic:
+    """One check of the residuals: passed, and its line."""
+
+    name: str
+    passed: bool
+    line: str
+
+
 @dataclass
 class FitResult:
     params: PlantParams  # the base with every identified figure replaced
@@ -41,6 +64,17 @@ class FitResult:
     files: list[Path]
     notes: list[str] = field(default_factory=list)
     wall_s: float = 0.0
+    diagnostics: list[Diagnostic] = field(default_factory=list)
+    robust: bool = False  # intervals from the sandwich over windows (a diagnostic failed)
+
+    @property
+    def warning(self) -> str:
+        """One line when a diagnostic failed, else empty."""
+        failed = [d.name for d in self.diagnostics if not d.passed]
+        if not failed:
+            return ""
+        return (f"warning: the residuals fail {' and '.join(failed)}: the model misses something the recording "
+                f"shows; intervals widened (sandwich clustered over {self.windows.count} windows)")
 
     def estimate(self, name: str) -> Estimate:
         return next(e for e in self.estimates if e.name == name)
@@ -60,6 +94,8 @@ def _limits(params: PlantParams) -> dict[str, float]:
         "trim_error_fraction": 0.5 / _neutral_per_trim(params),  # half a degree of neutral angle
         # Over a metre of depth, less than half a degree's worth of volume.
         "compressibility_m3pm": 0.5 * per_deg_m3,
+        "backlash_deg": 0.2,  # issue 42's goal
+        "pressure_lag_s": 0.02,  # issue 42's goal: a step of the 40 Hz loop
     }
 
 
@@ -73,20 +109,62 @@ def _needs(name: str, windows: Windows) -> str:
         "drag_kgpm": f"needs speeds above 5 cm/s (the recordings reach about {reach_cmps:.1f} cm/s)",
         "trim_error_fraction": "needs time hovering at a steady depth (the recovery controller, `dive hover`)",
         "compressibility_m3pm": f"needs hovering at depths at least 0.5 m apart (the recordings span {span:.2f} m)",
+        "backlash_deg": "needs reversals of the actuator command at several amplitudes while the hull moves "
+                        "(`dive fit --excite` with more hover depths, --depths)",
+        "pressure_lag_s": "needs fast steps of the actuator command (the phase between gear and depth): hover "
+                          "steps of several sizes",
     }[name]
 
 
-def fit_rate(params: PlantParams, windows: Windows) -> Estimate:
-    """The stepper's top rate, from sample intervals where the gear could not reach its command."""
-    moves, dts = [], []
+# Figures the simulator has that no recording of depth and gear can tell apart from others: what would.
+UNIDENTIFIABLE = {
+    "pressure_bias_pa": "not identifiable from these recordings, needs a reading at a known depth: a constant "
+                        "depth offset looks like another start depth in every window (the firmware's P0, taken "
+                        "at rest at the surface, cancels it)",
+    "pressure_drift_pa_per_s": "not identifiable from these recordings, needs readings at a known depth hours "
+                               "apart (at rest at the surface before and after a long run)",
+    "depth_scale_error": "not identifiable from these recordings, needs a known depth difference (hover at two "
+                         "marked depths): a scaled depth looks like a scaled inertia and drag",
+}
+
+
+def _held_pairs(params: PlantParams, windows: Windows) -> tuple[NDArray[np.float64], NDArray[np.float64],
+                                                                  NDArray[np.float64]]:
+    """(gap to the command at a sample, the motor's move to the next sample, the interval) for consecutive
+    samples of one window: the command recorded with a sample is the one held until the next."""
     owner = windows.owner()
     same = owner[1:] == owner[:-1]
     target = np.clip(windows.cmd_deg[:-1], 0.0, params.alpha_max_deg)
-    gap = target - windows.alpha_deg[:-1]
-    move = np.diff(windows.alpha_deg)
-    dt = np.diff(windows.t_s)
-    # Saturated: moved toward the command, by a visible amount, and stopped clearly short of it.
-    saturated = same & (np.sign(move) == np.sign(gap)) & (np.abs(move) > 0.05) & (np.abs(move) < np.abs(gap) - 0.01)
+    gap = (target - windows.alpha_deg[:-1])[same]
+    move = np.diff(windows.alpha_deg)[same]
+    return gap, move, np.diff(windows.t_s)[same]
+
+
+def fit_dead_band(params: PlantParams, windows: Windows) -> Estimate:
+    """The stepper's dead band, bracketed by the counted angle: it stays put for a held command within half the
+    band and moves for one outside it. Half the band lies between the largest gap it stayed put for and the
+    smallest it moved for; the estimate is the bracket's middle, its half-width the bracket's."""
+    gap, move, _ = _held_pairs(params, windows)
+    still = move == 0.0  # float32 counts: an unmoved stepper reports the same bits
+    stayed = np.abs(gap[still])
+    moved = np.abs(gap[~still & (np.abs(gap) > 0.0)])
+    if len(stayed) < MIN_DEAD_BAND_PAIRS or len(moved) < MIN_DEAD_BAND_PAIRS:
+        return Estimate("dead_band_deg", params.dead_band_deg, float("nan"), False,
+                        f"needs held commands the stepper did and did not follow ({len(stayed)} and {len(moved)} "
+                        f"seen, {MIN_DEAD_BAND_PAIRS} each needed): small command changes, as hovering gives")
+    low, high = float(stayed.max()), float(moved.min())
+    if high <= low:  # the motor moved for a gap it stayed put for elsewhere: no dead band explains both
+        high = low
+    return Estimate("dead_band_deg", low + high, max(high - low, 2e-5), True)
+
+
+def fit_rate(params: PlantParams, windows: Windows, half_dead_deg: float = 0.0) -> Estimate:
+    """The stepper's top rate, from sample intervals where the gear could not reach its command."""
+    gap, move, dt = _held_pairs(params, windows)
+    # Saturated: moved toward the command, by a visible amount, and still outside the dead band at the end
+    # (a motor that stopped at the band's edge did not move at its top rate the whole interval).
+    saturated = ((np.sign(move) == np.sign(gap)) & (np.abs(move) > 0.05)
+                 & (np.abs(move) < np.abs(gap) - half_dead_deg - 0.01))
     moves, dts = np.abs(move[saturated]), dt[saturated]
     if len(moves) < MIN_RATE_MOVES:
         return Estimate("alpha_rate_dps", params.alpha_rate_dps, float("nan"), False,
@@ -138,38 +216,178 @@ def fit_samples(samples: Samples, base: PlantParams, window_s: float = 10.0,
                 on_eval: EvalHook | None = None) -> FitResult:
     """fit_recordings on samples already read."""
     windows = cut_windows(samples, window_s, sensor_depth_limit_m(base))
-    rate = fit_rate(base, windows)
-    params = replace(base, alpha_rate_dps=rate.value) if rate.identified else base
-    params = replace(params, trim_error_fraction=_trim_guess(params, windows))
+    dead = fit_dead_band(base, windows)
+    params = replace(base, dead_band_deg=dead.value) if dead.identified else base
+    rate = fit_rate(params, windows, 0.5 * params.dead_band_deg)
+    params = replace(params, alpha_rate_dps=rate.value) if rate.identified else params
+    params = replace(params, trim_error_fraction=_trim_guess(params, windows),
+                     backlash_deg=max(params.backlash_deg, START_BACKLASH_DEG),
+                     pressure_lag_s=max(params.pressure_lag_s, START_LAG_S))
     free = list(HULL_FIELDS)
     limits = _limits(params)
     hull = fit_hull(params, windows, free, on_eval)
+    # Coloured noise: the ordinary fit's residuals give the noise's lag-1 autocorrelation, the fit again
+    # prewhitened by it (GLS) gives intervals that hold under it.
+    phi = min(max(_lag1_phi(hull, windows)[0], 0.0), MAX_PHI)
+    hull = fit_hull(hull.params, windows, free, on_eval, (hull.z0_m, hull.v0_mps), phi)
+    diagnostics = _diagnose(hull, windows)
+    robust = not all(d.passed for d in diagnostics)
     # Figures the data cannot pin down are kept at the base's value and the rest fitted again without them:
-    # a free but unidentifiable figure would trade off against the others and widen their intervals.
-    loose = [name for name in free if not hull.half_width(name) <= limits[name]]
-    if loose:
-        kept = {name: getattr(base, name) for name in loose}
-        free = [name for name in free if name not in loose]
-        hull = fit_hull(replace(hull.params, **kept), windows, free, on_eval, (hull.z0_m, hull.v0_mps))
-    estimates = [rate]
+    # a free but unidentifiable figure would trade off against the others and widen their intervals. One at a
+    # time, the loosest against its limit first: once it is out, the others it traded with may be pinned.
+    while True:
+        ratios = {name: _half_width(hull, name, robust) / limits[name] for name in free}
+        loosest = max(ratios, key=lambda name: ratios[name] if np.isfinite(ratios[name]) else np.inf, default="")
+        if not loosest or ratios[loosest] <= 1.0:
+            break
+        free.remove(loosest)
+        hull = fit_hull(replace(hull.params, **{loosest: getattr(base, loosest)}), windows, free, on_eval,
+                        (hull.z0_m, hull.v0_mps), phi)
+        diagnostics = _diagnose(hull, windows)
+        robust = not all(d.passed for d in diagnostics)
+    estimates = [rate, dead]
     for name in HULL_FIELDS:
         if name in free:
-            estimates.append(Estimate(name, getattr(hull.params, name), hull.half_width(name), True))
+            estimates.append(Estimate(name, getattr(hull.params, name), _half_width(hull, name, robust), True))
         else:
             estimates.append(Estimate(name, getattr(base, name), float("nan"), False, _needs(name, windows)))
     trim = next(e for e in estimates if e.name == "trim_error_fraction")
     estimates.append(Estimate(NEUTRAL, neutral_alpha_deg(hull.params), trim.half_width * _neutral_per_trim(params),
                               trim.identified, trim.needs))
-    estimates.append(_noise(hull, params))
-    fitted = replace(hull.params, pressure_noise_pa=estimates[-1].value)
+    noise = _noise(hull, windows, params)
+    estimates.append(noise)
+    estimates.append(_colour(hull, windows, params, noise.value))
+    estimates.append(_handover(samples, hull.params, estimates[-3]))
+    estimates.extend(Estimate(name, getattr(base, name), float("nan"), False, needs)
+                     for name, needs in UNIDENTIFIABLE.items())
+    figures: dict[str, Any] = {e.name: e.value for e in estimates if e.identified and e.name != NEUTRAL}
+    fitted = replace(hull.params, **{name: value for name, value in figures.items() if hasattr(hull.params, name)})
     return FitResult(params=fitted, estimates=estimates, residual_rms_m=hull.residual_rms_m, windows=windows,
-                     hull=hull, files=samples.files, notes=samples.notes)
+                     hull=hull, files=samples.files, notes=samples.notes, diagnostics=diagnostics, robust=robust)
 
 
-def _noise(hull: HullFit, params: PlantParams) -> Estimate:
-    """The sensor's noise RMS in Pa: the fit's residual, less the 0.01 mbar quantisation's share."""
+def _half_width(hull: HullFit, name: str, robust: bool) -> float:
+    """The 95 % half-width reported: the Jacobian's, or the larger of it and the sandwich's when misfit shows."""
+    classical = hull.half_width(name)
+    return max(classical, hull.half_width(name, robust=True)) if robust else classical
+
+
+def _window_sums(hull: HullFit, windows: Windows, lag: int = 0,
+                 phi: float = 0.0) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Per window: sum of u_t u_{t-lag} and of u_t^2, u the residuals (prewhitened by phi when given)."""
+    r = hull.residuals_m
+    owner = windows.owner()
+    u = r.copy()
+    same1 = np.zeros(len(r), dtype=np.bool_)
+    same1[1:] = owner[1:] == owner[:-1]
+    if phi != 0.0:
+        u[1:] = np.where(same1[1:], r[1:] - phi * r[:-1], np.nan)
+        u[~same1] = np.nan
+    valid = ~np.isnan(u)
+    squares = np.asarray(np.bincount(owner[valid], u[valid] ** 2, minlength=windows.count), dtype=np.float64)
+    if lag == 0:
+        return squares, squares
+    pair = np.zeros(len(r), dtype=np.bool_)
+    pair[lag:] = (owner[lag:] == owner[:-lag]) & valid[lag:] & valid[:-lag]
+    products = np.zeros(len(r))
+    products[lag:] = np.where(pair[lag:], np.nan_to_num(u[lag:]) * np.nan_to_num(u[:-lag]), 0.0)
+    return np.asarray(np.bincount(owner, products, minlength=windows.count), dtype=np.float64), squares
+
+
+def _lag1_phi(hull: HullFit, windows: Windows) -> tuple[float, float]:
+    """The residuals' lag-1 autocorrelation and its standard error, clustered over windows (a ratio estimator
+    linearised: robust to whatever else the residuals carry window by window)."""
+    products, squares = _window_sums(hull, windows, 1)
+    rho = float(products.sum() / squares.sum())
+    g = windows.count
+    se = float(np.sqrt(np.sum((products - rho * squares) ** 2) * g / max(g - 1, 1)) / squares.sum())
+    return rho, se
+
+
+def _hf_noise(windows: Windows, phi: float) -> float:
+    """The sensor noise RMS the depth itself shows: its second differences (the hull's motion adds under 1 % to
+    them at 40 Hz), scaled for AR(1) noise of lag-1 autocorrelation phi. A model that misses something leaves
+    a residual above it; one that fits, a residual of about the same size."""
+    owner = windows.owner()
+    d = windows.depth_m
+    ok = owner[2:] == owner[:-2]
+    second = (d[2:] - 2.0 * d[1:-1] + d[:-2])[ok]
+    # var(second difference) = sigma^2 (6 - 8 phi + 2 phi^2) for AR(1) noise.
+    return float(np.sqrt(np.mean(second**2) / (6.0 - 8.0 * phi + 2.0 * phi * phi)))
+
+
+def _diagnose(hull: HullFit, windows: Windows) -> list[Diagnostic]:
+    """Magnitude (the residual against the noise the depth shows) and whiteness (Ljung-Box over the residuals
+    prewhitened by the AR(1) noise the fit assumed)."""
+    phi = hull.phi
+    hf = _hf_noise(windows, phi)
+    ratio = hull.residual_rms_m / hf if hf > 0 else float("inf")
+    magnitude = Diagnostic("magnitude", ratio <= MAGNITUDE_LIMIT,
+                           f"residual RMS {1000 * hull.residual_rms_m:.3f} mm against the sensor noise the depth "
+                           f"shows {1000 * hf:.3f} mm: {ratio:.2f}x (a model that fits: about 1, limit "
+                           f"{MAGNITUDE_LIMIT})")
+    n = int(np.sum(windows.ends - windows.starts)) - windows.count
+    rhos = []
+    for k in range(1, LJUNG_BOX_LAGS + 1):
+        products, squares = _window_sums(hull, windows, k, phi)
+        rhos.append(float(products.sum() / squares.sum()))
+    q = n * (n + 2) * sum(r * r / max(n - k, 1) for k, r in enumerate(rhos, start=1))
+    p_value = float(chi2.sf(q, LJUNG_BOX_LAGS))
+    worst = max(abs(r) for r in rhos)
+    white = Diagnostic("whiteness", not (p_value < WHITE_P and worst > WHITE_RHO),
+                       f"whiteness: residuals prewhitened by their AR(1) {phi:.3f}: Ljung-Box Q({LJUNG_BOX_LAGS}) = "
+                       f"{q:.0f}, p = {p_value:.2g}, largest |autocorrelation| {worst:.3f} (white: p >= {WHITE_P} "
+                       f"or every one below {WHITE_RHO})")
+    return [magnitude, white]
+
+
+def _noise(hull: HullFit, windows: Windows, params: PlantParams) -> Estimate:
+    """The sensor's noise RMS in Pa: the fit's residual, less the 0.01 mbar quantisation's share; its interval
+    from the windows' own mean squares (clustered: holds for coloured noise)."""
     rho_g = params.water_density_kgpm3 * params.gravity_mps2
-    total_pa = hull.residual_rms_m * rho_g
+    # Each window's fitted start depth and velocity take up the noise's slow part too: with AR(1) noise a
+    # fitted level or slope is worth (1 + phi) / (1 - phi) samples, not one (the variance of a correlated mean).
+    lengths = (windows.ends - windows.starts).astype(np.float64)
+    taken = len(hull.free) + 2.0 * windows.count * (1.0 + hull.phi) / (1.0 - hull.phi)
+    dof = max(lengths.sum() - taken, 0.5 * lengths.sum())
+    total_pa = hull.residual_rms_m * np.sqrt(hull.dof / dof) * rho_g
     noise_pa = float(np.sqrt(max(total_pa**2 - params.pressure_lsb_pa**2 / 12.0, 0.0)))
-    # The variance of an RMS from n residuals: sigma / sqrt(2 n).
-    return Estimate("pressure_noise_pa", noise_pa, Z95 * total_pa / np.sqrt(2.0 * hull.dof), True)
+    squares, _ = _window_sums(hull, windows)
+    mean_square = squares.sum() / lengths.sum()
+    g = windows.count
+    se_ms = np.sqrt(np.sum((squares - mean_square * lengths) ** 2) * g / max(g - 1, 1)) / lengths.sum()
+    # sd(sigma) = sd(sigma^2) / (2 sigma); never narrower than white noise's sigma / sqrt(2 n)
+    se_pa = max(float(se_ms) / (2.0 * np.sqrt(mean_square)), np.sqrt(mean_square) / np.sqrt(2.0 * hull.dof)) * rho_g
+    return Estimate("pressure_noise_pa", noise_pa, Z95 * se_pa, True)
+
+
+def _colour(hull: HullFit, windows: Windows, params: PlantParams, noise_pa: float) -> Estimate:
+    """The noise's AR(1) correlation time from the residuals' lag-1 autocorrelation (the quantisation's white
+    share taken out), at the recording's typical sample interval."""
+    rho, se = _lag1_phi(hull, windows)
+    dt = float(np.median(np.diff(windows.t_s)[windows.owner()[1:] == windows.owner()[:-1]]))
+    white_share = 1.0 + params.pressure_lsb_pa**2 / 12.0 / max(noise_pa, 1e-9) ** 2
+    low, mid, high = ((rho - Z95 * se) * white_share, rho * white_share, (rho + Z95 * se) * white_share)
+
+    def corr_s(f: float) -> float:
+        return 0.0 if f <= 0.0 else (float("inf") if f >= 1.0 else -dt / float(np.log(f)))
+
+    value, lo_s, hi_s = corr_s(mid), corr_s(low), corr_s(high)
+    half_width = max(value - lo_s, hi_s - value)
+    if not np.isfinite(half_width):
+        return Estimate("pressure_noise_corr_s", params.pressure_noise_corr_s, float("nan"), False,
+                        "needs longer windows than the noise's correlation (--window)")
+    return Estimate("pressure_noise_corr_s", value, half_width, True)
+
+
+def _handover(samples: Samples, params: PlantParams, trim: Estimate) -> Estimate:
+    """The learner's hand-over offset (start_trim_error_deg): where each learning episode's actuator window was
+    centred (its first command) against the fitted neutral angle, averaged over the episodes."""
+    first = np.flatnonzero(samples.episode_start & (samples.mode == Mode.LEARNING))
+    if len(first) < MIN_EPISODES or not trim.identified:
+        return Estimate("start_trim_error_deg", params.start_trim_error_deg, float("nan"), False,
+                        f"needs learning episodes (`dive run`; {len(first)} seen, {MIN_EPISODES} needed): each "
+                        "episode's first command against the fitted neutral angle")
+    offsets = samples.cmd_deg[first] - neutral_alpha_deg(params)
+    spread = float(np.std(offsets, ddof=1)) / np.sqrt(len(offsets))
+    return Estimate("start_trim_error_deg", float(np.mean(offsets)), Z95 * spread + trim.half_width, True)

@@ -10,18 +10,26 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import least_squares
 from scipy.sparse import csr_matrix
+from scipy.stats import t as student_t
 
-from simulator.fit.kernel import simulate_windows
+from simulator.fit.kernel import gear_outputs, simulate_windows
 from simulator.fit.windows import Windows
 from simulator.parameters import PlantParams, kernel_params
 
-# The hull's figures a fit may free, with the scale the optimiser sees them in (a typical size) and bounds.
+# The figures the least squares may free, with the scale the optimiser sees them in (a typical size) and bounds.
+# The hull's, then the gear train's backlash and the pressure port's lag, which show only in the depth.
 HULL_FIELDS: dict[str, tuple[float, float, float]] = {
     "added_mass_kg": (0.1, 0.0, 2.0),
     "drag_kgpm": (1.0, 0.0, 50.0),
     "trim_error_fraction": (1e-3, -0.05, 0.05),
-    "compressibility_m3pm": (1e-7, -1e-5, 1e-4),
+    # >= 0: a hull that gains volume with depth is not a hull (issue 42 saw a fit report one).
+    "compressibility_m3pm": (1e-7, 0.0, 1e-4),
+    "backlash_deg": (1.0, 0.0, 10.0),
+    "pressure_lag_s": (0.1, 0.0, 2.0),
 }
+# Figures whose lower bound 0 is a physical one: the optimiser sees |x|, so a figure at 0 still has a slope to
+# leave it by (a clipped one would sit on a flat floor), and its interval is cut at 0 when reported.
+NON_NEGATIVE = frozenset(name for name, (_, low, _) in HULL_FIELDS.items() if low == 0.0)
 _STATE_SCALE = (0.01, 0.01)  # z0 in cm, v0 in cm/s
 _RESIDUAL_UNIT_M = 1e-3  # residuals in mm keep the cost near 1 for a good fit
 _STEP = 1e-6  # finite-difference step, in the scaled units (each number's typical size)
@@ -36,18 +44,32 @@ class HullFit:
 
     params: PlantParams
     free: tuple[str, ...]
-    covariance: NDArray[np.float64]  # of the free figures, in their own units
+    covariance: NDArray[np.float64]  # of the free figures, in their own units (residual variance x (J^T J)^-1)
+    # The same, robust to coloured noise and misfit: clustered over windows (sandwich), with its quantile
+    robust_covariance: NDArray[np.float64]
+    robust_quantile: float
     residual_rms_m: float
     dof: int  # samples minus fitted numbers
+    phi: float  # the AR(1) coefficient the residuals were prewhitened by
     z0_m: NDArray[np.float64]
     v0_mps: NDArray[np.float64]
     predicted_m: NDArray[np.float64]
+    measured_m: NDArray[np.float64]
+    predicted_motor_deg: NDArray[np.float64]
     evaluations: int
 
-    def half_width(self, name: str) -> float:
-        """Half-width of the 95 % interval of a free figure (from the Jacobian at the optimum)."""
+    def half_width(self, name: str, robust: bool = False) -> float:
+        """Half-width of the 95 % interval of a free figure: from the Jacobian at the optimum, or (robust) the
+        sandwich clustered over windows, which holds when the residuals are coloured or the model misses
+        something that differs from window to window."""
         i = self.free.index(name)
+        if robust:
+            return float(self.robust_quantile * np.sqrt(max(self.robust_covariance[i, i], 0.0)))
         return float(Z95 * np.sqrt(max(self.covariance[i, i], 0.0)))
+
+    @property
+    def residuals_m(self) -> NDArray[np.float64]:
+        return self.predicted_m - self.measured_m
 
 
 def start_states(windows: Windows) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -63,25 +85,85 @@ def start_states(windows: Windows) -> tuple[NDArray[np.float64], NDArray[np.floa
     return z0, v0
 
 
+def window_gear_outputs(params: PlantParams, windows: Windows) -> NDArray[np.float64]:
+    """The gear's output angle at each window's start (closed gear train where the history is unknown)."""
+    motor0 = windows.alpha_deg[windows.starts]
+    if params.backlash_deg <= 0.0 or len(windows.start_rows) != windows.count:
+        return motor0.copy()
+    out = motor0.copy()
+    gear_outputs(windows.history_deg, windows.history_reset, windows.start_rows, 0.5 * params.backlash_deg, out)
+    return out
+
+
 def simulate(params: PlantParams, windows: Windows, z0_m: NDArray[np.float64],
              v0_mps: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Depth and gear angle the plant predicts at every sample, each window from its start state."""
+    """Sensed depth and counted (motor-side) gear angle the plant predicts at every sample, each window from
+    its start state."""
     depth = np.empty_like(windows.depth_m)
-    alpha = np.empty_like(windows.depth_m)
+    motor = np.empty_like(windows.depth_m)
     simulate_windows(kernel_params(params), windows.t_s, windows.cmd_deg, windows.alpha_deg[windows.starts],
-                     windows.starts, windows.ends, z0_m, v0_mps, depth, alpha)
-    return depth, alpha
+                     window_gear_outputs(params, windows), windows.starts, windows.ends, z0_m, v0_mps, depth, motor)
+    return depth, motor
+
+
+def _robust_covariance(jac: csr_matrix, residuals: NDArray[np.float64], owner: NDArray[np.int64], n_free: int,
+                       n_win: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """(bread, cluster sandwich) of the shared figures, each window's own start state profiled out.
+
+    Per window w the shared columns are projected off its two start-state columns (J_perp); the bread is
+    sum J_perp^T J_perp (its inverse is the classical covariance over sigma^2) and the meat sums the windows'
+    scores g_w = J_perp^T r_w outer themselves, with the small-sample factor G / (G - p). Windows are
+    independent where the noise's correlation is much shorter than a window (10 s against at most 1 s).
+    """
+    dense = jac.toarray() if n_free else np.zeros((len(residuals), 2 * n_win))
+    shared = dense[:, :n_free]
+    z_col = dense[np.arange(len(owner)), n_free + owner]
+    v_col = dense[np.arange(len(owner)), n_free + n_win + owner]
+    bread = np.zeros((n_free, n_free))
+    meat = np.zeros((n_free, n_free))
+    order = np.argsort(owner, kind="stable")
+    bounds = np.searchsorted(owner[order], np.arange(n_win + 1))
+    for w in range(n_win):
+        rows = order[bounds[w]:bounds[w + 1]]
+        s_w = np.column_stack((z_col[rows], v_col[rows]))
+        j_w = shared[rows]
+        coef, *_ = np.linalg.lstsq(s_w, j_w, rcond=None)
+        perp = j_w - s_w @ coef
+        bread += perp.T @ perp
+        g = perp.T @ residuals[rows]
+        meat += np.outer(g, g)
+    inv = np.linalg.pinv(bread)
+    scale = n_win / max(n_win - n_free, 1)
+    return np.asarray(inv, dtype=np.float64), np.asarray(scale * inv @ meat @ inv, dtype=np.float64)
+
+
+def _whiten(a: NDArray[np.float64], first: NDArray[np.bool_], phi: float) -> NDArray[np.float64]:
+    """AR(1) prewhitening within windows (rows): u_t = a_t - phi a_{t-1}, a window's first row scaled by
+    sqrt(1 - phi^2) (Prais-Winsten), so least squares on u is generalised least squares under AR(1) noise."""
+    if phi == 0.0:
+        return a
+    out = a.copy()
+    out[1:] -= phi * a[:-1]
+    out[first] = np.sqrt(1.0 - phi * phi) * a[first]
+    return out
 
 
 def fit_hull(base: PlantParams, windows: Windows, free: Sequence[str], on_eval: EvalHook | None = None,
-             start: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None) -> HullFit:
-    """Fit the free hull figures (none: only the start states) to the recorded depth, from base's values."""
+             start: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None, phi: float = 0.0) -> HullFit:
+    """Fit the free figures (none: only the start states) to the recorded depth, from base's values.
+
+    phi: the noise's lag-1 autocorrelation at the sample rate; the residuals are prewhitened by it (GLS), which
+    keeps the Jacobian's intervals right under coloured noise (ordinary least squares' are too narrow there).
+    """
     free = tuple(free)
+    first = np.zeros(len(windows.t_s), dtype=np.bool_)
+    first[windows.starts] = True
     n_free, n_win = len(free), windows.count
     scales = np.array([HULL_FIELDS[name][0] for name in free]
                       + [_STATE_SCALE[0]] * n_win + [_STATE_SCALE[1]] * n_win)
     z0, v0 = start if start is not None else start_states(windows)
     x0 = np.concatenate(([getattr(base, name) for name in free], z0, v0)) / scales
+    reflect = np.array([name in NON_NEGATIVE for name in free] + [False] * 2 * n_win)
     # MINPACK's Levenberg-Marquardt takes no bounds: the plant sees the figures clipped to theirs instead
     # (a negative drag would make it blow up), so a figure pressed against a bound shows a wide interval.
     lower = np.concatenate(([HULL_FIELDS[n][1] for n in free], [-np.inf] * 2 * n_win))
@@ -89,7 +171,8 @@ def fit_hull(base: PlantParams, windows: Windows, free: Sequence[str], on_eval: 
     count = [0]
 
     def unpack(x: NDArray[np.float64]) -> tuple[PlantParams, NDArray[np.float64], NDArray[np.float64]]:
-        values = np.clip(x * scales, lower, upper)
+        values = x * scales
+        values = np.clip(np.where(reflect, np.abs(values), values), lower, upper)
         figures: dict[str, Any] = {name: float(v) for name, v in zip(free, values[:n_free], strict=True)}
         params = replace(base, **figures)
         return params, values[n_free:n_free + n_win], values[n_free + n_win:]
@@ -105,7 +188,7 @@ def fit_hull(base: PlantParams, windows: Windows, free: Sequence[str], on_eval: 
         count[0] += 1
         if on_eval is not None:
             on_eval(count[0], float(np.sqrt(np.mean(r * r))) * _RESIDUAL_UNIT_M)
-        return r
+        return _whiten(r, first, phi)
 
     def jacobian(x: NDArray[np.float64]) -> csr_matrix:
         # Forward differences in n_free + 2 runs of the plant, not one per number: a window's residuals depend
@@ -122,7 +205,7 @@ def fit_hull(base: PlantParams, windows: Windows, free: Sequence[str], on_eval: 
             nudged = x.copy()
             nudged[block:block + n_win] += _STEP
             columns.append((depth_of(nudged) - at) / _STEP / _RESIDUAL_UNIT_M)
-        values = np.column_stack(columns) if columns else np.zeros((len(at), 0))
+        values = _whiten(np.column_stack(columns), first, phi)
         col_index = np.column_stack([np.broadcast_to(np.arange(n_free), (len(at), n_free)),
                                      n_free + owner, n_free + n_win + owner])
         return csr_matrix((values.ravel(), col_index.ravel(), np.arange(0, values.size + 1, values.shape[1])),
@@ -134,12 +217,19 @@ def fit_hull(base: PlantParams, windows: Windows, free: Sequence[str], on_eval: 
                            x_scale=1.0, xtol=1e-9, ftol=1e-9, gtol=1e-9, max_nfev=100)
     params, z0_fit, v0_fit = unpack(result.x)
     final = jacobian(result.x)
-    jtj = (final.T @ final).toarray()
     n, p = len(windows.depth_m), len(x0)
     dof = max(n - p, 1)
     sigma2 = 2.0 * result.cost / dof
-    covariance = sigma2 * np.linalg.pinv(jtj)[:n_free, :n_free] * np.outer(scales[:n_free], scales[:n_free])
-    predicted, _ = simulate(params, windows, z0_fit, v0_fit)
-    return HullFit(params=params, free=free, covariance=covariance,
-                   residual_rms_m=float(np.sqrt(sigma2)) * _RESIDUAL_UNIT_M, dof=dof, z0_m=z0_fit, v0_mps=v0_fit,
-                   predicted_m=predicted, evaluations=count[0])
+    # d(figure)/dx: the scale, and the sign where the optimiser saw |x|.
+    chain = scales[:n_free] * np.where(reflect[:n_free] & (result.x[:n_free] < 0), -1.0, 1.0)
+    inv_bread, sandwich = _robust_covariance(final, result.fun, owner, n_free, n_win)
+    covariance = sigma2 * inv_bread * np.outer(chain, chain)
+    robust = sandwich * np.outer(chain, chain)
+    quantile = float(student_t.ppf(0.975, max(n_win - n_free, 1)))
+    predicted, motor = simulate(params, windows, z0_fit, v0_fit)
+    # The depth residual itself (not the prewhitened one the optimiser saw): the sensor noise's RMS and more.
+    raw_rms_m = float(np.sqrt(np.sum((predicted - windows.depth_m) ** 2) / dof))
+    return HullFit(params=params, free=free, covariance=covariance, robust_covariance=robust,
+                   robust_quantile=quantile, residual_rms_m=raw_rms_m, dof=dof, phi=phi,
+                   z0_m=z0_fit, v0_mps=v0_fit, predicted_m=predicted, measured_m=windows.depth_m,
+                   predicted_motor_deg=motor, evaluations=count[0])
