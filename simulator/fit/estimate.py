@@ -26,11 +26,17 @@ MIN_RATE_MOVES = 5  # saturated gear moves needed to measure the actuator's rate
 MIN_DEAD_BAND_PAIRS = 20  # held commands the motor did (and did not) follow, needed to bracket the dead band
 # Where the least squares starts the gear's play and the port's lag: off 0, where |x| has no slope to leave by.
 START_BACKLASH_DEG, START_LAG_S = 0.5, 0.05
+RESTARTS = ((1.5, 0.15), (0.1, 0.01))  # (backlash, lag) starts when the first joint fit is lost
+GEAR_AND_PORT = ("backlash_deg", "pressure_lag_s")
 LJUNG_BOX_LAGS = 10
 WHITE_P = 0.01  # Ljung-Box p-value below which the prewhitened residuals are not white ..
 WHITE_RHO = 0.05  # .. if an autocorrelation is also this large (24000 samples find 0.02, which costs nothing)
 MAGNITUDE_LIMIT = 1.25  # residual RMS against the sensor noise the depth's own second differences show
-MAX_PHI = 0.99  # a lag-1 autocorrelation nearer 1 than this is drift, not noise: prewhitening stops there
+# The depth-scale error no recording of depth identifies (water 5-30 C, the sensor's span: docs/families/tank.toml
+# draws +/- 1 %); intervals admit what it could do to each figure.
+DEPTH_SCALE_RANGE = 0.01
+MAX_PHI = 0.99
+PHI_TOLERANCE = 0.02  # a lag-1 autocorrelation nearer 1 than this is drift, not noise: prewhitening stops there
 MIN_EPISODES = 5  # learning episodes' starts needed to measure the hand-over offset
 
 
@@ -124,7 +130,8 @@ UNIDENTIFIABLE = {
     "pressure_drift_pa_per_s": "not identifiable from these recordings, needs readings at a known depth hours "
                                "apart (at rest at the surface before and after a long run)",
     "depth_scale_error": "not identifiable from these recordings, needs a known depth difference (hover at two "
-                         "marked depths): a scaled depth looks like a scaled inertia and drag",
+                         "marked depths): a scaled depth looks like a scaled inertia and drag (intervals admit "
+                         "+/- --depth-scale of it)",
 }
 
 
@@ -190,12 +197,15 @@ def _trim_guess(params: PlantParams, windows: Windows) -> float:
 
 
 def fit_recordings(paths: Iterable[str | Path], base: PlantParams, window_s: float = 10.0,
-                   on_eval: EvalHook | None = None, on_read: ReadHook | None = None) -> FitResult:
+                   on_eval: EvalHook | None = None, on_read: ReadHook | None = None,
+                   depth_scale: float = DEPTH_SCALE_RANGE) -> FitResult:
     """Fit base's plant to the recordings: the figures they identify replaced, the rest kept."""
     started = time.perf_counter()
     if not window_s > 0:
         raise FitError(f"--window must be positive (got {window_s})")
-    result = fit_samples(read_samples(paths, on_read), base, window_s, on_eval)
+    if not 0.0 <= depth_scale < 0.5:
+        raise FitError(f"--depth-scale must lie within 0 .. 0.5 (got {depth_scale})")
+    result = fit_samples(read_samples(paths, on_read), base, window_s, on_eval, depth_scale)
     result.wall_s = time.perf_counter() - started
     return result
 
@@ -213,23 +223,40 @@ def predict_recordings(paths: Iterable[str | Path], params: PlantParams,
 
 
 def fit_samples(samples: Samples, base: PlantParams, window_s: float = 10.0,
-                on_eval: EvalHook | None = None) -> FitResult:
-    """fit_recordings on samples already read."""
+                on_eval: EvalHook | None = None, depth_scale: float = DEPTH_SCALE_RANGE) -> FitResult:
+    """fit_recordings on samples already read; depth_scale: the sensor's depth-scale error is taken to lie
+    within +/- this, and every interval admits what it could shift a figure by."""
     windows = cut_windows(samples, window_s, sensor_depth_limit_m(base))
     dead = fit_dead_band(base, windows)
     params = replace(base, dead_band_deg=dead.value) if dead.identified else base
     rate = fit_rate(params, windows, 0.5 * params.dead_band_deg)
     params = replace(params, alpha_rate_dps=rate.value) if rate.identified else params
-    params = replace(params, trim_error_fraction=_trim_guess(params, windows),
-                     backlash_deg=max(params.backlash_deg, START_BACKLASH_DEG),
-                     pressure_lag_s=max(params.pressure_lag_s, START_LAG_S))
+    params = replace(params, trim_error_fraction=_trim_guess(params, windows))
     free = list(HULL_FIELDS)
     limits = _limits(params)
-    hull = fit_hull(params, windows, free, on_eval)
+    # The gear's play and the port's lag make the cost rough far from the optimum: the hull alone first (as
+    # smooth as the ideal plant's), then everything from there; a joint fit worse than the hull's alone is a
+    # lost optimiser, tried again from other starts of the two, the best kept.
+    hull_only = [name for name in free if name not in GEAR_AND_PORT]
+    first = fit_hull(replace(params, backlash_deg=0.0, pressure_lag_s=0.0), windows, hull_only, on_eval)
+    hull = first
+    for backlash, lag in ((START_BACKLASH_DEG, START_LAG_S), *RESTARTS):
+        again = fit_hull(replace(first.params, backlash_deg=backlash, pressure_lag_s=lag), windows, free, on_eval,
+                         (first.z0_m, first.v0_mps))
+        if hull is first or again.residual_rms_m < hull.residual_rms_m:
+            hull = again
+        if hull.residual_rms_m <= first.residual_rms_m * (1.0 + 1e-3):  # no worse than the hull alone
+            break
     # Coloured noise: the ordinary fit's residuals give the noise's lag-1 autocorrelation, the fit again
     # prewhitened by it (GLS) gives intervals that hold under it.
     phi = min(max(_lag1_phi(hull, windows)[0], 0.0), MAX_PHI)
     hull = fit_hull(hull.params, windows, free, on_eval, (hull.z0_m, hull.v0_mps), phi)
+    # Once more if the better fit's residuals show another colour (an ordinary fit far off shows its own misfit
+    # as colour): iterated Cochrane-Orcutt, the second pass is the last needed in practice.
+    again_phi = min(max(_lag1_phi(hull, windows)[0], 0.0), MAX_PHI)
+    if abs(again_phi - phi) > PHI_TOLERANCE:
+        phi = again_phi
+        hull = fit_hull(hull.params, windows, free, on_eval, (hull.z0_m, hull.v0_mps), phi)
     diagnostics = _diagnose(hull, windows)
     robust = not all(d.passed for d in diagnostics)
     # Figures the data cannot pin down are kept at the base's value and the rest fitted again without them:
@@ -245,16 +272,19 @@ def fit_samples(samples: Samples, base: PlantParams, window_s: float = 10.0,
                         (hull.z0_m, hull.v0_mps), phi)
         diagnostics = _diagnose(hull, windows)
         robust = not all(d.passed for d in diagnostics)
+    shift = _scale_shifts(hull, windows, free, phi, depth_scale)
     estimates = [rate, dead]
     for name in HULL_FIELDS:
         if name in free:
-            estimates.append(Estimate(name, getattr(hull.params, name), _half_width(hull, name, robust), True))
+            estimates.append(Estimate(name, getattr(hull.params, name),
+                                      float(np.hypot(_half_width(hull, name, robust), shift[name])), True))
         else:
             estimates.append(Estimate(name, getattr(base, name), float("nan"), False, _needs(name, windows)))
     trim = next(e for e in estimates if e.name == "trim_error_fraction")
     estimates.append(Estimate(NEUTRAL, neutral_alpha_deg(hull.params), trim.half_width * _neutral_per_trim(params),
                               trim.identified, trim.needs))
     noise = _noise(hull, windows, params)
+    noise = replace(noise, half_width=float(np.hypot(noise.half_width, 0.95 * depth_scale * noise.value)))
     estimates.append(noise)
     estimates.append(_colour(hull, windows, params, noise.value))
     estimates.append(_handover(samples, hull.params, estimates[-3]))
@@ -264,6 +294,18 @@ def fit_samples(samples: Samples, base: PlantParams, window_s: float = 10.0,
     fitted = replace(hull.params, **{name: value for name, value in figures.items() if hasattr(hull.params, name)})
     return FitResult(params=fitted, estimates=estimates, residual_rms_m=hull.residual_rms_m, windows=windows,
                      hull=hull, files=samples.files, notes=samples.notes, diagnostics=diagnostics, robust=robust)
+
+
+def _scale_shifts(hull: HullFit, windows: Windows, free: list[str], phi: float,
+                  depth_scale: float) -> dict[str, float]:
+    """What a depth-scale error could shift each free figure by, 95 % of a uniform +/- depth_scale: a depth
+    read (1 + s) times too large is a hull (1 + s) times lighter to the fit (inertia and drag scale with it)
+    and no recording of depth alone tells them apart. The fit again on the depth so scaled gives the slope."""
+    if depth_scale == 0.0 or not free:
+        return dict.fromkeys(free, 0.0)
+    scaled = replace(windows, depth_m=windows.depth_m * (1.0 + depth_scale))
+    again = fit_hull(hull.params, scaled, free, None, (hull.z0_m * (1.0 + depth_scale), hull.v0_mps), phi)
+    return {name: 0.95 * abs(getattr(again.params, name) - getattr(hull.params, name)) for name in free}
 
 
 def _half_width(hull: HullFit, name: str, robust: bool) -> float:
@@ -301,7 +343,12 @@ def _lag1_phi(hull: HullFit, windows: Windows) -> tuple[float, float]:
     rho = float(products.sum() / squares.sum())
     g = windows.count
     se = float(np.sqrt(np.sum((products - rho * squares) ** 2) * g / max(g - 1, 1)) / squares.sum())
-    return rho, se
+    # Each window's fitted start depth and velocity take a level and a slope out of the noise, which pulls its
+    # autocorrelation down: by (1 + 4 rho) / n for a level alone (Kendall), about twice that for both. Added
+    # back, with half of it kept as uncertainty (the hull's figures take a little more, unmodelled).
+    n_w = float(np.mean(windows.ends - windows.starts))
+    bias = (2.0 + 8.0 * max(rho, 0.0)) / n_w
+    return rho + bias, float(np.hypot(se, 0.5 * bias))
 
 
 def _hf_noise(windows: Windows, phi: float) -> float:
