@@ -370,8 +370,8 @@ def _diagnose(hull: HullFit, windows: Windows) -> list[Diagnostic]:
     hf = _hf_noise(windows, phi)
     ratio = hull.residual_rms_m / hf if hf > 0 else float("inf")
     magnitude = Diagnostic("magnitude", ratio <= MAGNITUDE_LIMIT,
-                           f"residual RMS {1000 * hull.residual_rms_m:.3f} mm against the sensor noise the depth "
-                           f"shows {1000 * hf:.3f} mm: {ratio:.2f}x (a model that fits: about 1, limit "
+                           f"magnitude: residual RMS {1000 * hull.residual_rms_m:.3f} mm against the sensor noise "
+                           f"the depth shows {1000 * hf:.3f} mm: {ratio:.2f}x (a model that fits: about 1, limit "
                            f"{MAGNITUDE_LIMIT})")
     n = int(np.sum(windows.ends - windows.starts)) - windows.count
     rhos = []
