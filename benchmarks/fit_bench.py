@@ -35,9 +35,12 @@ def main() -> None:
     parser.add_argument("--minutes", type=float, default=10.0)
     parser.add_argument("--draw", type=int, default=0, help="the family's plant (trial number)")
     parser.add_argument("--agent", choices=("qemu", "python"), default="qemu")
+    parser.add_argument("--keep", default="", help="record into this folder and keep it (default: a temporary one)")
     args = parser.parse_args()
     base = preset("hardware")
-    with tempfile.TemporaryDirectory() as folder:
+    with tempfile.TemporaryDirectory() as scratch:
+        folder = args.keep or scratch
+        Path(folder).mkdir(parents=True, exist_ok=True)
         truth = draw_family(args.draw)
         plant = write_plant(Path(folder) / "truth.toml", truth)
         true_params = load_params(plant, base)
@@ -62,11 +65,12 @@ def main() -> None:
         for _ in range(repeats):
             simulate(true_params, windows, z0, v0)
         plant_run_s = (time.perf_counter() - started) / repeats
-        started = time.perf_counter()
+        started, cpu_started = time.perf_counter(), time.process_time()
         result = fit_recordings(files, base)
-        fit_s = time.perf_counter() - started
+        fit_s, fit_cpu_s = time.perf_counter() - started, time.process_time() - cpu_started
     print(f"fit of {result.windows.seconds / 60:.1f} min ({len(samples.t_s)} samples read): {fit_s:.1f} s wall "
-          f"(goal 30 s: {fit_s / 30.0:.2f} of it); load average {os.getloadavg()[0]:.1f}")
+          f"(goal 30 s: {fit_s / 30.0:.2f} of it); load average {os.getloadavg()[0]:.1f}; its CPU time "
+          f"{fit_cpu_s:.1f} s (one thread: about its wall time at load 1; goal ratio {fit_cpu_s / 30.0:.2f})")
     print(f"anchor: reading alone {read_s:.1f} s (the fit is {fit_s / read_s:.1f} x); one run of the compiled "
           f"plant over every window {1000 * plant_run_s:.1f} ms (the fit is {fit_s / plant_run_s:.0f} runs)")
     print(f"residual RMS {1000 * result.residual_rms_m:.3f} mm; {result.warning or 'diagnostics passed'}; fitted "

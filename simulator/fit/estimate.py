@@ -235,24 +235,23 @@ def fit_samples(samples: Samples, base: PlantParams, window_s: float = 10.0,
     free = list(HULL_FIELDS)
     limits = _limits(params)
     # The gear's play and the port's lag make the cost rough far from the optimum: the hull alone first (as
-    # smooth as the ideal plant's), then everything from there; a joint fit worse than the hull's alone is a
-    # lost optimiser, tried again from other starts of the two, the best kept.
+    # smooth as the ideal plant's), then everything from there, prewhitened by the noise's AR(1) as the hull's
+    # residuals show it (generalised least squares: the Jacobian's intervals hold under coloured noise, ordinary
+    # least squares' are too narrow). A joint fit worse than the hull's alone is a lost optimiser, tried again
+    # from other starts of the two, the best kept.
     hull_only = [name for name in free if name not in GEAR_AND_PORT]
     first = fit_hull(replace(params, backlash_deg=0.0, pressure_lag_s=0.0), windows, hull_only, on_eval)
+    phi = min(max(_lag1_phi(first, windows)[0], 0.0), MAX_PHI)
     hull = first
     for backlash, lag in ((START_BACKLASH_DEG, START_LAG_S), *RESTARTS):
         again = fit_hull(replace(first.params, backlash_deg=backlash, pressure_lag_s=lag), windows, free, on_eval,
-                         (first.z0_m, first.v0_mps))
+                         (first.z0_m, first.v0_mps), phi)
         if hull is first or again.residual_rms_m < hull.residual_rms_m:
             hull = again
         if hull.residual_rms_m <= first.residual_rms_m * (1.0 + 1e-3):  # no worse than the hull alone
             break
-    # Coloured noise: the ordinary fit's residuals give the noise's lag-1 autocorrelation, the fit again
-    # prewhitened by it (GLS) gives intervals that hold under it.
-    phi = min(max(_lag1_phi(hull, windows)[0], 0.0), MAX_PHI)
-    hull = fit_hull(hull.params, windows, free, on_eval, (hull.z0_m, hull.v0_mps), phi)
-    # Once more if the better fit's residuals show another colour (an ordinary fit far off shows its own misfit
-    # as colour): iterated Cochrane-Orcutt, the second pass is the last needed in practice.
+    # Once more if the joint fit's residuals show another colour (the hull alone shows the gear's and the port's
+    # misfit as colour too): iterated Cochrane-Orcutt, the second pass is the last needed in practice.
     again_phi = min(max(_lag1_phi(hull, windows)[0], 0.0), MAX_PHI)
     if abs(again_phi - phi) > PHI_TOLERANCE:
         phi = again_phi
