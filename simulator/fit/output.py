@@ -6,13 +6,13 @@ import math
 from pathlib import Path
 from typing import Any
 
-from simulator.fit.estimate import NEUTRAL, Estimate, FitResult
+from simulator.fit.estimate import HANDOVER, NEUTRAL, REPORTED_ONLY, Estimate, FitResult
 from simulator.fit.model import NON_NEGATIVE
 
 PLANT_TABLE = "plant"  # not agent parameters: `dive run --params` hands this table to the simulator it starts
 _UNITS = {"added_mass_kg": "kg", "drag_kgpm": "kg/m", "trim_error_fraction": "of V0", "compressibility_m3pm": "m^3/m",
           "alpha_rate_dps": "deg/s", "pressure_noise_pa": "Pa", NEUTRAL: "deg", "dead_band_deg": "deg",
-          "backlash_deg": "deg", "pressure_lag_s": "s", "pressure_noise_corr_s": "s", "start_trim_error_deg": "deg"}
+          "backlash_deg": "deg", "pressure_lag_s": "s", "pressure_noise_corr_s": "s", HANDOVER: "deg"}
 # Physically >= 0: an interval reaching below 0 is cut there.
 _NON_NEGATIVE = NON_NEGATIVE | {"dead_band_deg", "pressure_noise_pa", "pressure_noise_corr_s"}
 
@@ -59,11 +59,16 @@ def plant_toml(result: FitResult, base_label: str, base_fields: dict[str, Any]) 
         if name not in fitted:
             lines.append(f"{name} = {_toml_value(value)}  # from the base file")
     for e in result.estimates:
-        if e.identified and e.name != NEUTRAL:
+        if e.identified and e.name not in REPORTED_ONLY:
             lines.append(f"{e.name} = {e.value!r}  # {_interval(e)}")
     neutral = result.estimate(NEUTRAL)
     if neutral.identified:
         lines.append(f"# {NEUTRAL} = {neutral.value:.3f}  # {_interval(neutral)}, from the trim (not a parameter)")
+    handover = result.estimate(HANDOVER)
+    if handover.identified:
+        lines.append(f"# {HANDOVER} = {handover.value:.3f}  # {_interval(handover)}: the learning episodes' window "
+                     "centres against the neutral angle (the recovery controller's own error included: not "
+                     "start_trim_error_deg, which a study adds to the controller it simulates)")
     return "\n".join(lines) + "\n"
 
 

@@ -15,7 +15,7 @@ from protocol import Mode
 from simulator.cli import app
 from simulator.fit.estimate import fit_recordings, fit_samples
 from simulator.fit.model import simulate
-from simulator.fit.output import report_lines
+from simulator.fit.output import plant_toml, report_lines
 from simulator.fit.reader import Samples
 from simulator.fit.windows import Windows
 from simulator.parameters import neutral_alpha_deg, preset
@@ -147,3 +147,21 @@ def test_the_residual_diagnostics_pass_on_the_model_itself() -> None:
         e = result.estimate(name)
         assert e.value >= 0.0
         assert not e.identified or e.value - e.half_width <= 1e-9, f"{name}: {e.value} +/- {e.half_width}"
+
+
+def test_learning_episodes_give_the_hand_over_offset_as_a_comment_not_a_figure() -> None:
+    """Six episodes whose windows were centred 1.5 deg above the neutral angle: the offset is reported, and the
+    plant file carries it in a comment only (the recovery controller's own error is in it)."""
+    samples = _hover_samples(4.0)
+    starts = np.arange(0, len(samples.t_s), len(samples.t_s) // 6)[:6]
+    samples.mode = np.full(len(samples.t_s), int(Mode.LEARNING))
+    samples.episode_start = np.zeros(len(samples.t_s), dtype=bool)
+    samples.episode_start[starts] = True
+    neutral = neutral_alpha_deg(preset("hardware"))
+    samples.cmd_deg = samples.cmd_deg.copy()
+    samples.cmd_deg[starts] = neutral + 1.5
+    result = fit_samples(samples, preset("hardware"))
+    offset = result.estimate("handover_offset_deg")
+    assert offset.identified and abs(offset.value - 1.5) <= offset.half_width
+    text = plant_toml(result, "preset hardware", {})
+    assert "# handover_offset_deg = 1.5" in text and "\nstart_trim_error_deg" not in text
