@@ -39,8 +39,9 @@ MAGNITUDE_LIMIT = 1.25  # residual RMS against the sensor noise the depth's own 
 # The depth-scale error no recording of depth identifies (water 5-30 C, the sensor's span: docs/families/tank.toml
 # draws +/- 1 %); intervals admit what it could do to each figure.
 DEPTH_SCALE_RANGE = 0.01
-MAX_PHI = 0.99
-PHI_TOLERANCE = 0.02  # a lag-1 autocorrelation nearer 1 than this is drift, not noise: prewhitening stops there
+MAX_PHI = 0.99  # a lag-1 autocorrelation nearer 1 than this is drift, not noise: prewhitening stops there
+PHI_TOLERANCE = 0.005  # a re-estimated AR(1) further off than this is fitted again (near 1 a little matters)
+NEEDED_CHI2 = 6.63  # chi-square(1) 99 % point: fixing a loose figure costs more than this, it stays free
 MIN_EPISODES = 5  # learning episodes' starts needed to measure the hand-over offset
 
 
@@ -53,6 +54,7 @@ class Estimate:
     half_width: float  # of the 95 % interval; nan when not identified
     identified: bool
     needs: str = ""  # when not identified: the excitation that would identify it
+    in_fit: bool = False  # not identified, but free in the fit and written (fixed, it would bias the others)
 
 
 @dataclass(frozen=True)
@@ -256,31 +258,45 @@ def fit_samples(samples: Samples, base: PlantParams, window_s: float = 10.0,
             break
     # Once more if the joint fit's residuals show another colour (the hull alone shows the gear's and the port's
     # misfit as colour too): iterated Cochrane-Orcutt, the second pass is the last needed in practice.
-    again_phi = min(max(_lag1_phi(hull, windows)[0], 0.0), MAX_PHI)
-    if abs(again_phi - phi) > PHI_TOLERANCE:
+    for _ in range(2):
+        again_phi = min(max(_lag1_phi(hull, windows)[0], 0.0), MAX_PHI)
+        if abs(again_phi - phi) <= PHI_TOLERANCE:
+            break
         phi = again_phi
         hull = fit_hull(hull.params, windows, free, on_eval, (hull.z0_m, hull.v0_mps), phi)
     diagnostics = _diagnose(hull, windows)
     robust = not all(d.passed for d in diagnostics)
     # Figures the data cannot pin down are kept at the base's value and the rest fitted again without them:
     # a free but unidentifiable figure would trade off against the others and widen their intervals. One at a
-    # time, the loosest against its limit first: once it is out, the others it traded with may be pinned.
+    # time, the loosest against its limit first: once it is out, the others it traded with may be pinned. A
+    # figure the recording needs all the same (fixing it costs more than chi-square's 1 % point: a gear's play
+    # under slow noise, say) stays in the fit, reported not identified: fixed, it would bias all the others.
+    needed: list[str] = []
     while True:
-        ratios = {name: _half_width(hull, name, robust) / limits[name] for name in free}
+        ratios = {name: _half_width(hull, name, robust) / limits[name] for name in free if name not in needed}
         loosest = max(ratios, key=lambda name: ratios[name] if np.isfinite(ratios[name]) else np.inf, default="")
         if not loosest or ratios[loosest] <= 1.0:
             break
-        free.remove(loosest)
-        hull = fit_hull(replace(hull.params, **{loosest: getattr(base, loosest)}), windows, free, on_eval,
-                        (hull.z0_m, hull.v0_mps), phi)
+        rest = [name for name in free if name != loosest]
+        fixed = fit_hull(replace(hull.params, **{loosest: getattr(base, loosest)}), windows, rest, on_eval,
+                         (hull.z0_m, hull.v0_mps), phi)
+        if fixed.cost - hull.cost > NEEDED_CHI2 * hull.cost / hull.dof:
+            needed.append(loosest)
+            continue
+        free, hull = rest, fixed
         diagnostics = _diagnose(hull, windows)
         robust = not all(d.passed for d in diagnostics)
     shift = _scale_shifts(hull, windows, free, phi, depth_scale)
     estimates = [rate, dead]
     for name in HULL_FIELDS:
-        if name in free:
-            estimates.append(Estimate(name, getattr(hull.params, name),
-                                      float(np.hypot(_half_width(hull, name, robust), shift[name])), True))
+        half_width = float(np.hypot(_half_width(hull, name, robust), shift[name])) if name in free else float("nan")
+        if name in needed:
+            estimates.append(Estimate(name, getattr(hull.params, name), half_width, False,
+                                      f"fitted {getattr(hull.params, name):.4g} +/- {half_width:.3g}, wider than "
+                                      f"{limits[name]:g}: kept in the fit (fixing it worsens the fit), "
+                                      + _needs(name, windows), in_fit=True))
+        elif name in free:
+            estimates.append(Estimate(name, getattr(hull.params, name), half_width, True))
         else:
             estimates.append(Estimate(name, getattr(base, name), float("nan"), False, _needs(name, windows)))
     trim = next(e for e in estimates if e.name == "trim_error_fraction")
@@ -293,7 +309,8 @@ def fit_samples(samples: Samples, base: PlantParams, window_s: float = 10.0,
     estimates.append(_handover(samples, hull.params, estimates[-3]))
     estimates.extend(Estimate(name, getattr(base, name), float("nan"), False, needs)
                      for name, needs in UNIDENTIFIABLE.items())
-    figures: dict[str, Any] = {e.name: e.value for e in estimates if e.identified and e.name not in REPORTED_ONLY}
+    figures: dict[str, Any] = {e.name: e.value for e in estimates
+                               if (e.identified or e.in_fit) and e.name not in REPORTED_ONLY}
     fitted = replace(hull.params, **{name: value for name, value in figures.items() if hasattr(hull.params, name)})
     return FitResult(params=fitted, estimates=estimates, residual_rms_m=hull.residual_rms_m, windows=windows,
                      hull=hull, files=samples.files, notes=samples.notes, diagnostics=diagnostics, robust=robust)
@@ -398,7 +415,8 @@ def _noise(hull: HullFit, windows: Windows, params: PlantParams) -> Estimate:
     # Each window's fitted start depth and velocity take up the noise's slow part too: with AR(1) noise a
     # fitted level or slope is worth (1 + phi) / (1 - phi) samples, not one (the variance of a correlated mean).
     lengths = (windows.ends - windows.starts).astype(np.float64)
-    taken = len(hull.free) + 2.0 * windows.count * (1.0 + hull.phi) / (1.0 - hull.phi)
+    phi = min(max(_lag1_phi(hull, windows)[0], 0.0), MAX_PHI)  # the final fit's own, not the one it assumed
+    taken = len(hull.free) + 2.0 * windows.count * (1.0 + phi) / (1.0 - phi)
     dof = max(lengths.sum() - taken, 0.5 * lengths.sum())
     total_pa = hull.residual_rms_m * np.sqrt(hull.dof / dof) * rho_g
     noise_pa = float(np.sqrt(max(total_pa**2 - params.pressure_lsb_pa**2 / 12.0, 0.0)))

@@ -51,6 +51,7 @@ class HullFit:
     residual_rms_m: float
     dof: int  # samples minus fitted numbers
     phi: float  # the AR(1) coefficient the residuals were prewhitened by
+    cost: float  # the prewhitened residuals' sum of squares, mm^2 (what the fit minimised)
     z0_m: NDArray[np.float64]
     v0_mps: NDArray[np.float64]
     predicted_m: NDArray[np.float64]
@@ -285,6 +286,6 @@ def fit_hull(base: PlantParams, windows: Windows, free: Sequence[str], on_eval: 
     # The depth residual itself (not the prewhitened one the optimiser saw): the sensor noise's RMS and more.
     raw_rms_m = float(np.sqrt(np.sum((predicted - windows.depth_m) ** 2) / dof))
     return HullFit(params=params, free=free, covariance=covariance, robust_covariance=robust,
-                   robust_quantile=quantile, residual_rms_m=raw_rms_m, dof=dof, phi=phi,
+                   robust_quantile=quantile, residual_rms_m=raw_rms_m, dof=dof, phi=phi, cost=cost,
                    z0_m=z0_fit, v0_mps=v0_fit, predicted_m=predicted, measured_m=windows.depth_m,
                    predicted_motor_deg=motor, evaluations=count[0])

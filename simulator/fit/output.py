@@ -61,6 +61,8 @@ def plant_toml(result: FitResult, base_label: str, base_fields: dict[str, Any]) 
     for e in result.estimates:
         if e.identified and e.name not in REPORTED_ONLY:
             lines.append(f"{e.name} = {e.value!r}  # {_interval(e)}")
+        elif e.in_fit:
+            lines.append(f"{e.name} = {e.value!r}  # NOT identified: {e.needs}")
     neutral = result.estimate(NEUTRAL)
     if neutral.identified:
         lines.append(f"# {NEUTRAL} = {neutral.value:.3f}  # {_interval(neutral)}, from the trim (not a parameter)")
