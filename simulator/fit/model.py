@@ -1,4 +1,5 @@
-"""Least squares of the compiled plant over the windows: the hull's figures shared, each window's start its own."""
+"""Least squares of the compiled plant over the windows: the hull's, the gear's and the port's figures shared, each
+window's start its own."""
 
 from __future__ import annotations
 
@@ -31,7 +32,7 @@ NON_NEGATIVE = frozenset(name for name, (_, low, _) in HULL_FIELDS.items() if lo
 _STATE_SCALE = (0.01, 0.01)  # z0 in cm, v0 in cm/s
 _RESIDUAL_UNIT_M = 1e-3  # residuals in mm keep the cost near 1 for a good fit
 _STEP = 1e-6  # finite-difference step, in the scaled units (each number's typical size)
-_MAX_ITERATIONS = 60
+_MAX_ITERATIONS = 60  # Levenberg-Marquardt iterations; a warm start (a refit) needs a handful, a cold one 10-30
 _FTOL = 3e-7  # an accepted step that lowers the cost by less than this share ends the fit
 Z95 = 1.959964  # two-sided 95 % normal quantile
 
