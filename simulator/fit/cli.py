@@ -14,7 +14,7 @@ from rich.console import Console
 from rich.progress import Progress, SpinnerColumn, TaskID, TextColumn, TimeElapsedColumn
 
 from simulator.errors import ParamsError, SimulatorError, say_error
-from simulator.fit.estimate import FitResult, fit_recordings, predict_recordings
+from simulator.fit.estimate import DEPTH_SCALE_RANGE, FitResult, fit_recordings, predict_recordings
 from simulator.fit.output import plant_toml, report_lines, result_json, write_text
 from simulator.parameters import PlantParams, load_params, preset, read_param_table, with_overrides
 
@@ -103,6 +103,9 @@ def fit(
     params_file: Annotated[Path | None, typer.Option(
         "--params", help="TOML/JSON figures known for this agent (its mass, ...): fixed in the fit.")] = None,
     window: Annotated[float, typer.Option(help="Longest stretch simulated from one start state, s.")] = 10.0,
+    depth_scale: Annotated[float, typer.Option(
+        "--depth-scale", help="The sensor's depth-scale error is taken to lie within +/- this (not identifiable "
+        "from depth): every interval admits it.")] = DEPTH_SCALE_RANGE,
     plot: Annotated[Path | None, typer.Option(help="PNG of measured against predicted depth.")] = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print the estimates as JSON on stdout.")] = False,
     check: Annotated[Path | None, typer.Option(
@@ -120,6 +123,8 @@ def fit(
     try:
         if not window > 0:
             raise ParamsError(f"--window must be positive (got {window})")
+        if not 0.0 <= depth_scale < 0.5:
+            raise ParamsError(f"--depth-scale must lie within 0 .. 0.5 (got {depth_scale})")
         base, base_label, base_fields = _base(preset_name, params_file)
     except SimulatorError as e:
         say_error(str(e))
@@ -129,7 +134,7 @@ def fit(
         return
     progress = _LazyProgress(err)
     try:
-        result = fit_recordings(recordings, base, window, progress, progress.reading)
+        result = fit_recordings(recordings, base, window, progress, progress.reading, depth_scale)
     except ParamsError as e:
         say_error(str(e))
         raise typer.Exit(EXIT_BAD_ARGUMENT) from None

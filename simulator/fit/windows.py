@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
@@ -27,6 +27,13 @@ class Windows:
     cmd_deg: NDArray[np.float64]
     starts: NDArray[np.int64]
     ends: NDArray[np.int64]
+    # The recorded (motor-side) angle of every sample in order, where the gear train's history restarts (a boot,
+    # a re-placed agent), and the sample each window starts at: the output angle behind the backlash at a
+    # window's start is that history run through the gear's play (kernel.gear_outputs). Empty: each window
+    # starts with its gear train closed.
+    history_deg: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
+    history_reset: NDArray[np.bool_] = field(default_factory=lambda: np.zeros(0, dtype=np.bool_))
+    start_rows: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
 
     @property
     def count(self) -> int:
@@ -76,7 +83,11 @@ def cut_windows(samples: Samples, window_s: float, max_depth_m: float) -> Window
     rows = np.concatenate(pieces)
     lengths = np.array([len(p) for p in pieces], dtype=np.int64)
     ends = np.cumsum(lengths)
+    reset = np.ones(len(samples.t_s), dtype=np.bool_)
+    reset[1:] = (np.diff(samples.run) != 0) | samples.episode_start[1:]
     return Windows(
         t_s=samples.t_s[rows], depth_m=samples.depth_m[rows], alpha_deg=samples.alpha_deg[rows],
         cmd_deg=samples.cmd_deg[rows], starts=ends - lengths, ends=ends,
+        history_deg=samples.alpha_deg.astype(np.float64), history_reset=reset,
+        start_rows=np.array([p[0] for p in pieces], dtype=np.int64),
     )

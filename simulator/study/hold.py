@@ -16,9 +16,9 @@ from numpy.typing import NDArray
 
 from learning.spec import KernelSpec
 from simulator.plant.episode import (
-    E_ALPHA,
     E_CMD,
     E_DEPTH_MEAS,
+    E_MOTOR,
     E_OBS_X2,
     E_PLANT_END,
     E_REC_AVG,
@@ -86,7 +86,7 @@ def recovery_hold_trial(
         hold_reset(acc)
         for step in range(n_steps):
             measure_kernel(env, dt, spec, env_stream)
-            env[E_CMD] = recovery_update_kernel(rec, env[E_DEPTH_MEAS], env[E_OBS_X2], env[E_ALPHA],
+            env[E_CMD] = recovery_update_kernel(rec, env[E_DEPTH_MEAS], env[E_OBS_X2], env[E_MOTOR],
                                                 target_depth_m, dt, spec)
             motor_before = env[MOTOR]
             plant_step(plant, env[E_CMD], dt, spec)

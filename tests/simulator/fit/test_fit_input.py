@@ -15,6 +15,7 @@ from protocol import Mode
 from simulator.cli import app
 from simulator.fit.estimate import fit_recordings, fit_samples
 from simulator.fit.model import simulate
+from simulator.fit.output import plant_toml, report_lines
 from simulator.fit.reader import Samples
 from simulator.fit.windows import Windows
 from simulator.parameters import neutral_alpha_deg, preset
@@ -118,3 +119,49 @@ def test_a_recording_cut_short_is_fitted_up_to_the_cut(tmp_path: Path) -> None:
     assert result.estimate("added_mass_kg").identified
     done = _fit_here(str(cut))
     assert done.returncode == 0 and "note:" in done.stderr and "Traceback" not in done.stderr
+
+
+def test_a_disturbance_the_model_lacks_fails_the_diagnostics_and_widens_the_intervals() -> None:
+    """Waves the plant has no term for (a 3 mm, 0.2 Hz swell on the depth): the residual is coloured beyond an
+    AR(1), the whiteness check fails, one warning line says so, and the intervals are the sandwich's, wider than
+    the Jacobian's (which assume the model is the truth)."""
+    samples = _hover_samples(4.0)
+    samples.depth_m = samples.depth_m + 0.003 * np.sin(2 * np.pi * 0.2 * samples.t_s)
+    result = fit_samples(samples, preset("hardware"), depth_scale=0.0)
+    assert result.robust and result.warning.startswith("warning: the residuals fail")
+    assert [d.name for d in result.diagnostics if not d.passed]
+    lines = report_lines(result)
+    assert sum(line.startswith("warning:") for line in lines) == 1
+    for e in result.estimates:
+        if e.identified and e.name in result.hull.free:
+            assert e.half_width >= result.hull.half_width(e.name) - 1e-15, e.name
+
+
+def test_the_residual_diagnostics_pass_on_the_model_itself() -> None:
+    result = fit_samples(_hover_samples(4.0), preset("hardware"))
+    assert not result.robust and result.warning == ""
+    assert [d.name for d in result.diagnostics] == ["magnitude", "whiteness"]
+    assert all(d.passed for d in result.diagnostics)
+    # The hull is rigid and the gear ideal: what must be >= 0 is, with intervals that reach 0.
+    for name in ("compressibility_m3pm", "backlash_deg", "pressure_lag_s", "dead_band_deg"):
+        e = result.estimate(name)
+        assert e.value >= 0.0
+        assert not e.identified or e.value - e.half_width <= 1e-9, f"{name}: {e.value} +/- {e.half_width}"
+
+
+def test_learning_episodes_give_the_hand_over_offset_as_a_comment_not_a_figure() -> None:
+    """Six episodes whose windows were centred 1.5 deg above the neutral angle: the offset is reported, and the
+    plant file carries it in a comment only (the recovery controller's own error is in it)."""
+    samples = _hover_samples(4.0)
+    starts = np.arange(0, len(samples.t_s), len(samples.t_s) // 6)[:6]
+    samples.mode = np.full(len(samples.t_s), int(Mode.LEARNING))
+    samples.episode_start = np.zeros(len(samples.t_s), dtype=bool)
+    samples.episode_start[starts] = True
+    neutral = neutral_alpha_deg(preset("hardware"))
+    samples.cmd_deg = samples.cmd_deg.copy()
+    samples.cmd_deg[starts] = neutral + 1.5
+    result = fit_samples(samples, preset("hardware"))
+    offset = result.estimate("handover_offset_deg")
+    assert offset.identified and abs(offset.value - 1.5) <= offset.half_width
+    text = plant_toml(result, "preset hardware", {})
+    assert "# handover_offset_deg = 1.5" in text and "\nstart_trim_error_deg" not in text

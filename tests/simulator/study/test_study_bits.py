@@ -14,14 +14,15 @@ from simulator.study.runner import run_study
 _REAL_PLANT = {"backlash_deg": 2.0, "pressure_lag_s": 0.1, "control_jitter_s": 0.01}
 
 # sha256 (first 16 hex digits) of durations, values, policy, hold, counters and recovery holds of 3 trials x 40
-# episodes, seed 7, as a0a1fc7 computed them (the filtered-depth learner as it was introduced).
+# episodes, seed 7, as a0a1fc7 computed them (the filtered-depth learner as it was introduced); the real
+# plant's two since issue 42, where the recovery controller reads the counted (motor-side) angle, not the output.
 DIGESTS = {
     ("paper", "shared", False): "5e1ebcfc33bbe11f",
     ("paper", "paper", False): "7aed3c4e1b147a30",
     ("hardware", "shared-z20-bins7-diff8-term100-vpen1", False): "4f579197a7f0199b",
     ("hardware", "shared", False): "b385405b8213017f",
-    ("hardware", "shared-z20-bins7-diff8-term100-vpen1", True): "42894b773cbd0eb2",
-    ("hardware", "shared-z20-bins7-fdepth-term100-vpen1", True): "7c92b3180f3bc056",
+    ("hardware", "shared-z20-bins7-diff8-term100-vpen1", True): "15d561e3feaa10a7",
+    ("hardware", "shared-z20-bins7-fdepth-term100-vpen1", True): "8a27ecb2c6751f18",
 }
 
 
