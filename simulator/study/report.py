@@ -12,6 +12,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from simulator.parameters import is_hardware
 from simulator.study.goals import hardware_goals
 
 
@@ -74,7 +75,7 @@ def report(folder: Path) -> str:
     parts = []
     if (folder / "compare.json").exists():
         parts.append(compare_table(json.loads((folder / "compare.json").read_text())))
-    hardware = [s for s in _summaries(folder) if s["preset"] == "hardware"]
+    hardware = [s for s in _summaries(folder) if is_hardware(s["preset"])]
     if hardware:
         parts.append(goals_table(hardware))
     if not parts:
