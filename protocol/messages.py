@@ -85,7 +85,7 @@ class Sample(Message):
     pressure_pa: F32 = wire("raw pressure reading", "Pa")
     depth_m: F32 = wire("depth from pressure, positive down", "m")
     velocity_mps: F32 = wire("observer's velocity estimate, positive down", "m/s")
-    actuator_deg: F32 = wire("gear output angle alpha (0..130, larger = more volume)", "deg")
+    actuator_deg: F32 = wire("counted stepper angle, motor side of the gear (0..130, larger = more volume)", "deg")
     actuator_cmd_deg: F32 = wire("commanded gear angle", "deg")
     reward: F32 = wire("reward received this step (0 outside learning)")
     state: U16 = wire("discrete learner state; S-1 = terminal")

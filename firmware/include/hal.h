@@ -10,7 +10,7 @@ uint64_t hal_time_us(void);                 /* agent clock */
 uint64_t hal_link_time_us(void);            /* real time of the link (== hal_time_us on hardware) */
 float    hal_pressure_pa(void);             /* one MS5803 reading, Pa */
 void     hal_stepper_set_cmd_deg(float deg);/* commanded gear angle; the board moves toward it */
-float    hal_stepper_deg(void);             /* gear angle now (step count) */
+float    hal_stepper_deg(void);             /* motor-side angle now (counted steps, not the output) */
 float    hal_battery_v(void);
 size_t   hal_link_read(uint8_t *buf, size_t cap);   /* non-blocking */
 void     hal_link_write(const uint8_t *buf, size_t n);

@@ -26,7 +26,7 @@ from protocol.enums import PROTOCOL_VERSION
 from protocol.fast_frames import cobs_encode_into, crc_into
 from simulator.agent.kernel import recovery_period_kernel, sense_kernel
 from simulator.agent.log_ring import ring_commit, ring_reserve
-from simulator.plant.kernel import ALPHA, plant_step
+from simulator.plant.kernel import MOTOR, plant_step
 
 SAMPLE_ID = 0x20  # messages.Sample.MSG_ID (a test checks they agree)
 SAMPLE_PAYLOAD = 48  # messages.Sample's packed size
@@ -181,7 +181,7 @@ def held_steps(
         floats[CMD_DEG] = cmd
         floats[PRESSURE_PA], floats[DEPTH_M], floats[VELOCITY_MPS] = pressure, depth, velocity
         emit_sample(ints, ring_data, ring_index, ring_counters, wire, f32, f32_bytes, pressure, depth, velocity,
-                    plant[ALPHA], cmd, 0.0, 0, ACTION_NONE)
+                    plant[MOTOR], cmd, 0.0, 0, ACTION_NONE)
         ints[STEPS_RUN] += 1
         if recovering and (settled or gave_up):
             ints[STATUS] = SETTLED if settled else GAVE_UP
@@ -233,7 +233,7 @@ def learning_steps(
         ints[STEPS_RUN] += 1
         if state == ints[TERMINAL] or ints[STEPS] >= ints[STEP_LIMIT]:
             emit_sample(ints, ring_data, ring_index, ring_counters, wire, f32, f32_bytes, pressure, depth, velocity,
-                        plant[ALPHA], cmd, reward, state, ACTION_NONE)
+                        plant[MOTOR], cmd, reward, state, ACTION_NONE)
             ints[LAST_STATE] = state  # for the Python program to end the episode with
             ints[STATUS] = EPISODE_OVER
             return
@@ -244,7 +244,7 @@ def learning_steps(
         floats[CMD_DEG] = cmd
         ints[PREV_STATE], ints[PREV_ACTION] = state, action
         emit_sample(ints, ring_data, ring_index, ring_counters, wire, f32, f32_bytes, pressure, depth, velocity,
-                    plant[ALPHA], cmd, reward, state, action)
+                    plant[MOTOR], cmd, reward, state, action)
         ints[STEPS] += 1
         if step_ends_batch(ints, floats, plant, spec, socs, volts):
             return

@@ -47,8 +47,12 @@ class SimulatedHardware:
 
     @property
     def actuator_deg(self) -> float:
-        """The gear angle, as the firmware knows it from counting its own (open-loop) steps."""
-        return self.plant.alpha_deg
+        """The stepper's angle as the firmware counts its own (open-loop) steps: the motor side of the gear train.
+
+        The output angle (plant.alpha_deg, after backlash) stays inside the plant: the Teensy sketch reports
+        NEUTRAL_DEG + steps * DEG_PER_STEP and cannot see it either.
+        """
+        return self.plant.motor_deg
 
     @property
     def battery_v(self) -> float:

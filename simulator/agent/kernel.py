@@ -13,7 +13,7 @@ from numba import njit
 from numpy.typing import NDArray
 
 from learning.spec import KernelSpec
-from simulator.plant.kernel import ALPHA, ZDOT
+from simulator.plant.kernel import MOTOR, ZDOT
 from simulator.plant.observer import observer_update_kernel
 from simulator.plant.recovery import recovery_gave_up, recovery_settled, recovery_update_kernel
 from simulator.plant.sensor import depth_from_pressure_kernel, sense_pressure_kernel
@@ -54,7 +54,8 @@ def recovery_period_kernel(
     Returns (pressure_pa, depth_m, velocity_mps, alpha_cmd_deg, settled, gave_up).
     """
     pressure_pa, depth_m, velocity_mps = sense_kernel(plant, observer, rng_state, use_observer, dt_s, spec)
-    cmd_deg = recovery_update_kernel(recovery, depth_m, velocity_mps, plant[ALPHA], hold_depth_m, dt_s, spec)
+    # The motor side: the firmware counts its steps, the output angle behind the backlash is unknown to it.
+    cmd_deg = recovery_update_kernel(recovery, depth_m, velocity_mps, plant[MOTOR], hold_depth_m, dt_s, spec)
     return (
         pressure_pa, depth_m, velocity_mps, cmd_deg,
         recovery_settled(recovery, spec), recovery_gave_up(recovery, spec),

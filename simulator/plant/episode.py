@@ -11,13 +11,14 @@ from learning.config import MAX_VELOCITY_DIFF_STEPS
 from learning.rng import uniform
 from learning.shared import raw_cell_kernel
 from learning.spec import KernelSpec
-from simulator.plant.kernel import ALPHA, PLANT_SIZE, ZDOT, Z, jittered_period_s, plant_place, plant_step
+from simulator.plant.kernel import ALPHA, MOTOR, PLANT_SIZE, ZDOT, Z, jittered_period_s, plant_place, plant_step
 from simulator.plant.observer import observer_update_kernel
 from simulator.plant.recovery import AVG, recovery_gave_up, recovery_init, recovery_settled, recovery_update_kernel
 from simulator.plant.sensor import depth_from_pressure_kernel, sense_pressure_kernel
 
 # Layout of the environment state array: plant, command, observer, recovery, bookkeeping.
 E_Z, E_ZDOT, E_ALPHA = Z, ZDOT, ALPHA  # plant (the first PLANT_SIZE entries, plant_step's layout)
+E_MOTOR = MOTOR  # the stepper side of the gear train: the only angle the agent knows (it counts its steps)
 E_PLANT_END = PLANT_SIZE
 E_CMD = PLANT_SIZE  # alpha_cmd, deg
 E_CENTER = E_CMD + 1  # centre of the learner's actuator window (alpha_avg at hand-over), deg
@@ -78,7 +79,7 @@ def _recover(
     while True:
         measure_kernel(env, dt, spec, rng_state)
         env[E_CMD] = recovery_update_kernel(
-            rec, env[E_DEPTH_MEAS], env[E_OBS_X2], env[E_ALPHA], start_depth_m, dt, spec
+            rec, env[E_DEPTH_MEAS], env[E_OBS_X2], env[E_MOTOR], start_depth_m, dt, spec
         )
         plant_step(plant, env[E_CMD], dt, spec)
         env[E_RECOVERY_S] += dt

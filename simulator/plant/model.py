@@ -48,7 +48,13 @@ class Plant:
 
     @property
     def alpha_deg(self) -> float:
+        """The gear train's output angle (what moves the piston); no agent can read it."""
         return float(self._state[ALPHA])
+
+    @property
+    def motor_deg(self) -> float:
+        """The stepper side of the gear train: the angle an agent counts from its own steps."""
+        return float(self._state[MOTOR])
 
     def set_state(
         self,

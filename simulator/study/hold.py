@@ -13,14 +13,14 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 from numpy.typing import NDArray
 
 from learning.spec import KernelSpec
 from simulator.plant.episode import (
-    E_ALPHA,
     E_CMD,
     E_DEPTH_MEAS,
+    E_MOTOR,
     E_OBS_X2,
     E_PLANT_END,
     E_REC_AVG,
@@ -28,6 +28,7 @@ from simulator.plant.episode import (
     episode_reset_kernel,
     episode_steps,
     measure_kernel,
+    new_env_state,
 )
 from simulator.plant.kernel import MOTOR, Z, plant_step
 from simulator.plant.recovery import recovery_init, recovery_update_kernel
@@ -97,13 +98,24 @@ def recovery_hold_run(
         hold_reset(acc)
         for step in range(n_steps):
             measure_kernel(env, dt, spec, env_stream)
-            env[E_CMD] = recovery_update_kernel(rec, env[E_DEPTH_MEAS], env[E_OBS_X2], env[E_ALPHA],
+            env[E_CMD] = recovery_update_kernel(rec, env[E_DEPTH_MEAS], env[E_OBS_X2], env[E_MOTOR],
                                                 target_depth_m, dt, spec)
             motor_before = env[MOTOR]
             plant_step(plant, env[E_CMD], dt, spec)
             if step >= n_steps // 2:
                 hold_add(acc, env[Z] - target_depth_m, abs(env[MOTOR] - motor_before), dt)
         hold_write(acc, hold[h], True)
+
+
+@njit(cache=True, error_model="numpy", nogil=True, parallel=True)
+def recovery_holds(
+    env_streams: NDArray[np.uint64], target_depth_m: float, spec: KernelSpec, lspec: KernelSpec,
+    hold: NDArray[np.float64],
+) -> None:
+    """The controller alone on a fresh plant per trial (row t of hold from env_streams[t]): what a benchmark of the
+    controller wants; a study measures it after its trial instead (recovery_hold_run, simulator/study/kernel.py)."""
+    for t in prange(hold.shape[0]):
+        recovery_hold_run(new_env_state(spec), env_streams[t], target_depth_m, spec, lspec, hold[t])
 
 
 def _quartiles(x: NDArray[np.float64], digits: int) -> dict[str, Any]:

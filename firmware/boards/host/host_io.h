@@ -18,7 +18,7 @@ typedef struct {
     uint64_t time_us;          /* agent clock */
     uint64_t link_time_us;     /* the link's real (wall) clock */
     float pressure_pa;         /* the sensor reading the next hal_pressure_pa returns */
-    float stepper_deg;         /* gear angle now */
+    float stepper_deg;         /* motor-side angle now (counted steps; the output is the plant's) */
     float battery_v;
     uint32_t rx_len;           /* bytes in rx not yet read by the core */
     uint32_t rx_pos;

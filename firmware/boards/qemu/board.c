@@ -66,7 +66,9 @@ void hal_stepper_set_cmd_deg(float deg)
 
 float hal_stepper_deg(void)
 {
-    return (float)board.x.alpha_deg;
+    /* The motor side of the gear train, as the Teensy counts its steps: the output angle behind the
+       backlash stays inside the plant (a real robot cannot read it). */
+    return (float)board.x.motor_deg;
 }
 
 float hal_battery_v(void)

@@ -16,16 +16,17 @@ _REAL_PLANT = {"backlash_deg": 2.0, "pressure_lag_s": 0.1, "control_jitter_s": 0
 
 # sha256 (first 16 hex digits) of durations, values, policy, the hold's first three columns (RMS, peak-to-peak,
 # travel) and counters of 3 trials x 40 episodes, seed 7, as a0a1fc7 computed them (the filtered-depth learner: as it
-# was introduced, stop 35). Issue 43 measures the recovery controller after the trial's last episode (on the same
-# plant time) and adds two hold columns: these digests leave both out, and were taken on 740a557's tree, which still
-# gave the earlier digests of every array (recovery holds included).
+# was introduced, stop 35); the real plant's two since issue 42, where the recovery controller reads the counted
+# (motor-side) angle. Issue 43 measures the recovery controller after the trial's last episode (on the same plant
+# time) and adds two hold columns: these digests leave both out, and were taken on 740a557's and 04d5c7d's trees,
+# which still gave their earlier digests of every array (recovery holds included).
 DIGESTS = {
     ("paper", "shared", False): "4056f8ec7002e007",
     ("paper", "paper", False): "dccbd5d9c7cf129f",
     ("hardware", "shared-z20-bins7-diff8-term100-vpen1", False): "f2ee7ff20c188df5",
     ("hardware", "shared", False): "b6bd1bea74fd7055",
-    ("hardware", "shared-z20-bins7-diff8-term100-vpen1", True): "1b12adb0cf303bac",
-    ("hardware", "shared-z20-bins7-fdepth-term100-vpen1", True): "6ad54f472ab57e53",
+    ("hardware", "shared-z20-bins7-diff8-term100-vpen1", True): "bce8239e86a7a745",
+    ("hardware", "shared-z20-bins7-fdepth-term100-vpen1", True): "3d80939fca0dd1ae",
 }
 
 
