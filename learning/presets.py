@@ -92,6 +92,7 @@ _FAST_PLAN_BASES = {
     "diff8-fastplan": "shared-z20-bins7-diff8-term100-vpen1",
     "filter-fastplan": "shared-z20-bins7-filter-term100-vpen1",
     "hardware-fastplan": "shared-z20-bins7-fdepth-term100-vpen1",
+    "fine41-fastplan": "fine41",
 }
 _PRESETS.update({name: replace(_PRESETS[base], **_FAST_PLAN) for name, base in _FAST_PLAN_BASES.items()})
 
@@ -125,6 +126,7 @@ DESCRIPTIONS: dict[str, str] = {
     "filter-fastplan": "filter, planning stops early",
     "hardware-fastplan": "hardware, planning stops early",
     "fine41": "41 depth cells, 0.7 deg at a hover",
+    "fine41-fastplan": "fine41, planning stops early",
 }
 
 
