@@ -21,9 +21,10 @@ from tests.simulator.python_trial import python_loop_trial  # noqa: E402
 ANCHOR = "a0a1fc7"  # main when issue 29 item 6's trial-kernel work began (693fc12, before its planning work, gives
 # other hardware-preset bits: the plant's state grew since)
 GOAL = 3.0  # issue 29 item 6, then issue 43 item 4: studies 3x faster than the anchor
-# Issue 43 item 4: the recommended learner on the closed-form plant against the anchor's `hardware` learner (the
-# 8-step-difference one, docs/reproduction.md "Speed") on its sub-stepped plant; and today's hardware learners.
-ANCHOR_PAIRS = ("hardware-fast/fine41=hardware/shared-z20-bins7-diff8-term100-vpen1,"
+# Issue 43 item 4: the recommended learner (`hardware`; fine41 did not win, docs/learners-hold.md) and its early-stop
+# twin on the closed-form plant against the anchor's `hardware` learner (the 8-step-difference one,
+# docs/reproduction.md "Speed") on its sub-stepped plant.
+ANCHOR_PAIRS = ("hardware-fast/hardware=hardware/shared-z20-bins7-diff8-term100-vpen1,"
                 "hardware-fast/hardware-fastplan=hardware/shared-z20-bins7-diff8-term100-vpen1")
 
 
