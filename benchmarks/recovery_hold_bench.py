@@ -20,7 +20,7 @@ import numpy as np
 from learning import learner_preset
 from learning.config import kernel_spec
 from simulator.parameters import kernel_params, preset, with_overrides
-from simulator.study.hold import H_RMS_M, H_TRAVEL_DPM, N_HOLD, RECOVERY_HOLDS, recovery_holds
+from simulator.study.hold import H_OFFSET_M, H_OSC_RMS_M, H_RMS_M, H_TRAVEL_DPM, N_HOLD, RECOVERY_HOLDS, recovery_holds
 from simulator.study.runner import trial_streams
 
 PLANTS = {"ideal gear": {}, "backlash 1 deg": {"backlash_deg": 1.0},
@@ -54,7 +54,11 @@ def main() -> None:
         rows = rows[~np.isnan(rows[:, H_RMS_M])]
         q25, med, q75 = np.percentile(1000.0 * rows[:, H_RMS_M], [25, 50, 75])
         travel = float(np.median(rows[:, H_TRAVEL_DPM]))
-        print(f"  {name:26s} hold RMS {med:6.2f} mm [IQR {q25:.2f}-{q75:.2f}]  travel {travel:6.1f} deg/min"
+        # Issue 43: the oscillation about the held depth (what the controller adds) apart from the offset (the bias).
+        o25, osc, o75 = np.percentile(1000.0 * rows[:, H_OSC_RMS_M], [25, 50, 75])
+        offset = float(np.median(1000.0 * rows[:, H_OFFSET_M]))
+        print(f"  {name:26s} hold RMS {med:6.2f} mm [IQR {q25:.2f}-{q75:.2f}], oscillation {osc:5.2f} mm "
+              f"[{o25:.2f}-{o75:.2f}], offset {offset:6.2f} mm, travel {travel:6.1f} deg/min"
               f"  ({len(rows)} holds, {time.perf_counter() - began:.1f} s)  anchor {ANCHOR_MM[name]} mm")
 
 

@@ -84,6 +84,13 @@ class LearnerConfig:
     # whose greedy actions no longer move (docs/reproduction.md, "Planning that stops early").
     plan_stable_sweeps: int = 0
     plan_loose_tolerance: float = 0.0
+    # Issue 43: a smaller step near a hover (0 = off, every step is the plant's action_step_deg). The step is this
+    # many degrees while the velocity the learner sees is below fine_speed_mps: a multiple of the velocity cell
+    # width keeps the step a function of the velocity cell, which the shared model's types already hold, so
+    # pooling over depth stays exact. Chatter between two actions then costs the battery and the hold a fraction
+    # of the plant's step; far from a hover the full step still brakes in time.
+    fine_step_deg: float = 0.0
+    fine_speed_mps: float = 0.0
 
     def __post_init__(self) -> None:
         if self.z_cells < 1 or self.zdot_cells < 1 or self.actuator_bins < 1:
@@ -117,6 +124,8 @@ class LearnerConfig:
             raise LearnerConfigError("at most 65535 states (successor indices are uint16)")
         if self.plan_stable_sweeps < 0 or self.plan_loose_tolerance < 0:
             raise LearnerConfigError("plan_stable_sweeps and plan_loose_tolerance must not be negative")
+        if self.fine_step_deg < 0 or self.fine_speed_mps < 0:
+            raise LearnerConfigError("fine_step_deg and fine_speed_mps must not be negative")
         if self.plan_stable_sweeps > 0 and not self.shared_model:
             raise LearnerConfigError("the early planning stop (plan_stable_sweeps) is for the shared model only")
 

@@ -78,12 +78,21 @@ _PRESETS: dict[str, LearnerConfig] = {
     "shared-bonus": replace(_SHARED, count_bonus=0.5),
 }
 
+# Issue 43: a learner that holds. The `hardware` learner with 41 depth cells (an odd count puts a cell of 4.9 mm
+# centred on the target: its hold no longer straddles a cell boundary at z_d) and a 0.7 deg step while the velocity
+# it sees is under 16 mm/s (the two velocity cells either side of 0 and their neighbours; LearnerConfig.fine_step_deg):
+# stepper travel 420 deg/min at most in a hold. Screened on seeds 11-12 (16 trials x 200 episodes, hardware-fast)
+# against 20/21/31/40/80 depth cells, steps 0.3-1.0 deg and zones 8-24 mm/s (docs/learners-hold.md).
+_PRESETS["fine41"] = replace(_PRESETS["shared-z20-bins7-fdepth-term100-vpen1"], z_cells=41, fine_step_deg=0.7,
+                             fine_speed_mps=0.016)
+
 # Each -fastplan learner is its base with _FAST_PLAN (the base's figures are kept for comparison).
 _FAST_PLAN_BASES = {
     "shared-fastplan": "shared",
     "diff8-fastplan": "shared-z20-bins7-diff8-term100-vpen1",
     "filter-fastplan": "shared-z20-bins7-filter-term100-vpen1",
     "hardware-fastplan": "shared-z20-bins7-fdepth-term100-vpen1",
+    "fine41-fastplan": "fine41",
 }
 _PRESETS.update({name: replace(_PRESETS[base], **_FAST_PLAN) for name, base in _FAST_PLAN_BASES.items()})
 
@@ -116,6 +125,8 @@ DESCRIPTIONS: dict[str, str] = {
     "diff8-fastplan": "8-step diff, planning stops early",
     "filter-fastplan": "filter, planning stops early",
     "hardware-fastplan": "hardware, planning stops early",
+    "fine41": "41 depth cells, 0.7 deg at a hover",
+    "fine41-fastplan": "fine41, planning stops early",
 }
 
 

@@ -47,6 +47,10 @@ class PlantParams:
     action_window_deg: float = 19.5  # F: alpha_cmd clipped to alpha_avg +/- 19.5 deg (+/- 2.17 ml)
     # --- integration
     substep_s: float = 0.005  # C: semi-implicit Euler at 5 ms (s. 2: at most 5 ms)
+    # Issue 43: the same sub-steps summed over a control period in closed form (simulator/plant/kernel.py), for
+    # studies outside the paper's reproduction; depth within 0.1 mm of the sub-steps' over 300 s on every plant
+    # (s. 2's rule; tests/simulator/plant/test_closed_form.py).
+    closed_form_step: bool = False
     # --- pressure sensor MS5803-01BA
     surface_pressure_pa: float = 101325.0  # standard atmosphere (F: P0 measured at start)
     pressure_noise_pa: float = 6.5  # S: 0.065 mbar RMS at OSR 256 = 0.66 mm of water
@@ -92,6 +96,10 @@ _PRESETS: dict[str, PlantParams] = {
     # The inner boundary layer of the recovery controller (recovery_near_gain_deg) lets it settle despite up to
     # 3 deg of gear backlash (docs/robust-plant.md, "The recovery controller on a real gear").
     "hardware": PlantParams(trim_error_fraction=0.005, recovery_near_gain_deg=3.0),
+    # Issue 43: the same plant with its 5 ms sub-steps summed in closed form (closed_form_step): depth within
+    # 0.01 mm of the sub-steps' over 300 s on every plant variant, a study's plant at O(1) per control period.
+    # For studies outside the paper's reproduction (diving-agent.md s. 2); the paper preset keeps its sub-steps.
+    "hardware-fast": PlantParams(trim_error_fraction=0.005, recovery_near_gain_deg=3.0, closed_form_step=True),
     # Calibration P1 of diving-agent.md s. 7, which reproduces the paper's Fig. 5: a narrow actuator
     # window (+/- 6.5 deg) and slower step (1.625 deg) around the true neutral, the true velocity
     # to the learner (the paper names its observer only for the experiment), restarts at rest.
@@ -109,8 +117,13 @@ def preset_names() -> list[str]:
     return sorted(_PRESETS)
 
 
+def is_hardware(name: str) -> bool:
+    """Whether a preset is the robot's plant (the hardware goals and both learning regions apply)."""
+    return name in ("hardware", "hardware-fast")
+
+
 def preset(name: str) -> PlantParams:
-    """The named parameter set ("hardware" or "paper")."""
+    """The named parameter set ("hardware", "hardware-fast" or "paper")."""
     try:
         return _PRESETS[name]
     except KeyError:

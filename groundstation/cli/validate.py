@@ -56,7 +56,7 @@ def parse_speed(text: str) -> float | None:
 
 # The simulator's plant presets (simulator.parameters.preset_names(); a test keeps the two equal): groundstation
 # starts the simulator as a process and never imports it, and a wrong name must be refused before that start.
-PLANT_PRESETS = ("hardware", "paper")
+PLANT_PRESETS = ("hardware", "hardware-fast", "paper")
 
 
 def check_presets(preset: str | None, learner: str | None) -> None:

@@ -205,7 +205,10 @@ def episode_step_kernel(
     rng_state: NDArray[np.uint64],
 ) -> tuple[int, float, bool, bool]:
     """Apply action (0 = less volume, 1 = more) for one control period: (state, reward, term, trunc)."""
-    step = spec.action_step_deg if action == 1 else -spec.action_step_deg
+    size = spec.action_step_deg
+    if lspec.fine_step_deg > 0.0 and abs(env[E_VEL_EST]) < lspec.fine_speed_mps:
+        size = lspec.fine_step_deg  # near a hover (LearnerConfig.fine_step_deg)
+    step = size if action == 1 else -size
     low = env[E_CENTER] - spec.action_window_deg
     high = env[E_CENTER] + spec.action_window_deg
     env[E_CMD] = min(max(env[E_CMD] + step, low), high)

@@ -1,4 +1,5 @@
-"""Compiled equations of motion (diving-agent.md s. 2): semi-implicit Euler with the command held."""
+"""Compiled equations of motion (diving-agent.md s. 2): semi-implicit Euler with the command held, sub-step by
+sub-step (the reference) or its sum over a control period in closed form (spec.closed_form_step, issue 43)."""
 
 from __future__ import annotations
 
@@ -130,15 +131,161 @@ def _real_plant_step(state: NDArray[np.float64], target_deg: float, dt_s: float,
     state[CLOCK_S] += dt_s
 
 
+# The closed form is used only this far from the surface and the floor, where no sub-step can meet them (at 0.5 m/s, a
+# velocity the agent never reaches, a 0.1 s period moves it 5 cm); nearer, the sub-steps run.
+_CLOSED_FORM_MARGIN_M = 0.1
+_DRAG_PASSES = 1  # passes of the drag along the period's velocity (a second moves depth by under 1e-3 mm in 300 s)
+# Reciprocals written once: a division costs several multiplications and LLVM keeps `/ 6.0` a division.
+_HALF, _SIXTH, _TWELFTH, _THIRTIETH = 0.5, 1.0 / 6.0, 1.0 / 12.0, 1.0 / 30.0
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _ramp_sums(alpha0: float, target: float, max_move: float, n: int) -> tuple[float, float]:
+    """(sum_k alpha_k, sum_k (n - k + 1) alpha_k), k = 1..n, of the ideal stepper's angle after each sub-step: it
+    moves max_move toward target per sub-step (the reference's `alpha += clip(target - alpha)`), then stays."""
+    d = target - alpha0
+    span = abs(d)
+    sign = 1.0 if d >= 0.0 else -1.0
+    # Full moves before the last, partial one (a float's rounding of the quotient only moves a sub-step whose
+    # move is the remainder itself).
+    j = min(int(span / max_move), n) if max_move > 0.0 else 0
+    jj = float(j * (j + 1))
+    full1 = max_move * jj * _HALF
+    full2 = max_move * jj * ((n + 1) * _HALF - (2 * j + 1) * _SIXTH)
+    rest = float(n - j)
+    s1 = n * alpha0 + sign * (full1 + rest * span)
+    s2 = n * (n + 1) * _HALF * alpha0 + sign * (full2 + span * rest * (rest + 1.0) * _HALF)
+    return s1, s2
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _closed_form_hull(state: NDArray[np.float64], s1: float, s2: float, n: int, h: float,
+                      spec: KernelSpec) -> tuple[float, float]:
+    """Depth and velocity after n sub-steps of _hull, given the sums of the gear angle over them (_ramp_sums).
+
+    With v_k = v_{k-1} + h a_k and z_k = z_{k-1} + h v_k: v_n = v_0 + h sum a_k and
+    z_n = z_0 + n h v_0 + h^2 sum (n - k + 1) a_k, exact for the angle's part. The drag depends on v_{k-1}: it is
+    expanded to second order about the period's start, along a velocity profile whose sum is exact for the angle's
+    ramps (its share of z'' is small near a hover, and it changes little in one period). The hull's compressibility
+    is taken along a straight line of depth (the caller keeps the sub-steps for a compressible hull)."""
+    a0, a_alpha, a_z, a_drag = force_coefficients(spec)
+    z0, v0 = state[Z], state[ZDOT]
+    n_f = float(n)
+    w1 = n_f  # sum_k 1
+    m = n_f - 1.0
+    w2 = n_f * (n_f + 1.0) * _HALF  # sum_k (n - k + 1)
+    # Power sums over i = k - 1 = 0..n-1: sum i .. sum i^5, and (n - i)-weighted ones for the depth.
+    l1 = n_f * m * _HALF
+    p2 = m * n_f * (2.0 * m + 1.0) * _SIXTH
+    p3 = l1 * l1
+    p4 = p2 * (3.0 * m * m + 3.0 * m - 1.0) * (6.0 * _THIRTIETH)
+    p5 = p3 * (2.0 * m * m + 2.0 * m - 1.0) * (4.0 * _TWELFTH)
+    l2 = n_f * l1 - p2
+    base1 = a0 * w1 + a_alpha * s1 + a_z * (z0 * w1 + h * v0 * l1)
+    base2 = a0 * w2 + a_alpha * s2 + a_z * (z0 * w2 + h * v0 * l2)
+    # Drag g(v) = a_drag v|v| about the start: g0 + g1 (v - v0) + g2 (v - v0)^2 (exact while v keeps its sign).
+    g0 = a_drag * v0 * abs(v0)
+    g1 = 2.0 * a_drag * abs(v0)
+    g2 = a_drag if v0 >= 0.0 else -a_drag
+    # Without the drag's change, v_{k-1} - v0 = u_{k-1} = h sum_{j<k} e_j, e_j = a_j - g0 (the angle's ramp exactly):
+    # sum_k u_{k-1} = h sum_j (n - j) e_j. The drag's change feeds back at first order as -g1 h sum_{j<k} u_{j-1},
+    # summed with a constant e (its variation is a further factor g1 h n ~ 0.01 smaller).
+    e1 = base1 - g0 * w1
+    e2 = base2 - g0 * w2
+    u_sum = h * (e2 - e1)
+    u_sum -= g1 * h * h * e1 * m * (m - 1.0) * _SIXTH
+    inv_det = 1.0 / (n_f * p2 - n_f * n_f * l1)
+    v_end = v0 + h * e1
+    for _ in range(_DRAG_PASSES):
+        # v_{k-1} - v0 as a quadratic A i + B i^2 through the period's end and with the sum found above: the
+        # angle's ramps bend the velocity, which a straight line would miss in the quadratic part of the drag.
+        du = v_end - v0
+        a_lin = (du * p2 - n_f * n_f * u_sum) * inv_det
+        b_quad = (n_f * u_sum - l1 * du) * inv_det
+        if v0 * v_end > 0.0:
+            sq1 = a_lin * a_lin * p2 + 2.0 * a_lin * b_quad * p3 + b_quad * b_quad * p4
+            w_lin = a_lin * l2 + b_quad * (n_f * p2 - p3)
+            w_sq = (a_lin * a_lin * (n_f * p2 - p3) + 2.0 * a_lin * b_quad * (n_f * p3 - p4)
+                    + b_quad * b_quad * (n_f * p4 - p5))
+            drag1 = g0 * w1 + g1 * u_sum + g2 * sq1
+            drag2 = g0 * w2 + g1 * w_lin + g2 * w_sq
+        else:
+            # A reversal inside the period (the drag is then at its smallest): term by term along the quadratic.
+            drag1 = 0.0
+            drag2 = 0.0
+            for k in range(1, n + 1):
+                i = k - 1.0
+                v = v0 + a_lin * i + b_quad * i * i
+                g = a_drag * v * abs(v)
+                drag1 += g
+                drag2 += (n - k + 1) * g
+        v_end = v0 + h * (base1 - drag1)
+    z_end = z0 + n_f * h * v0 + h * h * (base2 - drag2)
+    return z_end, v_end
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _closed_form_step(state: NDArray[np.float64], target_deg: float, dt_s: float, n_sub: int, h: float,
+                      spec: KernelSpec) -> bool:
+    """plant_step's sub-steps summed in closed form (issue 43: a study's plant at O(1) per period instead of n_sub
+    sub-steps). False, with the state untouched, near the surface or the floor, where the sub-steps must run.
+
+    The gear's angle after each sub-step is summed exactly (a ramp for the ideal stepper; the gear train of _gear
+    stepped for backlash or a dead band, a cheap chain), the hull in _closed_form_hull, the port's lag along a
+    straight line of depth over the period (exact discretisation of the lag per sub-step)."""
+    z0 = state[Z]
+    # A compressible hull is unstable: any difference grows without bound, so it keeps the sub-steps.
+    if (z0 < _CLOSED_FORM_MARGIN_M or z0 > spec.floor_depth_m - _CLOSED_FORM_MARGIN_M
+            or spec.compressibility_m3pm != 0.0 or n_sub < 2):
+        return False
+    max_move_deg = spec.alpha_rate_dps * h
+    real_gear = spec.backlash_deg > 0.0 or spec.dead_band_deg > 0.0
+    alpha = state[ALPHA]
+    motor = state[MOTOR]
+    if real_gear:
+        half_dead, half_lash = 0.5 * spec.dead_band_deg, 0.5 * spec.backlash_deg
+        s1 = 0.0
+        s2 = 0.0
+        for k in range(1, n_sub + 1):
+            motor, alpha = _gear(motor, alpha, target_deg, max_move_deg, half_dead, half_lash)
+            s1 += alpha
+            s2 += (n_sub - k + 1) * alpha
+    else:
+        s1, s2 = _ramp_sums(alpha, target_deg, max_move_deg, n_sub)
+        alpha += min(max(target_deg - alpha, -max_move_deg * n_sub), max_move_deg * n_sub)
+        motor = alpha
+    z_end, v_end = _closed_form_hull(state, s1, s2, n_sub, h, spec)
+    if z_end < _CLOSED_FORM_MARGIN_M or z_end > spec.floor_depth_m - _CLOSED_FORM_MARGIN_M:
+        return False
+    if spec.pressure_lag_s > 0.0:
+        # The reference's sensed += (1 - r)(z_k - sensed) per sub-step, z_k = z0 + k dz, summed:
+        # r^n sensed + (1 - r^n) z0 + dz [n - (n + 1) r + r^(n+1)] / (1 - r).
+        r = np.exp(-h / spec.pressure_lag_s)
+        r_n = np.exp(-n_sub * h / spec.pressure_lag_s)
+        dz = (z_end - z0) / n_sub
+        state[SENSED_Z] = (r_n * state[SENSED_Z] + (1.0 - r_n) * z0
+                           + dz * (n_sub - (n_sub + 1) * r + r_n * r) / (1.0 - r))
+    else:
+        state[SENSED_Z] = z_end
+    state[Z] = z_end
+    state[ZDOT] = v_end
+    state[ALPHA] = alpha
+    state[MOTOR] = motor
+    state[CLOCK_S] += dt_s
+    return True
+
+
 @njit(cache=True, error_model="numpy", inline="always")
 def plant_step(state: NDArray[np.float64], alpha_cmd_deg: float, dt_s: float, spec: KernelSpec) -> None:
     """Advance the plant by dt_s in fixed sub-steps of at most spec.substep_s, command held.
 
     The ideal actuator (no backlash, no dead band) and sensor port (no lag) run here; the rest in
-    _real_plant_step."""
+    _real_plant_step; with spec.closed_form_step, their sum in closed form (_closed_form_step) where it applies."""
     n_sub = max(1, int(np.ceil(dt_s / spec.substep_s - 1e-9)))
     h = dt_s / n_sub
     target_deg = min(max(alpha_cmd_deg, 0.0), spec.alpha_max_deg)
+    if spec.closed_form_step and _closed_form_step(state, target_deg, dt_s, n_sub, h, spec):
+        return
     if spec.backlash_deg > 0.0 or spec.dead_band_deg > 0.0 or spec.pressure_lag_s > 0.0:
         _real_plant_step(state, target_deg, dt_s, n_sub, h, spec)
         return

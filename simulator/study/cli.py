@@ -156,9 +156,12 @@ def _print_quality(label: str, summary: dict[str, Any], console: Console) -> Non
         def med(block: dict[str, Any], key: str) -> str:
             return _fmt(block.get(key, {}).get("median"))
 
+        # Issue 43: the oscillation (RMS about the mean) is what a policy adds; the offset is what the sensor sets.
         console.print(
-            f"{label} hold (median over {mine['episodes']} late successful episodes; recovery controller in "
-            f"brackets): RMS {med(mine, 'rms_depth_error_mm')} mm ({med(rec, 'rms_depth_error_mm')}), "
+            f"{label} hold (median over {mine['episodes']} late successful episodes; recovery controller on the "
+            f"same plant and plant time in brackets): oscillation RMS {med(mine, 'oscillation_rms_mm')} mm "
+            f"({med(rec, 'oscillation_rms_mm')}), offset {med(mine, 'offset_mm')} mm ({med(rec, 'offset_mm')}), "
+            f"RMS {med(mine, 'rms_depth_error_mm')} mm ({med(rec, 'rms_depth_error_mm')}), "
             f"peak-to-peak {med(mine, 'peak_to_peak_mm')} mm ({med(rec, 'peak_to_peak_mm')}), "
             f"travel {med(mine, 'actuator_travel_deg_per_min')} deg/min "
             f"({med(rec, 'actuator_travel_deg_per_min')})")

@@ -1,9 +1,11 @@
-"""Hold quality: how well a successful episode holds the target (RMS depth error, peak-to-peak, actuator travel),
-and the same for the agent's recovery controller holding the target on the same plant and seeds.
+"""Hold quality: how well a successful episode holds the target, and the same for the agent's recovery controller
+holding the target on the same plant, at the same plant time and in the same plant state.
 
 Both are measured on the true depth over the second half of the episode (150-300 s at the default limit):
-the hold once the approach from the random start is over. Actuator travel is the stepper's path length
-(the battery's cost), per minute of hold.
+the hold once the approach from the random start is over. The error splits into its offset (the mean true-depth
+error, which a sensor bias or drift sets and no controller that trusts its sensor can remove) and the oscillation
+about that mean (RMS and peak-to-peak): what a policy's chatter adds. Actuator travel is the stepper's path
+length (the battery's cost), per minute of hold.
 """
 
 from __future__ import annotations
@@ -31,10 +33,12 @@ from simulator.plant.episode import (
 from simulator.plant.kernel import MOTOR, Z, plant_step
 from simulator.plant.recovery import recovery_init, recovery_update_kernel
 
-H_RMS_M, H_P2P_M, H_TRAVEL_DPM = 0, 1, 2  # columns of a hold row
-N_HOLD = 3
-_SUM_SQ, _N, _MIN, _MAX, _TRAVEL, _TIME = 0, 1, 2, 3, 4, 5  # accumulator layout
-N_ACC = 6
+# Columns of a hold row: RMS of the error, its peak-to-peak, travel; then the offset (mean error) and the RMS about it
+# (the first three as before issue 43, so earlier studies' rows keep their meaning).
+H_RMS_M, H_P2P_M, H_TRAVEL_DPM, H_OFFSET_M, H_OSC_RMS_M = 0, 1, 2, 3, 4
+N_HOLD = 5
+_SUM_SQ, _N, _MIN, _MAX, _TRAVEL, _TIME, _SUM = 0, 1, 2, 3, 4, 5, 6  # accumulator layout
+N_ACC = 7
 RECOVERY_HOLDS = 3  # recovery-controller holds per trial (each one episode long)
 
 
@@ -49,6 +53,7 @@ def hold_reset(acc: NDArray[np.float64]) -> None:
 def hold_add(acc: NDArray[np.float64], error_m: float, travel_deg: float, dt_s: float) -> None:
     """One control period of the hold: the depth error at its end and the stepper's travel during it."""
     acc[_SUM_SQ] += error_m * error_m
+    acc[_SUM] += error_m
     acc[_N] += 1.0
     acc[_MIN] = min(acc[_MIN], error_m)
     acc[_MAX] = max(acc[_MAX], error_m)
@@ -62,19 +67,26 @@ def hold_write(acc: NDArray[np.float64], row: NDArray[np.float64], success: bool
     if not success or acc[_N] == 0.0:
         row[:] = np.nan
         return
-    row[H_RMS_M] = np.sqrt(acc[_SUM_SQ] / acc[_N])
+    mean_sq = acc[_SUM_SQ] / acc[_N]
+    offset = acc[_SUM] / acc[_N]
+    row[H_RMS_M] = np.sqrt(mean_sq)
     row[H_P2P_M] = acc[_MAX] - acc[_MIN]
     row[H_TRAVEL_DPM] = acc[_TRAVEL] / acc[_TIME] * 60.0
+    row[H_OFFSET_M] = offset
+    # E[e^2] - E[e]^2 can round a hair below 0 for a constant error.
+    row[H_OSC_RMS_M] = np.sqrt(max(mean_sq - offset * offset, 0.0))
 
 
-@njit(cache=True, error_model="numpy", nogil=True)
-def recovery_hold_trial(
-    env_stream: NDArray[np.uint64], target_depth_m: float, spec: KernelSpec, lspec: KernelSpec,
-    hold: NDArray[np.float64],
+@njit(cache=True, error_model="numpy")
+def recovery_hold_run(
+    env: NDArray[np.float64], env_stream: NDArray[np.uint64], target_depth_m: float, spec: KernelSpec,
+    lspec: KernelSpec, hold: NDArray[np.float64],
 ) -> None:
-    """The recovery controller holding target_depth_m for an episode's length, len(hold) times, each from the
-    start the study's episode would have (the trial's own environment stream)."""
-    env = new_env_state(spec)
+    """The recovery controller holding target_depth_m for an episode's length, len(hold) times, on the trial's own
+    environment where its episodes left it: the same plant time (a drifting sensor has drifted as far), the same
+    sensor state and the neutral angle the controller has learned, each hold from the start an episode would have.
+
+    Called after a trial's last episode, so the trial's own figures do not depend on it."""
     acc = np.zeros(N_ACC)
     dt = spec.recovery_period_s
     n_steps = int(np.round(episode_steps(spec) * spec.control_period_s / dt))
@@ -100,9 +112,10 @@ def recovery_holds(
     env_streams: NDArray[np.uint64], target_depth_m: float, spec: KernelSpec, lspec: KernelSpec,
     hold: NDArray[np.float64],
 ) -> None:
-    """recovery_hold_trial for every trial (row t of hold belongs to trial t)."""
+    """The controller alone on a fresh plant per trial (row t of hold from env_streams[t]): what a benchmark of the
+    controller wants; a study measures it after its trial instead (recovery_hold_run, simulator/study/kernel.py)."""
     for t in prange(hold.shape[0]):
-        recovery_hold_trial(env_streams[t], target_depth_m, spec, lspec, hold[t])
+        recovery_hold_run(new_env_state(spec), env_streams[t], target_depth_m, spec, lspec, hold[t])
 
 
 def _quartiles(x: NDArray[np.float64], digits: int) -> dict[str, Any]:
@@ -117,6 +130,8 @@ def _block(rows: NDArray[np.float64]) -> dict[str, Any]:
     return {
         "episodes": int(ok.shape[0]),
         "rms_depth_error_mm": _quartiles(1000.0 * ok[:, H_RMS_M], 2),
+        "oscillation_rms_mm": _quartiles(1000.0 * ok[:, H_OSC_RMS_M], 2),
+        "offset_mm": _quartiles(1000.0 * ok[:, H_OFFSET_M], 2),
         "peak_to_peak_mm": _quartiles(1000.0 * ok[:, H_P2P_M], 1),
         "actuator_travel_deg_per_min": _quartiles(ok[:, H_TRAVEL_DPM], 1),
     }
@@ -129,13 +144,14 @@ def hold_summary(learner_hold: NDArray[np.float64], recovery_hold: NDArray[np.fl
     (the learned policy, not the exploring one)."""
     learned = learner_hold[:, -50:, :].reshape(-1, N_HOLD)
     out: dict[str, Any] = {
-        "window": "true depth over the second half of each successful episode; learner: its last 50 episodes",
+        "window": "true depth over the second half of each successful episode; learner: its last 50 episodes; "
+                  "recovery controller: right after them, on the same plant and plant state",
         "learner": _block(learned),
     }
     if recovery_hold is not None:
         out["recovery"] = _block(recovery_hold.reshape(-1, N_HOLD))
-        for key, name in (("rms_depth_error_mm", "rms_ratio"), ("actuator_travel_deg_per_min", "travel_ratio"),
-                          ("peak_to_peak_mm", "peak_to_peak_ratio")):
+        for key, name in (("rms_depth_error_mm", "rms_ratio"), ("oscillation_rms_mm", "oscillation_ratio"),
+                          ("actuator_travel_deg_per_min", "travel_ratio"), ("peak_to_peak_mm", "peak_to_peak_ratio")):
             a, b = out["learner"][key]["median"], out["recovery"][key]["median"]
             out[name] = None if a is None or not b else round(a / b, 3)
     return out

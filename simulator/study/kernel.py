@@ -23,7 +23,7 @@ from simulator.plant.episode import (
     new_env_state,
 )
 from simulator.plant.kernel import MOTOR, Z
-from simulator.study.hold import N_ACC, N_HOLD, hold_add, hold_reset, hold_write
+from simulator.study.hold import N_ACC, N_HOLD, RECOVERY_HOLDS, hold_add, hold_reset, hold_write, recovery_hold_run
 
 # Columns of a trial's planning/model counters.
 C_EVICTIONS, C_SWEEPS_TOTAL, C_SWEEPS_MAX, C_PLANS = 0, 1, 2, 3
@@ -39,6 +39,8 @@ class TrialArrays(NamedTuple):
     policy: NDArray[np.int8]  # [states] greedy policy after the last episode
     counters: NDArray[np.int64]  # [N_COUNTERS] evictions, sweeps in all, most sweeps of one call, planning calls
     hold: NDArray[np.float64]  # [episodes, N_HOLD] hold quality of each successful episode (NaN otherwise)
+    # [RECOVERY_HOLDS, N_HOLD] the recovery controller's holds, run after the last episode on the trial's plant
+    recovery_hold: NDArray[np.float64]
 
     @classmethod
     def zeros(cls, trials: tuple[int, ...], episodes: int, states: int) -> TrialArrays:
@@ -46,7 +48,13 @@ class TrialArrays(NamedTuple):
         return cls(
             np.zeros((*trials, episodes)), np.zeros((*trials, states)), np.zeros((*trials, states), dtype=np.int8),
             np.zeros((*trials, N_COUNTERS), dtype=np.int64), np.zeros((*trials, episodes, N_HOLD)),
+            np.zeros((*trials, RECOVERY_HOLDS, N_HOLD)),
         )
+
+    def row(self, t: int) -> TrialArrays:
+        """Trial t's rows of a batch's outputs."""
+        return TrialArrays(self.durations_s[t], self.values[t], self.policy[t], self.counters[t], self.hold[t],
+                           self.recovery_hold[t])
 
 
 # Columns of a recorded step: the action taken, the learner's state after it, then the recorded env entries.
@@ -85,7 +93,7 @@ def _trial(
 ) -> None:
     """The trial loop of run_trial and replay_trial. numba compiles it once per type of record and drops the
     `record is not None` branch when it is None: the study's loop carries no trace of the recording."""
-    durations_s, values, policy, counters, hold = out
+    durations_s, values, policy, counters, hold, recovery_hold = out
     n_states = values.shape[0]
     sparse = lspec.model_form == 1
     shared = lspec.shared_model
@@ -136,6 +144,10 @@ def _trial(
         counters[C_SWEEPS_MAX] = max(counters[C_SWEEPS_MAX], sweeps)
         counters[C_PLANS] += 1
         progress[trial] = episode + 1
+    # Issue 43: the controller is measured where the learner's last episodes left the plant (its clock, the sensor's
+    # drift and noise state), not on a fresh plant at time 0; after the last episode, so nothing above depends on it.
+    if recovery_hold.shape[0] > 0:
+        recovery_hold_run(env, env_stream, target_depth_m, spec, lspec, recovery_hold)
 
 
 @njit(cache=True, error_model="numpy", nogil=True)
@@ -179,5 +191,6 @@ def run_trials(
 ) -> None:
     """All trials in parallel; row t of every output belongs to trial t."""
     for t in prange(out.durations_s.shape[0]):
-        rows = TrialArrays(out.durations_s[t], out.values[t], out.policy[t], out.counters[t], out.hold[t])
+        rows = TrialArrays(out.durations_s[t], out.values[t], out.policy[t], out.counters[t], out.hold[t],
+                           out.recovery_hold[t])
         run_trial(learner_streams[t], env_streams[t], target_depth_m, spec, lspec, rows, progress, t)

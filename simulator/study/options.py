@@ -8,7 +8,7 @@ from typing import Any
 
 from learning import LearnerConfig, learner_preset
 from simulator.errors import SimulatorError
-from simulator.parameters import PlantParams, preset
+from simulator.parameters import PlantParams, is_hardware, preset
 
 SIMULATION_REGION = (0.1, 0.04)  # paper V-A: |z - z_d| < 0.1 m, |z'| < 0.04 m/s
 EXPERIMENT_REGION = (0.15, 0.03)  # paper V-B, the experiment on the real agent
@@ -101,7 +101,7 @@ def expand_runs(
         if params_override is not None:
             params = params_override(params)
         config = learner_preset(learner, **overrides)
-        regions = [None] if (region_given or preset_name != "hardware") else [SIMULATION_REGION,
+        regions = [None] if (region_given or not is_hardware(preset_name)) else [SIMULATION_REGION,
                                                                                  EXPERIMENT_REGION]
         for region in regions:
             c = config if region is None else replace(config, z_tol_m=region[0], zdot_tol_mps=region[1])

@@ -12,7 +12,7 @@ import numpy as np
 
 from learning import LearnerConfig, resolve_learner
 from simulator.errors import StudyError
-from simulator.parameters import PlantParams
+from simulator.parameters import PlantParams, is_hardware
 from simulator.study.figures import write_figures
 from simulator.study.goals import goal_lines
 from simulator.study.hold import hold_summary
@@ -62,7 +62,7 @@ def build_summary(
         "params": asdict(params),
         "learner_config": {k: (int(v) if hasattr(v, "value") else v) for k, v in asdict(config).items()},
     }
-    if preset == "hardware":
+    if is_hardware(preset):
         out["hardware_goals"] = goal_lines(out)
     return out
 

@@ -12,6 +12,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from simulator.parameters import is_hardware
 from simulator.study.goals import hardware_goals
 
 
@@ -33,18 +34,20 @@ def _med(block: dict[str, Any] | None, key: str) -> str:
 
 
 def goals_table(summaries: list[dict[str, Any]]) -> str:
-    """One row per hardware study: the four goals, then hold RMS and travel against the recovery controller."""
+    """One row per hardware study: the four goals, then the hold's oscillation, offset and travel against the recovery
+    controller's on the same plants at the same plant time."""
     head = ("| study | region | trials | first success (<= 20) | median ALC stable from (<= 90) | per-trial stable "
-            "from, median (<= 100) | never stable (<= 5 %, Wilson upper <= 8 %) | hold RMS mm: learner / recovery "
-            "| travel deg/min: learner / recovery |")
-    rows = [head, "|" + "---|" * 9]
+            "from, median (<= 100) | never stable (<= 5 %, Wilson upper <= 8 %) | hold oscillation RMS mm: learner / "
+            "recovery | offset mm: learner / recovery | travel deg/min: learner / recovery |")
+    rows = [head, "|" + "---|" * 10]
     for s in summaries:
         cells = [f"{v.text}: {'met' if v.met else '**not met**'}" for v in hardware_goals(s)]
         hold = s.get("hold_quality") or {}
         mine, rec = hold.get("learner"), hold.get("recovery")
         rows.append(
             f"| {s['preset']}/{s['learner']} | {_region(s)} | {len(s['trials'])} | " + " | ".join(cells)
-            + f" | {_med(mine, 'rms_depth_error_mm')} / {_med(rec, 'rms_depth_error_mm')}"
+            + f" | {_med(mine, 'oscillation_rms_mm')} / {_med(rec, 'oscillation_rms_mm')}"
+            + f" | {_med(mine, 'offset_mm')} / {_med(rec, 'offset_mm')}"
             + f" | {_med(mine, 'actuator_travel_deg_per_min')} / {_med(rec, 'actuator_travel_deg_per_min')} |")
     return "\n".join(rows)
 
@@ -72,7 +75,7 @@ def report(folder: Path) -> str:
     parts = []
     if (folder / "compare.json").exists():
         parts.append(compare_table(json.loads((folder / "compare.json").read_text())))
-    hardware = [s for s in _summaries(folder) if s["preset"] == "hardware"]
+    hardware = [s for s in _summaries(folder) if is_hardware(s["preset"])]
     if hardware:
         parts.append(goals_table(hardware))
     if not parts:

@@ -18,7 +18,6 @@ from learning.config import kernel_spec
 from learning.rng import new_stream
 from simulator.errors import StudyError
 from simulator.parameters import PlantParams, kernel_params
-from simulator.study.hold import N_HOLD, RECOVERY_HOLDS, recovery_hold_trial, recovery_holds
 from simulator.study.kernel import TrialArrays, run_trial, run_trials
 
 _POLL_S = 0.1
@@ -39,7 +38,8 @@ class StudyResult:
     counters: NDArray[np.int64] | None = None
     seeds: tuple[int, ...] = ()  # every seed pooled, trials of seeds[0] first
     hold: NDArray[np.float64] | None = None  # [trials, episodes, N_HOLD] hold quality per successful episode
-    recovery_hold: NDArray[np.float64] | None = None  # [trials, RECOVERY_HOLDS, N_HOLD] the recovery controller's
+    # [trials, RECOVERY_HOLDS, N_HOLD] the recovery controller's, after each trial's last episode on its plant
+    recovery_hold: NDArray[np.float64] | None = None
 
 
 def trial_streams(seed: int, trial: int) -> tuple[NDArray[np.uint64], NDArray[np.uint64]]:
@@ -79,21 +79,16 @@ def run_study(
     progress = np.zeros(trials, dtype=np.int64)
     if plants is not None and len(plants) != trials:
         raise StudyError(f"{len(plants)} plants for {trials} trials")
-    recovery_hold = np.zeros((trials, RECOVERY_HOLDS, N_HOLD))
     out = TrialArrays.zeros((trials,), episodes, n_states(config))
-    durations, values, policy, counters, hold = out
+    durations, values, policy, counters, hold, recovery_hold = out
     lspec = kernel_spec(config)
     args = (learner_streams, env_streams, params.target_depth_m, kernel_params(params), lspec, out, progress)
-    # The recovery controller's holds start from the trials' own first starts: copies of their fresh streams.
-    hold_streams = env_streams.copy()
     failure: list[BaseException] = []
 
     def one_trial(t: int) -> None:
         assert plants is not None
-        rows = TrialArrays(durations[t], values[t], policy[t], counters[t], hold[t])
         spec = kernel_params(plants[t])
-        run_trial(learner_streams[t], env_streams[t], plants[t].target_depth_m, spec, lspec, rows, progress, t)
-        recovery_hold_trial(hold_streams[t], plants[t].target_depth_m, spec, lspec, recovery_hold[t])
+        run_trial(learner_streams[t], env_streams[t], plants[t].target_depth_m, spec, lspec, out.row(t), progress, t)
 
     def work() -> None:
         try:
@@ -102,7 +97,6 @@ def run_study(
                 # Trials differ in length: hand them out one at a time so neither core idles at the end.
                 with numba.parallel_chunksize(1):
                     run_trials(*args)
-                recovery_holds(hold_streams, params.target_depth_m, args[3], lspec, recovery_hold)
             else:
                 # One plant per trial: numba's prange takes one spec, so trials go to threads here (the
                 # trial kernel releases the GIL), one at a time as in the batch.

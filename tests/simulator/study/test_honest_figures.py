@@ -10,9 +10,21 @@ from typer.testing import CliRunner
 
 from learning import learner_preset
 from simulator.cli import app
-from simulator.parameters import preset
+from simulator.parameters import preset, with_overrides
 from simulator.study.goals import hardware_goals
-from simulator.study.hold import H_P2P_M, H_RMS_M, H_TRAVEL_DPM, N_ACC, hold_add, hold_reset, hold_summary, hold_write
+from simulator.study.hold import (
+    H_OFFSET_M,
+    H_OSC_RMS_M,
+    H_P2P_M,
+    H_RMS_M,
+    H_TRAVEL_DPM,
+    N_ACC,
+    N_HOLD,
+    hold_add,
+    hold_reset,
+    hold_summary,
+    hold_write,
+)
 from simulator.study.report import main as report_main
 from simulator.study.runner import run_study
 from simulator.study.stats import summarise, wilson_interval
@@ -47,12 +59,15 @@ def test_never_stable_is_met_only_where_its_interval_clears_the_goal() -> None:
 
 def test_hold_row_of_a_known_oscillation() -> None:
     acc = np.zeros(N_ACC)
-    row = np.zeros(3)
+    row = np.zeros(N_HOLD)
     hold_reset(acc)
-    for k in range(600):  # a 0.01 m sine sampled every 0.1 s, the stepper moving 2 deg every step, for 60 s
-        hold_add(acc, 0.01 * np.sin(2 * np.pi * k / 40), 2.0, 0.1)
+    for k in range(600):  # 3 mm off and a 0.01 m sine every 0.1 s, the stepper moving 2 deg every step, for 60 s
+        hold_add(acc, 0.003 + 0.01 * np.sin(2 * np.pi * k / 40), 2.0, 0.1)
     hold_write(acc, row, True)
-    assert row[H_RMS_M] == pytest.approx(0.01 / np.sqrt(2), rel=1e-3)
+    # The offset and the oscillation about it apart; the RMS holds both.
+    assert row[H_OFFSET_M] == pytest.approx(0.003, abs=1e-9)
+    assert row[H_OSC_RMS_M] == pytest.approx(0.01 / np.sqrt(2), rel=1e-3)
+    assert row[H_RMS_M] == pytest.approx(np.sqrt(0.003**2 + 0.01**2 / 2), rel=1e-3)
     assert row[H_P2P_M] == pytest.approx(0.02, rel=1e-3)
     assert row[H_TRAVEL_DPM] == pytest.approx(1200.0)
     hold_write(acc, row, False)
@@ -71,6 +86,24 @@ def test_study_reports_hold_quality_beside_the_recovery_controller() -> None:
     # The learner steps its command 2.1 deg every 0.1 s: 1260 deg/min of stepper travel at most.
     assert 0 < summary["learner"]["actuator_travel_deg_per_min"]["median"] <= 1260.0
     assert summary["rms_ratio"] > 0 and summary["travel_ratio"] > 0
+
+
+def test_recovery_controller_is_held_at_the_learners_plant_time() -> None:
+    """Issue 43: on a drifting sensor the controller's hold is measured where the trial's episodes left the plant (its
+    offset is the drift of the trial's plant time), not on a fresh plant at time 0, where it would be 0."""
+    drift_pa_per_s = 0.05
+    params = with_overrides(preset("paper"), {"pressure_drift_pa_per_s": drift_pa_per_s})
+    result = run_study(params, learner_preset("shared"), 1, 12, seed=3)
+    assert result.recovery_hold is not None
+    plant_time_s = float(result.durations_s.sum())  # the paper preset restarts without recovery: the trial's clock
+    rho_g = params.water_density_kgpm3 * params.gravity_mps2
+    # The controller trusts its reading: the true depth sits shallower by the drift, here over the first hold's
+    # second half (its start, a recovery of under 100 s, then 150-300 s of the hold).
+    earliest, latest = plant_time_s + 150.0, plant_time_s + 400.0
+    offset = result.recovery_hold[0, 0, H_OFFSET_M]
+    assert -drift_pa_per_s * latest / rho_g - 3e-4 <= offset <= -drift_pa_per_s * earliest / rho_g + 3e-4
+    assert offset < -0.005  # far from a fresh plant's 0
+    assert result.recovery_hold[0, 0, H_OSC_RMS_M] < 0.002  # the hold itself is still tight
 
 
 def test_report_tables_come_from_the_study_folder(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

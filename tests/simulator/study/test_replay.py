@@ -25,7 +25,7 @@ def test_a_replayed_trial_is_the_study_trial_with_each_step_recorded() -> None:
         record = StepRecord(np.array([E_STEPS, E_VEL_EST]), np.full((EPISODES, limit, S_ENV + 2), np.nan))
         replay_trial(*trial_streams(SEED, t), params.target_depth_m, spec, lspec, out, record)
         for replayed, studied in zip(out, (study.durations_s, study.values, study.policy, study.counters,
-                                           study.hold), strict=True):
+                                           study.hold, study.recovery_hold), strict=True):
             assert np.array_equal(replayed, studied[t], equal_nan=True)
         for episode, duration_s in enumerate(out.durations_s):
             n = round(duration_s / params.control_period_s)
