@@ -4,9 +4,10 @@ Run: .venv/bin/python benchmarks/firmware_bench.py [--episodes N] [--learner NAM
 
 Flash and RAM: the variants of `make -C firmware teensy`, whose learner storage fits the paper
 learner (S = 101), the actuator-state learner (S = 301) and the shared-model learner with 13 actuator bins
-(S = 1301), read with arm-none-eabi-size; RAM = .data +
-.bss, which holds the linker script's stack reserve; the stack peak measured on the emulated board (the
-same core, painted stack) shows whether the reserve suffices.
+(S = 1301), read by firmware/boards/teensy/image_size.sh from the linker script's own symbols (Berkeley
+`size` counts .data as text in these images); RAM = USB buffers + .data + .bss, and what is left of the 64 KB
+is the stack's and the heap's; the stack peak measured on the emulated board (the same core, painted stack)
+shows whether that suffices.
 
 Instructions: the QEMU build runs under `-icount shift=0` (one instruction = 1 ns of virtual time) and
 times each agent step on the 25 MHz APB timer (40 instructions per tick); a calibration loop of a known
@@ -38,7 +39,7 @@ from simulator.serve.firmware_qemu import FIRMWARE_DIR, QemuAgent, QemuConfig, b
 CPU_HZ = 72e6
 GOAL_RAM_BYTES = 32 * 1024
 GOAL_FLASH_BYTES = 96 * 1024
-TEENSY_STACK_BYTES = 4096  # the .stack reserve of boards/teensy/mk20dx256.ld, inside .bss
+TEENSY_STACK_BYTES = 4096  # what `make teensy` requires left free for the stack (its TEENSY_STACK_BYTES)
 PERIOD_S = {Mode.LEARNING: 0.1, Mode.RECOVERING: 0.025, Mode.IDLE: 0.1, Mode.SURFACING: 0.1,
             Mode.HOVER: 0.025, Mode.PAUSED: 0.025}
 # name -> (learner, `dive run` arguments that select it, the Teensy variant of `make teensy`)
@@ -72,15 +73,27 @@ def arena_flags(config: LearnerConfig) -> str:
 
 @dataclass
 class Sizes:
-    text: int
+    flash: int
+    ram: int
+    usb: int
     data: int
     bss: int
+    free: int  # RAM left for the stack and the heap
 
 
-def arm_size(elf: Path) -> Sizes:
-    out = subprocess.run(["arm-none-eabi-size", str(elf)], capture_output=True, text=True, check=True).stdout
-    text, data, bss = (int(x) for x in out.splitlines()[1].split()[:3])
-    return Sizes(text, data, bss)
+IMAGE_SIZE = FIRMWARE_DIR / "boards" / "teensy" / "image_size.sh"
+_IMAGE_SIZE_LINE = re.compile(r"flash\s+(\d+) B .*RAM\s+(\d+) B .*USB (\d+), data (\d+), bss (\d+)\).*"
+                              r"free for stack and heap\s+(\d+) B")
+
+
+def image_size(elf: Path) -> Sizes:
+    """One image's flash and RAM as the build's own check reads them (image_size.sh; stack need 0: report only)."""
+    out = subprocess.run(["sh", str(IMAGE_SIZE), str(elf), elf.parent.name, "0"], capture_output=True, text=True,
+                         check=True).stdout
+    found = _IMAGE_SIZE_LINE.search(out)
+    if found is None:
+        raise SystemExit(f"image_size.sh printed an unexpected line for {elf}: {out.strip()}")
+    return Sizes(*(int(g) for g in found.groups()))
 
 
 def teensy_builds(build_dir: Path) -> dict[str, Sizes] | str:
@@ -90,7 +103,7 @@ def teensy_builds(build_dir: Path) -> dict[str, Sizes] | str:
     if done.returncode != 0:
         lines = [x for x in (done.stderr or done.stdout).splitlines() if x.strip()]
         return lines[-1] if lines else "make teensy failed"
-    return {elf.parent.name: arm_size(elf) for elf in sorted((build_dir / "teensy").glob("*/agent.elf"))}
+    return {elf.parent.name: image_size(elf) for elf in sorted((build_dir / "teensy").glob("*/agent.elf"))}
 
 
 @dataclass
@@ -162,7 +175,7 @@ def main() -> None:
                         help="only these learners (repeatable; default all)")
     args = parser.parse_args()
     chosen = {n: v for n, v in LEARNERS.items() if not args.learner or n.split()[0] in args.learner}
-    for tool in ("arm-none-eabi-gcc", "arm-none-eabi-size", "qemu-system-arm", "make"):
+    for tool in ("arm-none-eabi-gcc", "arm-none-eabi-size", "arm-none-eabi-nm", "qemu-system-arm", "make"):
         if shutil.which(tool) is None:
             raise SystemExit(f"{tool} not found: the firmware benchmark needs it")
     console = Console(stderr=True)
@@ -182,14 +195,12 @@ def main() -> None:
                           f"{run.instructions_per_tick:.2f} instructions per tick (anchor: 40.00, ratio "
                           f"{run.instructions_per_tick / 40.0:.4f})")
             if isinstance(teensy, Sizes):
-                flash = teensy.text + teensy.data
-                ram = teensy.data + teensy.bss
-                rows.append(f"| {name} | {flash:,} ({flash / GOAL_FLASH_BYTES:.0%} of the 96 KB goal) | "
-                            f"{ram:,} = {teensy.data} data + {teensy.bss:,} bss with the {TEENSY_STACK_BYTES} B "
-                            f"stack reserve ({ram / GOAL_RAM_BYTES:.0%} of the 32 KB goal) | "
-                            f"{run.stack_peak_bytes:,} | {run.learner_bytes:,} |")
+                rows.append(f"| {name} | {teensy.flash:,} ({teensy.flash / GOAL_FLASH_BYTES:.0%} of the 96 KB goal) | "
+                            f"{teensy.ram:,} = {teensy.usb:,} USB + {teensy.data:,} data + {teensy.bss:,} bss "
+                            f"({teensy.ram / GOAL_RAM_BYTES:.0%} of the 32 KB goal) | {teensy.free:,} "
+                            f"(needs {TEENSY_STACK_BYTES:,}) | {run.stack_peak_bytes:,} | {run.learner_bytes:,} |")
             else:
-                rows.append(f"| {name} | not built: {teensy} | - | {run.stack_peak_bytes:,} | {run.learner_bytes:,} |")
+                rows.append(f"| {name} | not built: {teensy} | - | - | {run.stack_peak_bytes:,} | {run.learner_bytes:,} |")
             ipt = run.instructions_per_tick
             for (mode, planning), st in sorted(run.steps.items()):
                 period = PERIOD_S.get(Mode(mode), 0.1)
@@ -209,7 +220,8 @@ def main() -> None:
                 f"{max(instr, default=0) / CPU_HZ:.2f} s | {run.plan_waits} | {run.forced_plans} | "
                 f"**{run.late_steps}** |")
     # Plain prints: the tables go into docs/firmware.md as they are (rich would wrap them).
-    print("\n| Teensy build | flash B | RAM B | stack peak B (QEMU) | learner arrays B |\n|---|---|---|---|---|")
+    print("\n| Teensy build | flash B | RAM B | free for stack and heap B | stack peak B (QEMU) | learner arrays B |"
+          "\n|---|---|---|---|---|---|")
     print("\n".join(rows))
     print("\n| learner | step | steps | instructions mean | instructions max | period | mean share at 72 MHz | "
           "max share |\n|---|---|---|---|---|---|---|---|")
