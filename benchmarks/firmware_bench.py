@@ -200,7 +200,8 @@ def main() -> None:
                             f"({teensy.ram / GOAL_RAM_BYTES:.0%} of the 32 KB goal) | {teensy.free:,} "
                             f"(needs {TEENSY_STACK_BYTES:,}) | {run.stack_peak_bytes:,} | {run.learner_bytes:,} |")
             else:
-                rows.append(f"| {name} | not built: {teensy} | - | - | {run.stack_peak_bytes:,} | {run.learner_bytes:,} |")
+                rows.append(f"| {name} | not built: {teensy} | - | - | {run.stack_peak_bytes:,} | "
+                            f"{run.learner_bytes:,} |")
             ipt = run.instructions_per_tick
             for (mode, planning), st in sorted(run.steps.items()):
                 period = PERIOD_S.get(Mode(mode), 0.1)
