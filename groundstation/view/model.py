@@ -4,14 +4,27 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from dataclasses import dataclass, field
-from enum import Enum
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from groundstation.session.dumps import DumpAssembler
+from groundstation.view.entities import (
+    ACTION_PATHS,
+    CURVE_EPISODES,
+    ENTITIES,
+    MODE_PATHS,
+    MOVING_AVERAGE_EPISODES,
+    OUTCOME_NAMES,
+    STATE_ENTITIES,
+    SUCCESS_TIME_S,
+    TEXT_LEVELS,
+    Batch,
+    Kind,
+    Rows,
+)
 from groundstation.view.heatmap import (
     DEFAULT_GRID,
     Grid,
@@ -23,90 +36,11 @@ from groundstation.view.heatmap import (
     value_image,
     value_range,
 )
-from protocol import Action, DumpKind, EndReason, FrameFlag, Message, Mode, Severity
+from protocol import DumpKind, FrameFlag, Message
 from protocol import messages as m
 
-SUCCESS_TIME_S = 300.0  # an episode that lasts this long is a success (paper V-A)
-MOVING_AVERAGE_EPISODES = 50
-# The by-episode curve is sent whole at each episode end (the viewer shows the latest one, on any timeline):
-# bounded so a night of short episodes does not grow the recording by the square of their number.
-CURVE_EPISODES = 1000
-
-
-class Kind(Enum):
-    SCALAR = "scalar"  # float per row
-    POINT = "point"  # float per row, drawn as markers
-    TEXT = "text"  # (text, level) per row
-    IMAGE = "image"  # HxWx3 uint8 per row
-    BOX = "box"  # (center_x, center_y, label) per row: the agent's cell on a heatmap
-    FRAME = "frame"  # heatmap.Frame per row: a heatmap's axes, tick values and colour legend
-    BARS = "bars"  # (episode numbers, durations) per row: the whole learning curve up to this episode
-
-
-# Entity path -> (kind, legend name). The blueprint groups them by their first path component.
-# The depth panel plots z up (= -depth): deeper is drawn lower, as the heatmaps draw it (a plot axis cannot flip).
-ENTITIES: dict[str, tuple[Kind, str]] = {
-    "depth/z_up_m": (Kind.SCALAR, "z up = -depth [m]"),
-    "depth/target_z_up_m": (Kind.SCALAR, "target z up [m]"),
-    "depth/region_top_z_up_m": (Kind.SCALAR, "learning region [m]"),  # one name: one legend entry for both edges
-    "depth/region_bottom_z_up_m": (Kind.SCALAR, "learning region [m]"),
-    "depth/episode_start_z_up_m": (Kind.POINT, "episode start"),
-    "depth/episode_success_z_up_m": (Kind.POINT, "success"),
-    "depth/episode_failure_z_up_m": (Kind.POINT, "failure"),
-    "depth/episode_aborted_z_up_m": (Kind.POINT, "aborted"),
-    "velocity/velocity_mps": (Kind.SCALAR, "velocity [m/s]"),
-    "velocity/bound_min_mps": (Kind.SCALAR, "bound [m/s]"),
-    "velocity/bound_max_mps": (Kind.SCALAR, "bound [m/s]"),
-    "actuator/actuator_deg": (Kind.SCALAR, "actuator [deg]"),
-    "actuator/actuator_cmd_deg": (Kind.SCALAR, "command [deg]"),
-    # One series per action and per mode, named by it: the legend labels them (a plot axis shows only numbers)
-    "action/decrease_volume": (Kind.POINT, "less volume (a1)"),
-    "action/increase_volume": (Kind.POINT, "more volume (a2)"),
-    "reward/reward": (Kind.SCALAR, "reward"),
-    "battery/battery_v": (Kind.SCALAR, "battery [V]"),
-    **{f"mode/{mode.name.lower()}": (Kind.POINT, mode.name) for mode in Mode},
-    "mode/other": (Kind.POINT, "another mode"),
-    "learning_curve/duration_s": (Kind.POINT, "duration [s]"),
-    "learning_curve/moving_average_s": (Kind.SCALAR, f"{MOVING_AVERAGE_EPISODES}-episode mean [s]"),
-    "learning_curve/success_line_s": (Kind.SCALAR, f"success time ({SUCCESS_TIME_S:.0f} s)"),
-    "learning_curve_by_episode/duration_s": (Kind.BARS, "duration [s] per episode"),
-    "value_function/image": (Kind.IMAGE, "v(s)"),
-    "value_function/current_cell": (Kind.BOX, "agent"),
-    "value_function/frame": (Kind.FRAME, "axes and legend"),
-    "policy/image": (Kind.IMAGE, "policy"),
-    "policy/current_cell": (Kind.BOX, "agent"),
-    "policy/frame": (Kind.FRAME, "axes and legend"),
-    "link/loss_ratio": (Kind.SCALAR, "loss"),
-    "link/rtt_s": (Kind.SCALAR, "RTT [s]"),
-    "link/backfilled_samples": (Kind.SCALAR, "backfilled samples"),
-    "log/agent": (Kind.TEXT, "agent log"),
-    "log/events": (Kind.TEXT, "episodes and link"),
-}
-TIMELINES = ("agent_time", "host_time", "episode", "step")
-_STATE_ENTITIES = ("value_function", "policy", "learning_curve_by_episode")  # what keep_state keeps the last of
-_MODE_PATHS = {int(mode): f"mode/{mode.name.lower()}" for mode in Mode}
-_ACTION_PATHS = {int(Action.DECREASE_VOLUME): "action/decrease_volume",
-                 int(Action.INCREASE_VOLUME): "action/increase_volume"}
-_OUTCOME: dict[int, str] = {EndReason.SUCCESS: "success", EndReason.FAILURE: "failure", EndReason.ABORTED: "aborted"}
-_LEVELS: dict[int, str] = {Severity.DEBUG: "DEBUG", Severity.INFO: "INFO", Severity.WARNING: "WARN",
-                           Severity.ERROR: "ERROR"}  # rerun's TextLog level names
-
-
-@dataclass(slots=True)
-class Rows:
-    """One entity's rows as columns: the four timelines and one value per row."""
-
-    agent_time_s: list[float] = field(default_factory=list)
-    host_time_ns: list[int] = field(default_factory=list)
-    episode: list[int] = field(default_factory=list)
-    step: list[int] = field(default_factory=list)
-    values: list[Any] = field(default_factory=list)
-
-    def __len__(self) -> int:
-        return len(self.values)
-
-
-Batch = dict[str, Rows]  # entity path -> rows, in arrival order
+# Re-exported: the live view and the replay take the catalogue with the model.
+__all__ = ["ENTITIES", "Batch", "Kind", "Region", "Rows", "ViewModel"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -159,7 +93,7 @@ class ViewModel:
         for path, rows in batch.items():
             if path.startswith("learning_curve/"):
                 self._batch[path] = rows
-            elif path.split("/")[0] in _STATE_ENTITIES and rows.values:
+            elif path.split("/")[0] in STATE_ENTITIES and rows.values:
                 last = len(rows) - 1
                 self._batch[path] = Rows([rows.agent_time_s[last]], [rows.host_time_ns[last]], [rows.episode[last]],
                                          [rows.step[last]], [rows.values[last]])
@@ -189,13 +123,13 @@ class ViewModel:
             self._dump_chunk(message, host_time_ns)
         elif isinstance(message, m.Text):
             self._agent_time_s = message.t_us / 1e6
-            level = _LEVELS.get(message.severity, "INFO")
+            level = TEXT_LEVELS.get(message.severity, "INFO")
             self._row("log/agent", (message.text, level), host_time_ns)
         elif isinstance(message, m.Heartbeat):
             if not replayed:  # the agent's state now, once a second: the battery and mode panels
                 self._agent_time_s = message.uptime_ms / 1e3
                 self._row("battery/battery_v", message.battery_mv / 1e3, host_time_ns)
-                self._row(_MODE_PATHS.get(message.mode, "mode/other"), float(message.mode), host_time_ns)
+                self._row(MODE_PATHS.get(message.mode, "mode/other"), float(message.mode), host_time_ns)
         elif isinstance(message, m.ParamValue):
             self._dumps.saw_parameter(message.name, message.value)  # the grid bounds a dump's size
             if message.name in self._grid_params and math.isfinite(message.value) and message.value > 0:
@@ -234,8 +168,8 @@ class ViewModel:
         self._row("actuator/actuator_deg", s.actuator_deg, host_time_ns)
         self._row("actuator/actuator_cmd_deg", s.actuator_cmd_deg, host_time_ns)
         self._row("reward/reward", s.reward, host_time_ns)
-        if s.action in _ACTION_PATHS:
-            self._row(_ACTION_PATHS[s.action], float(s.action), host_time_ns)
+        if s.action in ACTION_PATHS:
+            self._row(ACTION_PATHS[s.action], float(s.action), host_time_ns)
         region = self._region
         if region is not None:
             self._row("depth/target_z_up_m", -region.target_depth_m, host_time_ns)
@@ -285,7 +219,7 @@ class ViewModel:
         rows("actuator/actuator_cmd_deg", records["actuator_cmd_deg"].tolist())
         rows("reward/reward", records["reward"].tolist())
         actions = records["action"]
-        for action, path in _ACTION_PATHS.items():
+        for action, path in ACTION_PATHS.items():
             acted = np.flatnonzero(actions == action).tolist()
             if acted:
                 rows(path, [float(action)] * len(acted), acted)
@@ -359,7 +293,7 @@ class ViewModel:
         self._chapter(e.generation, e.episode, False, host_time_ns)
         self._agent_time_s = e.t_us / 1e6
         self._episode = e.episode
-        outcome = _OUTCOME.get(e.reason, "aborted")
+        outcome = OUTCOME_NAMES.get(e.reason, "aborted")
         self._row(f"depth/episode_{outcome}_z_up_m", -self._depth_m, host_time_ns)
         text = f"episode {e.episode} {outcome} after {e.duration_s:.1f} s, {e.steps} steps, " \
             f"return {e.episode_return:.2f}, {e.successes} successes"

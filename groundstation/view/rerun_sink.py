@@ -17,9 +17,10 @@ import rerun.blueprint as rrb
 from rerun.encodings import TimeInt
 
 from groundstation.session.events import LinkEvent, Received, Sent
+from groundstation.view.entities import ENTITIES, Batch, Kind, Rows
 from groundstation.view.errors import ViewError
 from groundstation.view.heatmap import AXIS_COLOUR, DEFAULT_GRID, SWATCH_RADIUS, Bounds, Frame, bounds, default_grid
-from groundstation.view.model import ENTITIES, Batch, Kind, Rows, ViewModel
+from groundstation.view.model import ViewModel
 from groundstation.view.options import Viewer
 from groundstation.view.web_server import WebViewerServer, rerun_executable
 
