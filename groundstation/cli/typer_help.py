@@ -10,6 +10,7 @@ checks that `dive --help` still imports neither and prints the same help.
 from __future__ import annotations
 
 import importlib
+import re
 import sys
 import types
 from typing import Any
@@ -36,26 +37,29 @@ class _OnFirstUse(type):
         return getattr(cls._real(), attribute)
 
 
-def _one_line_bad_value(format_error: Any) -> Any:
-    """Typer's error printer, but a bad value (`--episodes -3`, `--web-port 70000`) is the one line the README
-    promises (exit 2, as before), not a usage line, a hint and a 5-line box: the message names the option and the
-    range, which is all the box said. Other usage errors (an unknown option, a missing argument) keep the box."""
+def _one_line_usage_error(format_error: Any) -> Any:
+    """Typer's error printer, but every usage error (`--episodes -3`, `--web-port 70000`, an unknown command or
+    option, a missing argument) is the one line the README promises (exit 2, as before), not a usage line, a hint
+    and a 5-line box: the message names what was wrong, and the line says where the options are listed."""
     import click
     from rich.text import Text
 
     from groundstation.cli.common import command_path, err
 
-    def format_bad_value(error: click.ClickException) -> None:
-        if not isinstance(error, click.BadParameter):
+    def format_usage_error(error: click.ClickException) -> None:
+        if not isinstance(error, click.UsageError):
             format_error(error)
             return
-        message = error.format_message()
+        # Typer's group adds its "Did you mean" to click's, which already has one: say each sentence once.
+        sentences = re.split(r"(?<=[.?!])\s+", error.format_message().strip())
+        message = " ".join(dict.fromkeys(x for x in sentences if x))
         context = getattr(error, "ctx", None)
-        where = f" ({command_path(context)} -h shows the options)" if context is not None else ""
+        listed = "the commands" if isinstance(getattr(context, "command", None), click.Group) else "the options"
+        where = f" ({command_path(context)} -h lists {listed})" if context is not None else ""
         err.print(Text.assemble(("dive:", "bold red"), f" {message[:1].lower()}{message[1:].rstrip('.')}{where}"),
                   soft_wrap=True)
 
-    return format_bad_value
+    return format_usage_error
 
 
 def load_typer_help() -> None:
@@ -72,7 +76,7 @@ def load_typer_help() -> None:
     try:
         import typer.rich_utils
 
-        typer.rich_utils.rich_format_error = _one_line_bad_value(typer.rich_utils.rich_format_error)
+        typer.rich_utils.rich_format_error = _one_line_usage_error(typer.rich_utils.rich_format_error)
     finally:
         for module, stand_in in stand_ins.items():
             if sys.modules.get(module) is stand_in:

@@ -60,7 +60,19 @@ def test_bad_usage_is_exit_2_before_anything_starts(args: list[str], text: str) 
 def test_a_value_out_of_range_is_the_one_line_the_readme_promises(args: list[str], text: str) -> None:
     done = dive(*args)
     assert done.returncode == 2, done.stderr
-    assert done.stderr.splitlines() == [f"dive: {text} (dive {args[0]} -h shows the options)"], done.stderr
+    assert done.stderr.splitlines() == [f"dive: {text} (dive {args[0]} -h lists the options)"], done.stderr
+
+
+@pytest.mark.parametrize(("args", "line"), [
+    (["export"], "dive: no such command 'export' (dive -h lists the commands)"),
+    (["log", "inf"], "dive: no such command 'inf'. Did you mean 'info'? (dive log -h lists the commands)"),
+    (["replay"], "dive: missing argument 'FILES...' (dive replay -h lists the options)"),
+    (["status", "--bogus"], "dive: no such option '--bogus' (dive status -h lists the options)"),
+])
+def test_any_usage_error_is_one_line_not_a_box(args: list[str], line: str) -> None:
+    done = dive(*args)
+    assert done.returncode == 2, done.stderr
+    assert done.stderr.splitlines() == [line], done.stderr
 
 
 def test_run_help_is_readable_at_80_columns() -> None:
