@@ -42,6 +42,8 @@ DEPTH_SCALE_RANGE = 0.01
 PHI_TOLERANCE = 0.005  # a re-estimated AR(1) further off than this is fitted again (near 1 a little matters)
 NEEDED_CHI2 = 6.63  # chi-square(1) 99 % point: fixing a loose figure costs more than this, it stays free
 MIN_EPISODES = 5  # learning episodes' starts needed to measure the hand-over offset
+# Why a figure wider than its limit stays in the fit: (any figure, the gear's play and the port's lag).
+KEPT_BECAUSE = ("fixing it worsens the fit", "the base's 0 is no robot's value: fixed, it would bias the others")
 
 
 @dataclass
@@ -283,7 +285,7 @@ def fit_samples(samples: Samples, base: PlantParams, window_s: float = 10.0,
         if name in needed:
             estimates.append(Estimate(name, getattr(hull.params, name), half_width, False,
                                       f"fitted {getattr(hull.params, name):.4g} +/- {half_width:.3g}, wider than "
-                                      f"{limits[name]:g}: kept in the fit (fixing it worsens the fit), "
+                                      f"{limits[name]:g}: kept in the fit ({KEPT_BECAUSE[name in GEAR_AND_PORT]}), "
                                       + _needs(name, windows), in_fit=True))
         elif name in free:
             estimates.append(Estimate(name, getattr(hull.params, name), half_width, True))
