@@ -45,6 +45,8 @@ def main() -> None:
     parser.add_argument("--draws", type=int, default=10)
     parser.add_argument("--first", type=int, default=0, help="first draw (trial number of the family)")
     parser.add_argument("--hold", type=float, default=20.0)
+    parser.add_argument("--reversal-hold", type=float, default=ExciteConfig.reversal_hold_s,
+                        help="agent seconds per flip of the hover depth (dive fit --excite --reversal-hold)")
     parser.add_argument("--verbose", action="store_true", help="each draw's truth and diagnostics")
     args = parser.parse_args()
     agents = ("qemu", "python") if args.agent == "both" else (args.agent,)
@@ -61,6 +63,7 @@ def main() -> None:
                 plant_file = write_plant(where / "truth.toml", draw_family(trial))
                 try:
                     recorded = excite(ExciteConfig(url=excite_url(agent, plant_file, 100 + trial), hold_s=args.hold,
+                                                   reversal_hold_s=args.reversal_hold,
                                                    recorder=RecorderConfig(directory=where / "rec")))
                 except Exception as e:  # a failed manoeuvre is counted and shown, the rest go on
                     failures += 1
