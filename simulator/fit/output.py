@@ -111,7 +111,8 @@ def result_json(result: FitResult) -> dict[str, Any]:
         "wall_s": result.wall_s,
         "notes": result.notes,
         "diagnostics": {d.name: {"passed": d.passed, "line": d.line} for d in result.diagnostics},
-        "robust_intervals": result.robust,
+        # Every interval is the wider of the Jacobian's and the sandwich's now; what remains to say is the warning.
+        "misfit_warning": result.warning or None,
     }
 
 

@@ -15,7 +15,7 @@ from protocol import Mode
 from simulator.cli import app
 from simulator.fit.estimate import fit_recordings, fit_samples
 from simulator.fit.model import simulate
-from simulator.fit.output import plant_toml, report_lines
+from simulator.fit.output import plant_toml, report_lines, result_json
 from simulator.fit.reader import Samples
 from simulator.fit.windows import Windows
 from simulator.parameters import neutral_alpha_deg, preset
@@ -134,6 +134,7 @@ def test_a_disturbance_the_model_lacks_fails_the_diagnostics_and_widens_the_inte
     assert [d.name for d in result.diagnostics if not d.passed]
     lines = report_lines(result)
     assert sum(line.startswith("warning:") for line in lines) == 1
+    assert result_json(result)["misfit_warning"] == result.warning
     for e in result.estimates:
         if e.identified and e.name in result.hull.free:
             assert e.half_width >= result.hull.half_width(e.name) - 1e-15, e.name
