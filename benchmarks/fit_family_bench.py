@@ -4,8 +4,9 @@ imperfection on, flown by the virtual agent and the C firmware on QEMU, each ide
     PYTHONPATH=. .venv/bin/python benchmarks/fit_family_bench.py [--agent qemu|python|both] [--draws 10]
 
 Each draw: the plant file (the family's figures over the hardware preset), `dive fit --excite`'s manoeuvre on it
-(hover at 0.3, 0.6, 0.4, 0.8, 0.3 m, --hold s each), the fit from the hardware preset. Printed per figure: the
-share of draws inside the own 95 % interval (anchor: >= 90 %), the worst error in half-widths (anchor: never
+(hover at 0.3, 0.6, 0.4, 0.8, 0.3 m, --hold s each, then the hover depth flipped 2, 5 and 10 cm deeper and back
+twice each, 3 s a flip), the fit from the hardware preset. Printed per figure: the share of draws inside the own
+95 % interval with its Wilson 95 % interval (anchor: >= 90 %), the worst error in half-widths (anchor: never
 above 3 for an identified figure), the share within the issue's tolerance (drag, added mass, actuator rate 5 %,
 backlash 0.2 deg, lag 0.02 s, noise 10 %) and how often the figure was identified.
 """
@@ -18,11 +19,24 @@ import time
 from collections import defaultdict
 from pathlib import Path
 
+from scipy.stats import norm
+
 from groundstation.recording.recorder import RecorderConfig
 from groundstation.run.excite import ExciteConfig, excite
 from simulator.fit.estimate import fit_recordings
 from simulator.parameters import load_params, preset
 from tests.simulator.fit.truth import Judged, draw_family, excite_url, judge, write_plant
+
+
+def wilson(hits: int, n: int) -> tuple[float, float]:
+    """Wilson's 95 % interval of a binomial share: what hits of n draws say of the coverage itself."""
+    if n == 0:
+        return 0.0, 1.0
+    z = float(norm.ppf(0.975))
+    share = hits / n
+    centre = (share + z * z / (2 * n)) / (1 + z * z / n)
+    half = z / (1 + z * z / n) * (share * (1 - share) / n + z * z / (4 * n * n)) ** 0.5
+    return max(centre - half, 0.0), min(centre + half, 1.0)
 
 
 def main() -> None:
@@ -31,6 +45,8 @@ def main() -> None:
     parser.add_argument("--draws", type=int, default=10)
     parser.add_argument("--first", type=int, default=0, help="first draw (trial number of the family)")
     parser.add_argument("--hold", type=float, default=20.0)
+    parser.add_argument("--reversal-hold", type=float, default=ExciteConfig.reversal_hold_s,
+                        help="agent seconds per flip of the hover depth (dive fit --excite --reversal-hold)")
     parser.add_argument("--verbose", action="store_true", help="each draw's truth and diagnostics")
     args = parser.parse_args()
     agents = ("qemu", "python") if args.agent == "both" else (args.agent,)
@@ -47,6 +63,7 @@ def main() -> None:
                 plant_file = write_plant(where / "truth.toml", draw_family(trial))
                 try:
                     recorded = excite(ExciteConfig(url=excite_url(agent, plant_file, 100 + trial), hold_s=args.hold,
+                                                   reversal_hold_s=args.reversal_hold,
                                                    recorder=RecorderConfig(directory=where / "rec")))
                 except Exception as e:  # a failed manoeuvre is counted and shown, the rest go on
                     failures += 1
@@ -73,13 +90,16 @@ def main() -> None:
         done = args.draws - failures
         print(f"{agent}: {done} of {args.draws} draws fitted in {time.perf_counter() - began:.0f} s "
               f"(fit {min(fit_s, default=0):.1f}-{max(fit_s, default=0):.1f} s each)")
-        print(f"  {'figure':24s} {'identified':>10s} {'inside 95 %':>12s} {'worst err/hw':>13s} {'within goal':>12s}")
+        print(f"  {'figure':24s} {'identified':>10s} {'inside 95 % (Wilson 95 %)':>28s} {'worst err/hw':>13s} "
+              f"{'within goal':>12s}")
         for name, judged in rows.items():
-            inside = sum(j.inside for j in judged) / len(judged)
+            hits = sum(j.inside for j in judged)
+            low, high = wilson(hits, len(judged))
             worst = max(abs(j.error) / j.half_width if j.half_width > 0 else float("inf") for j in judged)
             goal = [abs(j.error) <= j.goal for j in judged if j.goal != float("inf")]
             goal_text = f"{sum(goal)}/{len(goal)}" if goal else "-"
-            print(f"  {name:24s} {identified[name]:>5d}/{done:<4d} {100 * inside:>10.0f} % {worst:>10.2f} "
+            inside = f"{hits}/{len(judged)} {100 * hits / len(judged):.0f} % ({100 * low:.0f}-{100 * high:.0f} %)"
+            print(f"  {name:24s} {identified[name]:>5d}/{done:<4d} {inside:>28s} {worst:>10.2f} "
                   f"(<= 3) {goal_text:>8s}   anchor: inside >= 90 %")
         total = [j for judged in rows.values() for j in judged]
         if total:

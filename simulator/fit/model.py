@@ -46,7 +46,7 @@ class HullFit:
     params: PlantParams
     free: tuple[str, ...]
     covariance: NDArray[np.float64]  # of the free figures, in their own units (residual variance x (J^T J)^-1)
-    # The same, robust to coloured noise and misfit: clustered over windows (sandwich), with its quantile
+    # The same, robust to coloured noise and misfit: the bias-reduced sandwich over windows (CR2), its quantile
     robust_covariance: NDArray[np.float64]
     robust_quantile: float
     residual_rms_m: float
@@ -62,8 +62,8 @@ class HullFit:
 
     def half_width(self, name: str, robust: bool = False) -> float:
         """Half-width of the 95 % interval of a free figure: from the Jacobian at the optimum, or (robust) the
-        sandwich clustered over windows, which holds when the residuals are coloured or the model misses
-        something that differs from window to window."""
+        bias-reduced sandwich over windows (CR2) with Student's t over G - 1, which holds when the residuals are
+        coloured or the model misses something that differs from window to window."""
         i = self.free.index(name)
         if robust:
             return float(self.robust_quantile * np.sqrt(max(self.robust_covariance[i, i], 0.0)))
@@ -154,23 +154,42 @@ def _solve_blocks(h_tt: NDArray[np.float64], h_ts: NDArray[np.float64], h_ss: ND
 
 def _robust_covariance(jac: _Jacobian, residuals: NDArray[np.float64], starts: NDArray[np.int64],
                        ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """(bread inverse, cluster sandwich) of the shared figures, each window's own start state profiled out.
+    """(bread inverse, the bias-reduced cluster sandwich) of the shared figures, each window's start profiled out.
 
-    Per window w the shared columns are projected off its two start-state columns (J_perp); the bread is
+    Per window w the shared columns are projected off its two start-state columns (J_perp); the bread B is
     sum J_perp^T J_perp (its inverse is the classical covariance over sigma^2) and the meat sums the windows'
-    scores g_w = J_perp^T r_w outer themselves, with the small-sample factor G / (G - p). Windows are
-    independent where the noise's correlation is much shorter than a window (10 s against at most 1 s).
+    scores outer themselves. The plain sandwich (scores g_w = J_perp^T r_w) is optimistic with ten windows: each
+    window's residuals were fitted by the figures it pulls on, so its score is shrunk by its own leverage
+    H_w = J_perp,w B^-1 J_perp,w^T. Bell and McCaffrey's CR2 undoes that: r_w is taken as (I - H_w)^-1/2 r_w,
+    unbiased when the model is right, and the interval takes Student's t over the G - 1 windows (HullFit).
+    With B_w = J_perp,w^T J_perp,w = L L^T (on its range) the adjusted score is L (I - L^T B^-1 L)^-1/2 L^+ g_w:
+    a p x p eigenproblem per window, no sample-sized matrix. Windows are independent where the noise's
+    correlation is much shorter than a window (10 s against at most 1 s); what the model misses stays in the
+    scores, whatever its form.
     """
     h_tt, h_ts, h_ss, g_t, g_s = _normal_blocks(jac, residuals, starts)
-    n_free, n_win = h_tt.shape[0], len(starts)
+    n_win = len(starts)
     d_inv = np.linalg.inv(h_ss + 1e-12 * np.eye(2))
     b_dinv = np.einsum("wpi,wij->wpj", h_ts, d_inv)
     bread = h_tt - np.einsum("wpj,wqj->pq", b_dinv, h_ts)
+    own = (jac.window_sums(jac.shared[:, :, None] * jac.shared[:, None, :], starts)
+           - np.einsum("wpj,wqj->wpq", b_dinv, h_ts))  # B_w
     scores = jac.window_sums(jac.shared * residuals[:, None], starts) - np.einsum("wpj,wj->wp", b_dinv, g_s)
-    inv = np.linalg.pinv(bread)
-    scale = n_win / max(n_win - n_free, 1)
-    return (np.asarray(inv, dtype=np.float64),
-            np.asarray(scale * inv @ (scores.T @ scores) @ inv, dtype=np.float64))
+    inv = np.asarray(np.linalg.pinv(bread), dtype=np.float64)
+    adjusted = np.zeros_like(scores)
+    for w in range(n_win):
+        lam, vec = np.linalg.eigh(own[w])
+        keep = lam > 1e-12 * max(float(lam.max(initial=0.0)), 1e-300)
+        if not keep.any():
+            continue  # the window pulls on no figure
+        root = vec[:, keep] * np.sqrt(lam[keep])  # L
+        k_lam, k_vec = np.linalg.eigh(np.eye(root.shape[1]) - root.T @ inv @ root)
+        # A leverage of 1 (one window alone pins a direction) leaves no residual to judge it by: 1e-12 keeps it
+        # finite and huge, which is what the data say of that direction.
+        inv_sqrt = (k_vec / np.sqrt(np.maximum(k_lam, 1e-12))) @ k_vec.T
+        adjusted[w] = root @ inv_sqrt @ ((vec[:, keep].T @ scores[w]) / np.sqrt(lam[keep]))
+    spread = adjusted @ inv
+    return inv, np.asarray(spread.T @ spread, dtype=np.float64)
 
 
 def _whiten(a: NDArray[np.float64], first: NDArray[np.bool_], phi: float) -> NDArray[np.float64]:
@@ -282,7 +301,7 @@ def fit_hull(base: PlantParams, windows: Windows, free: Sequence[str], on_eval: 
     inv_bread, sandwich = _robust_covariance(final, r, windows.starts)
     covariance = sigma2 * inv_bread * np.outer(chain, chain)
     robust = sandwich * np.outer(chain, chain)
-    quantile = float(student_t.ppf(0.975, max(n_win - n_free, 1)))
+    quantile = float(student_t.ppf(0.975, max(n_win - 1, 1)))  # CR2's: the spread of G - 1 windows
     predicted, motor = simulate(params, windows, z0_fit, v0_fit)
     # The depth residual itself (not the prewhitened one the optimiser saw): the sensor noise's RMS and more.
     raw_rms_m = float(np.sqrt(np.sum((predicted - windows.depth_m) ** 2) / dof))

@@ -39,9 +39,9 @@ def plant_toml(result: FitResult, base_label: str, base_fields: dict[str, Any]) 
         f"# Plant fitted by `dive fit` to {len(result.files)} recording(s): {windows.seconds:.0f} s of agent time "
         f"in {windows.count} windows, {len(windows.t_s)} samples.",
         *(f"#   {path}" for path in result.files),
-        f"# Fit quality: depth residual RMS {1000 * result.residual_rms_m:.3f} mm; 95 % intervals from the fit's "
-        + ("Jacobian and the sandwich clustered over windows, the wider (a diagnostic failed)."
-           if result.robust else "Jacobian."),
+        f"# Fit quality: depth residual RMS {1000 * result.residual_rms_m:.3f} mm; 95 % intervals: the wider of the "
+        f"fit's Jacobian and the sandwich over its {windows.count} windows, with every depth-scale error within the "
+        f"bound{' (a diagnostic failed)' if result.robust else ''}.",
         *(f"# {line}" for line in diagnostic_lines(result)),
         f"# Base (the figures not fitted): {base_label}.",
     ]
@@ -111,7 +111,8 @@ def result_json(result: FitResult) -> dict[str, Any]:
         "wall_s": result.wall_s,
         "notes": result.notes,
         "diagnostics": {d.name: {"passed": d.passed, "line": d.line} for d in result.diagnostics},
-        "robust_intervals": result.robust,
+        # Every interval is the wider of the Jacobian's and the sandwich's now; what remains to say is the warning.
+        "misfit_warning": result.warning or None,
     }
 
 

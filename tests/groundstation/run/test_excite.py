@@ -8,6 +8,7 @@ import sys
 import tomllib
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from groundstation.errors import GroundStationError
@@ -34,6 +35,10 @@ def test_the_manoeuvre_is_recorded_and_fitted(tmp_path: Path) -> None:
     samples = open_recording(recordings[0]).samples()
     hovering = samples[samples["mode"] == Mode.HOVER]
     assert len(hovering) > 25 * 3 * 40 * 0.9  # three holds of 25 s at 40 Hz
+    # Then the reversals (12 flips of 3 s): the commanded actuator jumps one way and the other, flip after flip.
+    flips = hovering[hovering["t_us"] > hovering["t_us"].max() - 36e6]["actuator_cmd_deg"].astype(np.float64)
+    jumps = np.diff(flips)[np.abs(np.diff(flips)) > 2.0]
+    assert np.count_nonzero(np.diff(np.sign(jumps))) >= 3, jumps
     assert hovering["depth_m"].max() > 0.55 and samples["mode"][-1] in (Mode.SURFACING, Mode.IDLE)
     fitted = json.loads(done.stdout)
     assert fitted["recordings"] == [str(recordings[0].resolve())] or fitted["recordings"][0].endswith(
@@ -58,6 +63,29 @@ def test_the_manoeuvre_is_recorded_and_fitted(tmp_path: Path) -> None:
     assert float(line.split("; ")[1].split("x the plant")[0]) > 5.0, line
     missing = _dive("log", "info", str(recordings[0]), "--plant", "absent.toml", cwd=tmp_path)
     assert missing.returncode == 1 and "no such plant file" in missing.stderr
+
+
+def test_the_reversals_flip_the_hover_depth_at_each_amplitude_after_the_depths() -> None:
+    config = ExciteConfig(depths_m=(0.3, 0.6), hold_s=10.0, reversals_m=(0.02, 0.1), reversal_hold_s=2.0)
+    assert config.steps() == [(0.3, 10.0), (0.6, 10.0), (0.62, 2.0), (0.6, 2.0), (0.62, 2.0), (0.6, 2.0),
+                              (0.7, 2.0), (0.6, 2.0), (0.7, 2.0), (0.6, 2.0)]
+    assert config.max_dive_s == 3.0 * (20.0 + 16.0) + 60.0
+    assert ExciteConfig(depths_m=(0.3,), reversals_m=()).steps() == [(0.3, 30.0)]
+
+
+@pytest.mark.parametrize(("args", "says"), [
+    (("--reversals", "0.05,x"), "take numbers"),
+    (("--reversals", "0.3", "--depths", "0.3,0.8"), "outside"),  # 0.8 + 0.3 m beyond --max-depth 1.0
+    (("--reversal-hold", "0"), "--reversal-hold must be positive"),
+    (("--reversals", "-0.05"), "no reversal"),
+])
+def test_a_bad_reversal_is_refused_in_one_line_before_connecting(tmp_path: Path, args: tuple[str, ...],
+                                                                  says: str) -> None:
+    done = _dive("fit", "--excite", "tcp://127.0.0.1:9", *args, cwd=tmp_path)
+    assert done.returncode == 2 and "Traceback" not in done.stderr
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and says in lines[0], done.stderr
+    assert not (tmp_path / "recordings").exists()
 
 
 def test_a_depth_beyond_the_limit_is_refused_before_connecting(tmp_path: Path) -> None:

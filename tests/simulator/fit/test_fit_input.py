@@ -15,7 +15,7 @@ from protocol import Mode
 from simulator.cli import app
 from simulator.fit.estimate import fit_recordings, fit_samples
 from simulator.fit.model import simulate
-from simulator.fit.output import plant_toml, report_lines
+from simulator.fit.output import plant_toml, report_lines, result_json
 from simulator.fit.reader import Samples
 from simulator.fit.windows import Windows
 from simulator.parameters import neutral_alpha_deg, preset
@@ -116,7 +116,9 @@ def test_a_recording_cut_short_is_fitted_up_to_the_cut(tmp_path: Path) -> None:
     result = fit_recordings([cut], preset("hardware"))
     assert any("read up to damage" in note for note in result.notes)
     assert 0.5 * 60.0 < result.windows.seconds < 0.8 * 60.0  # the part before the cut, nothing after
-    assert result.estimate("added_mass_kg").identified
+    # 40 s in 4 windows of hovering: the neutral angle is identified (the added mass is not, with the port's lag
+    # free beside it and the sandwich's t over 3 windows)
+    assert result.estimate("neutral_angle_deg").identified
     done = _fit_here(str(cut))
     assert done.returncode == 0 and "note:" in done.stderr and "Traceback" not in done.stderr
 
@@ -132,6 +134,7 @@ def test_a_disturbance_the_model_lacks_fails_the_diagnostics_and_widens_the_inte
     assert [d.name for d in result.diagnostics if not d.passed]
     lines = report_lines(result)
     assert sum(line.startswith("warning:") for line in lines) == 1
+    assert result_json(result)["misfit_warning"] == result.warning
     for e in result.estimates:
         if e.identified and e.name in result.hull.free:
             assert e.half_width >= result.hull.half_width(e.name) - 1e-15, e.name
