@@ -50,6 +50,7 @@ class Probe(LinkProbe):
         super().__init__(link, key, timeouts)
         self.mode: Mode | None = None
         self.entered: tuple[Exchange, Mode] | None = None  # a command sent without waiting, and the mode it enters
+        self.busy_answers_s: list[float] = []  # how long each BUSY of a starting agent took (runner._await_program)
 
     def _seen(self, frame: Frame) -> None:
         mode = mode_of(frame)

@@ -83,8 +83,12 @@ def _skip_reason(c: Check, options: CheckOptions) -> str:
     return ""
 
 
-def run_checks(options: CheckOptions, progress: Callable[[Outcome], None] = lambda _: None) -> Report:
-    """Open the link, run each selected check, close the link; a dead link ends the run (every check left FAILs)."""
+def run_checks(options: CheckOptions, progress: Callable[[Outcome], None] = lambda _: None,
+               waiting: Callable[[str], None] = lambda _: None) -> Report:
+    """Open the link, run each selected check, close the link; a dead link ends the run (every check left FAILs).
+
+    `waiting` is told the agent's reason each time it answers BUSY before the checks that send anything (a virtual
+    agent building its program, SPEC.md s. 4): the run waits for it, it does not fail."""
     checks = selected(options.only)
     if not checks:
         raise GroundStationError(f"no check matches {', '.join(options.only)}")
@@ -94,9 +98,12 @@ def run_checks(options: CheckOptions, progress: Callable[[Outcome], None] = lamb
     probe = Probe(link, options.key, options.timeouts)
     outcomes: list[Outcome] = []
     aborted = ""
-    prepared = False
+    prepared = awaited = False
     try:
         for c in checks:
+            if not awaited and not aborted and c.id not in SILENT_FIRST:
+                awaited = True
+                aborted = _await_program(probe, waiting)
             if not prepared and not aborted and not c.id.startswith(FIRST_GROUP):
                 prepared = True
                 aborted = _prepare(probe, options)
@@ -113,6 +120,29 @@ def run_checks(options: CheckOptions, progress: Callable[[Outcome], None] = lamb
 
 
 FIRST_GROUP = "handshake."  # run before anything else is sent
+SILENT_FIRST = ("handshake.agent_hello", "handshake.hello_repeat")  # the ground says nothing before these
+PROGRAM_WAIT_S = 900.0  # a virtual agent's build on a cold compile cache: minutes on a loaded machine
+BUSY_RETRY_S = 1.0
+
+
+def _await_program(probe: Probe, waiting: Callable[[str], None]) -> str:
+    """Until a command is answered other than BUSY (SPEC.md s. 4: a starting agent answers every command BUSY until
+    its program runs); each BUSY's answer time is kept for link.answer_time. Why the run cannot go on, or ""."""
+    started = time.monotonic()
+    try:
+        while True:
+            sent_s = time.monotonic()
+            ex = probe.command(m.ParamGet(index=0, name=""))
+            if ex.ack is None or ex.ack.result != AckResult.BUSY:
+                return ""  # answered (or not: _prepare says so)
+            probe.busy_answers_s.append(time.monotonic() - sent_s)
+            waited_s = time.monotonic() - started
+            if waited_s >= PROGRAM_WAIT_S:
+                return f"the agent answered every command BUSY for {waited_s:.0f} s ({ex.ack.reason})"
+            waiting(ex.ack.reason)
+            probe.settle(BUSY_RETRY_S)
+    except LinkError as e:
+        return f"link: {e}"
 MARK_AHEAD_S = 12.0  # SPEC.md 12: the persisted mark is the last accepted timestamp + 10 s
 
 

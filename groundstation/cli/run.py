@@ -132,7 +132,7 @@ def run_command(
                     AckKey(ack) if display.live else contextlib.nullcontext():
                 show = display.show if fox is None else _attaching(display.show, fox, key)
                 # Foxglove publishes from the run's own session: the frames, commands and alarms the recording gets
-                result = run(config, show, stop=stop, listeners=[*([rerun] if rerun is not None else []),
+                result = run(config, show, stop=stop, listeners=[display, *([rerun] if rerun is not None else []),
                                                                  *([fox.listener] if fox is not None else [])],
                              ack=ack)
         finally:
