@@ -69,9 +69,10 @@ class AgentLink:
         self._encoder = wire.encoder  # the agent's seq counter; frames keep their inner bytes for the log
         # (msg_id, seq) -> (result, reason), oldest first: one lookup per command, not a scan of all 16
         self._answered: dict[tuple[int, int], tuple[int, str]] = {}
+        self._wire = wire  # the connection's state is taken from it again at take_over()
         self._connected = wire.connected
         self._heard = wire.heard  # a frame from the ground passed CRC and version checks on this link
-        self._next_hello_s = 0.0  # a connection the starting agent introduced: its HELLO repeat carries on
+        self._next_hello_s = 0.0
         self._last_ground_rx_s = 0.0
         self._next_heartbeat_us = 0
         # While a command runs, what the program sends waits here: SPEC s. 5 puts the ACK first, so a
@@ -115,8 +116,10 @@ class AgentLink:
         self._last_ground_rx_s = self.link_clock_s()
 
     def take_over(self) -> None:
-        """The program runs from now on (it was built while a starting agent spoke): the ground's silence counts
-        from here, not from the build's start; a HELLO repeat under way carries on at its pace."""
+        """The program runs from now on (it was built while a starting agent spoke): the connection as the starting
+        agent leaves it (a client may have come, spoken or gone during the build), the ground's silence counted from
+        here, not from the build's start, and a HELLO repeat under way carried on at its pace."""
+        self._connected, self._heard = self._wire.connected, self._wire.heard
         self._alive()
         self._next_hello_s = self.link_clock_s() + HELLO_REPEAT_S
 

@@ -60,9 +60,11 @@ class ProgramBuild(Generic[T]):
     def _run(self) -> None:
         listener = _compile_listener(self.progress)
         try:
-            if self._delay_s > 0:
-                time.sleep(self._delay_s)  # the test hook (BUILD_DELAY_ENV): a slow build without a cold cache
             self._result = self._make()
+            if self._delay_s > 0:
+                # The test hook (BUILD_DELAY_ENV): a slow build without a cold cache, slow after the program's link
+                # exists, as a cold compile is (the link must take the connection's state at the hand-over)
+                time.sleep(self._delay_s)
         except BaseException as e:  # noqa: BLE001 - handed to the serving thread, which reports it
             self._error = e
         finally:

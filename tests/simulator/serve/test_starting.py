@@ -67,3 +67,24 @@ def test_starting_agent_answers_in_time_then_the_program_takes_over(
     seqs = [f.seq for f in client.frames]
     steps = {(b - a) & 0xFFFF for a, b in zip(seqs, seqs[1:], strict=False)}
     assert steps == {1}, f"seq steps {sorted(steps)}"
+
+
+def test_a_silent_ground_keeps_getting_hellos_across_the_hand_over(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The client connects while the program builds (after its link object exists) and says nothing: the HELLO
+    repeat (SPEC s. 4, until the ground is heard) goes on once the program runs, from the connection's state then."""
+    monkeypatch.setenv(BUILD_DELAY_ENV, str(BUILD_DELAY_S))
+    with running("--tcp", "127.0.0.1:0", "--speed", "max", "--seed", "5") as server:
+        time.sleep(1.0)
+        client = AgentClient.tcp(server.address)
+        try:
+            first = client.wait_message(messages.Hello, 5.0)
+            client.wait_program()
+            running_from = next(i for i, f in enumerate(client.frames) if isinstance(f.message, messages.Sample))
+            deadline = time.monotonic() + 5.0
+            while not any(isinstance(f.message, messages.Hello) for f in client.frames[running_from:]):
+                assert time.monotonic() < deadline, "no HELLO repeat once the program ran"
+                client.pump()
+            again = next(f.message for f in client.frames[running_from:] if isinstance(f.message, messages.Hello))
+            assert again.boot_id == first.boot_id
+        finally:
+            client.close()
