@@ -96,7 +96,9 @@ def answer_time(probe: Probe) -> str:
     expect(median[slowest] <= ANSWER_BOUND_S, f"{slowest} answered after {median[slowest]:.2f} s (median of "
            f"{TRIES}), over the {ANSWER_BOUND_S:g} s bound (measured on this end of the link: transport time "
            "included)")
-    return ", ".join(f"{name} {seconds * 1000:.0f} ms" for name, seconds in median.items()) + f" (median of {TRIES})"
+    busy = f"; of the {len(probe.busy_answers_s)} BUSY" if probe.busy_answers_s else ""
+    return ", ".join(f"{name} {seconds * 1000:.0f} ms" for name, seconds in median.items()) + \
+        f" (median of {TRIES}{busy})"
 
 
 def _implemented(probe: Probe, name: str) -> bool:
