@@ -58,8 +58,10 @@ BUSY_RETRY_S = 1.0  # a command answered BUSY is sent again after this long
 
 class SessionCore:
     def __init__(self, link: Link, config: SessionConfig | None = None,
-                 listeners: Iterable[SessionListener] = ()) -> None:
+                 listeners: Iterable[SessionListener] = (), cancel: threading.Event | None = None) -> None:
+        """`cancel`, once set (a run stopped by a signal), ends a wait for a BUSY agent at once (AgentBusy)."""
         self.link = link
+        self._cancel = cancel or threading.Event()
         self.config = config or SessionConfig()
         self.listeners = Listeners(listeners)
         # A random first seq: an agent that remembers the last 16 (msg_id, seq) it ACKed must not take a new
@@ -124,11 +126,11 @@ class SessionCore:
                 return self._send_once(message, wait=wait, timeout_s=timeout_s, flags=flags)
             except AgentBusy as e:
                 waited_s = time.monotonic() - started
-                if waited_s >= self.config.busy_wait_s or self._stop.is_set():
+                if waited_s >= self.config.busy_wait_s or self._stop.is_set() or self._cancel.is_set():
                     raise AgentBusy(f"{e} for {waited_s:.0f} s", e.result, e.reason) from e
                 self._emit(LinkEvent(EventKind.AGENT_BUSY, time.time_ns(), e.reason,
                                      {"command": message.DEFINITION.name, "waited_s": round(waited_s, 1)}))
-                self._stop.wait(BUSY_RETRY_S)
+                self._cancel.wait(BUSY_RETRY_S)
 
     def _send_once(self, message: Message, *, wait: bool, timeout_s: float | None, flags: int) -> m.Ack | None:
         now = time.monotonic()

@@ -10,6 +10,7 @@ from __future__ import annotations
 import contextlib
 import os
 import pty
+import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -71,3 +72,19 @@ def test_a_tool_on_a_terminal_shows_one_waiting_line_then_its_answer(
     text = shown.decode(errors="replace")
     assert "waiting: the agent answers BUSY (starting, building its program" in text, text
     assert "gamma" in text.rsplit("waiting:", 1)[-1], text  # the answer after the line
+
+
+def test_sigterm_while_the_agent_starts_stops_dive_run_at_once(tmp_path: Path) -> None:
+    """The wait for a BUSY agent ends with the run's stop: not minutes later, when the agent has built its program."""
+    env = {**os.environ, BUILD_DELAY_ENV: "120"}
+    proc = subprocess.Popen([sys.executable, "-c", DIVE_MAIN, "run", "sim://?speed=max&seed=3", "--viewer", "none",
+                             "--out", str(tmp_path / "run.mcap")], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True, cwd=ROOT, env=env)
+    assert proc.stderr is not None
+    for line in proc.stderr:  # until the run says it waits
+        if line.startswith("waiting: the agent answers BUSY"):
+            break
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=30)
+    assert proc.returncode == 130, err
+    assert "stopped by SIGTERM while the agent was starting" in err and "Traceback" not in err, err
