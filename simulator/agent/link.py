@@ -120,6 +120,7 @@ class AgentLink:
         agent leaves it (a client may have come, spoken or gone during the build), the ground's silence counted from
         here, not from the build's start, and a HELLO repeat under way carried on at its pace."""
         self._connected, self._heard = self._wire.connected, self._wire.heard
+        self._encoder.compiled = self.decoder.compiled = True  # off while the starting agent spoke
         self._alive()
         self._next_hello_s = self.link_clock_s() + HELLO_REPEAT_S
 

@@ -13,7 +13,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 
-from protocol import AckResult, Severity, messages
+from protocol import AckResult, FrameEncoder, Severity, StreamDecoder, messages
 from protocol.decoder import COMMAND_IDS_FROM
 from protocol.registry import Message
 from simulator.agent.identity import FIRST_GENERATION, HELLO_REPEAT_S, agent_hello
@@ -38,7 +38,10 @@ class StartingAgent:
         self.node_id = node_id
         self.battery_mv = int(battery_v * 1000)
         self.progress = progress
-        self.wire = LinkWire()  # the program's link carries on with it (PythonAgent's `wire`)
+        # The program's link carries on with it (PythonAgent's `wire`). No compiled codec meanwhile: loading it starts
+        # a compile of its own (10.7 s on a cold cache at load 12) that would hold the program's build up, for the
+        # few frames a starting agent sends; the program turns it on (AgentLink.take_over).
+        self.wire = LinkWire(FrameEncoder(compiled=False), StreamDecoder(agent=True, compiled=False))
         self._clock_s = clock_s
         self._next_hello_s = 0.0
         self._next_heartbeat_s = 0.0
