@@ -246,7 +246,7 @@ def serve(
     print(server.address, flush=True)
     try:
         server.serve_forever()
-    except SimulatorError as e:
+    except (SimulatorError, LearningError) as e:  # the program is built in there (serve/build.py)
         say_error(str(e))
         raise typer.Exit(1) from None
     finally:

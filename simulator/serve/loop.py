@@ -54,7 +54,7 @@ class ServeConfig:
     mark_file: Path | None = None  # where the signing mark survives a restart (SPEC s. 12)
     firmware: str = "python"  # the on-board program: python (the reference), c (firmware/ host build)
     baud: int | None = None  # bytes to the ground leave at a UART's rate (10 bits a byte); None = as fast as taken
-    build_delay_s: float = 0.0  # for tests ($DIVE_SIM_BUILD_DELAY_S): the program's build waits this long first
+    build_delay_s: float = 0.0  # for tests ($DIVE_SIM_BUILD_DELAY_S): the program's build takes this much longer
 
 
 class AgentServer:
@@ -218,7 +218,7 @@ class AgentServer:
             self._io(STARTING_WAIT_S, eager=False)
         if not self._running:
             return  # stopped while building: the daemon thread ends with the process
-        program = build.result()  # the build's own error (a C firmware that does not build) ends the server
+        program = build.result()  # the build's own error ends the server (serve/cli.py: one line, exit 1)
         assert self._starting is not None
         self._starting.built()
         self.agent = program
