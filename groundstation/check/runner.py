@@ -103,7 +103,10 @@ def run_checks(options: CheckOptions, progress: Callable[[Outcome], None] = lamb
         for c in checks:
             if not awaited and not aborted and c.id not in SILENT_FIRST:
                 awaited = True
-                aborted = _await_program(probe, waiting)
+                try:
+                    aborted = probe.await_program(waiting)
+                except LinkError as e:
+                    aborted = f"link: {e}"
             if not prepared and not aborted and not c.id.startswith(FIRST_GROUP):
                 prepared = True
                 aborted = _prepare(probe, options)
@@ -121,28 +124,6 @@ def run_checks(options: CheckOptions, progress: Callable[[Outcome], None] = lamb
 
 FIRST_GROUP = "handshake."  # run before anything else is sent
 SILENT_FIRST = ("handshake.agent_hello", "handshake.hello_repeat")  # the ground says nothing before these
-PROGRAM_WAIT_S = 900.0  # a virtual agent's build on a cold compile cache: minutes on a loaded machine
-BUSY_RETRY_S = 1.0
-
-
-def _await_program(probe: Probe, waiting: Callable[[str], None]) -> str:
-    """Until a command is answered other than BUSY (SPEC.md s. 4: a starting agent answers every command BUSY until
-    its program runs); each BUSY's answer time is kept for link.answer_time. Why the run cannot go on, or ""."""
-    started = time.monotonic()
-    try:
-        while True:
-            sent_s = time.monotonic()
-            ex = probe.command(m.ParamGet(index=0, name=""))
-            if ex.ack is None or ex.ack.result != AckResult.BUSY:
-                return ""  # answered (or not: _prepare says so)
-            probe.busy_answers_s.append(time.monotonic() - sent_s)
-            waited_s = time.monotonic() - started
-            if waited_s >= PROGRAM_WAIT_S:
-                return f"the agent answered every command BUSY for {waited_s:.0f} s ({ex.ack.reason})"
-            waiting(ex.ack.reason)
-            probe.settle(BUSY_RETRY_S)
-    except LinkError as e:
-        return f"link: {e}"
 MARK_AHEAD_S = 12.0  # SPEC.md 12: the persisted mark is the last accepted timestamp + 10 s
 
 
