@@ -16,7 +16,7 @@ from protocol import AckResult, messages
 from simulator.serve.build import BUILD_DELAY_ENV
 from tests.simulator.agent_client import AgentClient, running
 
-BUILD_DELAY_S = 4.0
+BUILD_DELAY_S = 6.0  # the starting agent's part of the test takes about 2 s; room for a loaded machine
 
 
 def _answered_s(client: AgentClient, send: messages.Message, kind: type[messages.Message], **fields: object) -> float:
@@ -36,15 +36,20 @@ def test_starting_agent_answers_in_time_then_the_program_takes_over(
         client.hello()
         first = client.wait_message(messages.Hello, 5.0)
         assert first.generation == 1
-        # While building: each answered within the bound, commands refused BUSY with the build's progress
-        hello_s = _answered_s(client, messages.Hello(protocol_version=1, node_kind=2, node_id=7, boot_id=1234,
-                                                     definitions_hash=first.definitions_hash), messages.Hello)
-        sync_s = _answered_s(client, messages.Timesync(origin_us=42), messages.Timesync, origin_us=42)
-        sent = time.monotonic()
-        busy = client.command(messages.ParamGet(index=-1, name="gamma"), 10.0)
-        ack_s = time.monotonic() - sent
-        assert busy.result == AckResult.BUSY and "building its program" in busy.reason
-        assert max(hello_s, sync_s, ack_s) <= ANSWER_BOUND_S, (hello_s, sync_s, ack_s)
+        # While building: each answered within the bound (the median of 3, as dive check's link.answer_time: one
+        # stall of this loaded machine is not the agent's), commands refused BUSY with the build's progress
+        hello = messages.Hello(protocol_version=1, node_kind=2, node_id=7, boot_id=1234,
+                               definitions_hash=first.definitions_hash)
+        times = {"HELLO": [_answered_s(client, hello, messages.Hello) for _ in range(3)],
+                 "TIMESYNC": [_answered_s(client, messages.Timesync(origin_us=42 + i), messages.Timesync,
+                                          origin_us=42 + i) for i in range(3)]}
+        times["BUSY"] = []
+        for _ in range(3):
+            sent = time.monotonic()
+            busy = client.command(messages.ParamGet(index=-1, name="gamma"), 10.0)
+            times["BUSY"].append(time.monotonic() - sent)
+            assert busy.result == AckResult.BUSY and "building its program" in busy.reason
+        assert all(sorted(t)[1] <= ANSWER_BOUND_S for t in times.values()), times
         assert client.of(messages.Timesync)[-1].receive_us == 0  # the clock has not started: 0, then 1
         assert any("commands are answered BUSY" in t.text for t in client.of(messages.Text))
         assert client.wait_message(messages.Heartbeat, 3.0).uptime_ms == 0
