@@ -35,6 +35,15 @@ class CommandError(GroundStationError):
         self.result = result
 
 
+class AgentBusy(CommandError):
+    """The agent answered BUSY (SPEC.md s. 5: try again later), as a virtual agent does while its program builds;
+    `reason` is its ACK's reason (how far it got)."""
+
+    def __init__(self, message: str, result: int | None = None, reason: str = "") -> None:
+        super().__init__(message, result)
+        self.reason = reason
+
+
 class CommandTimeout(CommandError, TimeoutError):
     """No ACK after every retry."""
 

@@ -45,6 +45,17 @@ class FrameEncoder:
     def next_seq(self) -> int:
         return self._seq
 
+    @property
+    def compiled(self) -> bool:
+        """Whether the compiled writer is used once loaded (its load starts at the first frame encoded)."""
+        return self._use_compiled
+
+    @compiled.setter
+    def compiled(self, use: bool) -> None:
+        self._use_compiled = use
+        if not use:
+            self._compiled = None
+
     def take_seqs(self, count: int) -> int:
         """Reserve the seqs of `count` frames framed elsewhere (a compiled batch of SAMPLEs); returns the first."""
         seq = self._seq

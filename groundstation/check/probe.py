@@ -8,6 +8,7 @@ command that moves the agent), so that a check judges a command by the mode the 
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 
 from groundstation.check.errors import CheckFailed
 from groundstation.check.probe_link import (
@@ -27,6 +28,8 @@ from protocol.decoder import Frame
 __all__ = ["Exchange", "Probe", "Timeouts", "mode_of", "result_name"]
 
 _MODES = {int(x) for x in Mode}
+PROGRAM_WAIT_S = 900.0  # a virtual agent's build on a cold compile cache: minutes on a loaded machine
+BUSY_RETRY_S = 1.0
 # Commands whose ACCEPTED may change the mode (SPEC.md 6): the mode shown before their ACK is no longer the present.
 _MOVES = {m.StartLearning.MSG_ID, m.Stop.MSG_ID, m.Pause.MSG_ID, m.Surface.MSG_ID, m.Hover.MSG_ID}
 
@@ -50,6 +53,7 @@ class Probe(LinkProbe):
         super().__init__(link, key, timeouts)
         self.mode: Mode | None = None
         self.entered: tuple[Exchange, Mode] | None = None  # a command sent without waiting, and the mode it enters
+        self.busy_answers_s: list[float] = []  # how long each BUSY of a starting agent took (runner._await_program)
 
     def _seen(self, frame: Frame) -> None:
         mode = mode_of(frame)
@@ -72,6 +76,23 @@ class Probe(LinkProbe):
         self._held += cobs_encode(inner) + b"\x00"
         self.sent_valid += 1
         self.entered = (Exchange(message.MSG_ID, int.from_bytes(inner[2:4], "little"), inner, start), enters)
+
+    def await_program(self, waiting: Callable[[str], None] = lambda _: None) -> str:
+        """Until a command is answered other than BUSY (SPEC.md s. 4: a starting agent answers every command BUSY
+        until its program runs), `waiting` told each BUSY's reason; each BUSY's answer time is kept for
+        link.answer_time. Why the checks cannot go on (still BUSY after PROGRAM_WAIT_S), or ""."""
+        started = time.monotonic()
+        while True:
+            sent_s = time.monotonic()
+            ex = self.command(m.ParamGet(index=0, name=""))
+            if ex.ack is None or ex.ack.result != AckResult.BUSY:
+                return ""  # answered (or not: runner._prepare says so)
+            self.busy_answers_s.append(time.monotonic() - sent_s)
+            waited_s = time.monotonic() - started
+            if waited_s >= PROGRAM_WAIT_S:
+                return f"the agent answered every command BUSY for {waited_s:.0f} s ({ex.ack.reason})"
+            waiting(ex.ack.reason)
+            self.settle(BUSY_RETRY_S)
 
     def current_mode(self) -> Mode:
         """The mode the agent's newest frames show (waits for one if none has come yet)."""

@@ -83,8 +83,12 @@ def _skip_reason(c: Check, options: CheckOptions) -> str:
     return ""
 
 
-def run_checks(options: CheckOptions, progress: Callable[[Outcome], None] = lambda _: None) -> Report:
-    """Open the link, run each selected check, close the link; a dead link ends the run (every check left FAILs)."""
+def run_checks(options: CheckOptions, progress: Callable[[Outcome], None] = lambda _: None,
+               waiting: Callable[[str], None] = lambda _: None) -> Report:
+    """Open the link, run each selected check, close the link; a dead link ends the run (every check left FAILs).
+
+    `waiting` is told the agent's reason each time it answers BUSY before the checks that send anything (a virtual
+    agent building its program, SPEC.md s. 4): the run waits for it, it does not fail."""
     checks = selected(options.only)
     if not checks:
         raise GroundStationError(f"no check matches {', '.join(options.only)}")
@@ -94,9 +98,15 @@ def run_checks(options: CheckOptions, progress: Callable[[Outcome], None] = lamb
     probe = Probe(link, options.key, options.timeouts)
     outcomes: list[Outcome] = []
     aborted = ""
-    prepared = False
+    prepared = awaited = False
     try:
         for c in checks:
+            if not awaited and not aborted and c.id not in SILENT_FIRST:
+                awaited = True
+                try:
+                    aborted = probe.await_program(waiting)
+                except LinkError as e:
+                    aborted = f"link: {e}"
             if not prepared and not aborted and not c.id.startswith(FIRST_GROUP):
                 prepared = True
                 aborted = _prepare(probe, options)
@@ -113,6 +123,7 @@ def run_checks(options: CheckOptions, progress: Callable[[Outcome], None] = lamb
 
 
 FIRST_GROUP = "handshake."  # run before anything else is sent
+SILENT_FIRST = ("handshake.agent_hello", "handshake.hello_repeat")  # the ground says nothing before these
 MARK_AHEAD_S = 12.0  # SPEC.md 12: the persisted mark is the last accepted timestamp + 10 s
 
 

@@ -55,6 +55,7 @@ def check_command(
 
     from groundstation.check import CheckOptions, Timeouts, run_checks, selected
     from groundstation.check.report import print_report
+    from groundstation.cli.waiting import busy_text
     from groundstation.links import default_url
 
     if timeout is None:
@@ -82,7 +83,8 @@ def check_command(
     with Progress(SpinnerColumn(), TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
                   TimeElapsedColumn(), console=err, transient=True, disable=as_json) as bar:
         task = bar.add_task(f"checking {in_markup(url)}", total=len(checks))
-        report = run_checks(options, lambda o: bar.update(task, advance=1, description=o.check.id))
+        report = run_checks(options, lambda o: bar.update(task, advance=1, description=o.check.id),
+                            lambda reason: bar.update(task, description=in_markup(busy_text(reason))))
     if as_json:
         out.print_json(json.dumps(report.as_dict()))
     else:

@@ -61,14 +61,16 @@ def agent_session(url: str | None, key_file: Path | None = None, reconnect: bool
 
     `reconnect`: a command whose link drops before its ACK is sent again on a new connection (the controls: an
     operator's `dive surface` must not fail because the radio blinked; SPEC.md s. 5 says how to read its answer)."""
+    from groundstation.cli.waiting import BusyLine
     from groundstation.links import make_link
     from groundstation.links.runs import attach_url
     from groundstation.session.agent_session import Session, SessionConfig
 
+    busy = BusyLine(err)  # a virtual agent still building its program answers BUSY: one line says we wait
     session = Session(make_link(attach_url(url)),
                       SessionConfig(reconnect=reconnect, backfill=False, key=resolve_key(key_file), name=tool_name(),
-                                    fetch_params=fetch_params))
-    with session:
+                                    fetch_params=fetch_params), [busy])
+    with busy, session:
         yield session
 
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import threading
+import time
 from dataclasses import replace
 from types import TracebackType
 
@@ -10,8 +11,10 @@ from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
 from rich.table import Column
 
+from groundstation.cli.waiting import PLAIN_EVERY_S, busy_text
 from groundstation.run.job import ECHO, RunStatus
 from groundstation.safe_output import in_markup, styled
+from groundstation.session.events import EventKind, LinkEvent, Received, Sent
 from groundstation.session.status_line import status_line
 
 SLOW_START_S = 3.0  # a virtual agent silent this long is loading, or on its first start compiling, its kernels
@@ -66,6 +69,7 @@ class RunDisplay:
         self._hub = ""
         self._mode: int | None = None
         self._alarmed = False
+        self._next_busy_line_s = 0.0  # not a terminal: when the next "waiting: BUSY" line may be printed
 
     def __enter__(self) -> RunDisplay:
         if self.live:
@@ -81,6 +85,25 @@ class RunDisplay:
             self._slow_note.daemon = True
             self._slow_note.start()
         return self
+
+    # ---- a session listener: while the agent answers BUSY (building its program) the live line says so
+    def on_event(self, event: LinkEvent) -> None:
+        if event.kind != EventKind.AGENT_BUSY or self._connected:
+            return
+        if self._slow_note is not None:
+            self._slow_note.cancel()  # the agent answers and says what it does: no guess needed
+        text = busy_text(event.detail)
+        if self._progress is not None:
+            self._progress.update(self._task, description=in_markup(text))  # type: ignore[arg-type]
+        elif time.monotonic() >= self._next_busy_line_s:
+            self._next_busy_line_s = time.monotonic() + PLAIN_EVERY_S
+            self.console.print(styled(text, "dim"), soft_wrap=True)
+
+    def on_received(self, received: Received) -> None:
+        pass
+
+    def on_sent(self, sent: Sent) -> None:
+        pass
 
     def _say_slow_start(self) -> None:
         if not self._connected:

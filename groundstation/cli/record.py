@@ -46,6 +46,8 @@ def record(
     paths: list[Path] = []
     interrupted = False
     try:
+        from groundstation.cli.common import err
+        from groundstation.cli.waiting import BusyLine
         from groundstation.links import make_link
         from groundstation.links.runs import attach_url
         from groundstation.recording.recorder import Recorder, RecorderConfig
@@ -65,7 +67,8 @@ def record(
         # Through a hub the run backfills for every tool (its replayed frames are fanned out) and its end ends ours:
         # no LOG_REQUESTs of our own, no reconnecting to a run that is gone.
         session_config = SessionConfig(key=resolve_key(key_file), backfill=not through_hub, reconnect=not through_hub)
-        session = Session(link, session_config, listeners=[recorder])
+        busy = BusyLine(err)  # an agent still starting answers BUSY: one line says we wait
+        session = Session(link, session_config, listeners=[recorder, busy])
         try:
             hello = session.connect()
             recorder.set_parameters(session.params.values())

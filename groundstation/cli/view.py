@@ -293,6 +293,8 @@ def view(
         if foxglove is not None:
             _view_in_foxglove(attach_url(url), foxglove, viewer, rrd, web_port, grpc_port, key_file)
             return
+        from groundstation.cli.common import err
+        from groundstation.cli.waiting import BusyLine
         from groundstation.session.agent_session import Session, SessionConfig
         from groundstation.view.rerun_sink import RerunView, ViewConfig
 
@@ -306,7 +308,7 @@ def view(
             # Signed too: a signing agent refuses an unsigned HELLO's follow-ups (PARAM_LIST) as UNAUTHORIZED. Through
             # a run's hub, the run backfills for every tool: no LOG_REQUESTs of our own.
             session_config = SessionConfig(key=resolve_key(key_file), backfill=not link.url.startswith("hub://"))
-            with Session(link, session_config, listeners=[live]) as session:
+            with BusyLine(err) as busy, Session(link, session_config, listeners=[live, busy]) as session:
                 hello = session.agent_hello
                 if link.url.startswith("hub://"):
                     from protocol import messages as m

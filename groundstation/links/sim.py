@@ -16,7 +16,9 @@ from groundstation.links import Link
 from groundstation.links.tcp import TcpLink
 from groundstation.simulator_process import child_options, simulator_command
 
-START_TIMEOUT_S = 180.0  # the first start compiles numba kernels: ~30 s idle, minutes on a loaded machine
+# The Python agent prints its address once imported (seconds; its kernels compile after, answering BUSY meanwhile);
+# the C firmware's host build and QEMU's image are made before theirs: a cold `make` is minutes on a loaded machine.
+START_TIMEOUT_S = 180.0
 
 
 def sim_arguments(url: str) -> list[str]:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import threading
 from dataclasses import dataclass, field
 
-from groundstation.errors import CommandError, CommandMayHaveRun
+from groundstation.errors import AgentBusy, CommandError, CommandMayHaveRun
 from protocol import AckResult, Message
 from protocol import messages as m
 
@@ -118,6 +118,8 @@ def refusal(name: str, ack: m.Ack) -> CommandError | None:
         return None
     why = result_name(ack.result)
     reason = f" ({ack.reason})" if ack.reason else ""
+    if ack.result == AckResult.BUSY:
+        return AgentBusy(f"{name} refused by the agent: {why}{reason}", ack.result, ack.reason)
     return CommandError(f"{name} refused by the agent: {why}{reason}", ack.result)
 
 

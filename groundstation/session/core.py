@@ -13,7 +13,7 @@ from collections import deque
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 
-from groundstation.errors import CommandError, CommandTimeout, LinkError
+from groundstation.errors import AgentBusy, CommandError, CommandTimeout, LinkError
 from groundstation.links import Link
 from groundstation.session.clock import ClockModel
 from groundstation.session.commands import MAYBE_RAN, PendingCommand, PendingCommands, may_have_run, refusal
@@ -44,18 +44,24 @@ class SessionConfig:
     node_id: int = field(default_factory=lambda: int.from_bytes(os.urandom(4), "little"))
     key: bytes | None = field(default=None, repr=False)  # signing key: every frame sent is signed (SPEC s. 12)
     name: str = "dive"  # our HELLO's name: a run's hub names the tool a command came from by it ("dive target")
+    # A command answered BUSY (SPEC s. 5; a virtual agent building its program, minutes on a cold compile cache
+    # under load) is sent again every BUSY_RETRY_S for this long: waiting, not failing (an AGENT_BUSY event each).
+    busy_wait_s: float = 900.0
 
 
 
 HELLO_RESEND_S = 1.0  # an unanswered HELLO is sent again after this long (the agent answers every HELLO)
 MODE_WAIT_S = 3.0  # for the agent's next SAMPLE or HEARTBEAT (1 Hz of agent time) after a "maybe run" NACK
 HELLO_TRIES = 5  # HELLOs unanswered on one connection after a reconnect: that connection is dropped for a new one
+BUSY_RETRY_S = 1.0  # a command answered BUSY is sent again after this long
 
 
 class SessionCore:
     def __init__(self, link: Link, config: SessionConfig | None = None,
-                 listeners: Iterable[SessionListener] = ()) -> None:
+                 listeners: Iterable[SessionListener] = (), cancel: threading.Event | None = None) -> None:
+        """`cancel`, once set (a run stopped by a signal), ends a wait for a BUSY agent at once (AgentBusy)."""
         self.link = link
+        self._cancel = cancel or threading.Event()
         self.config = config or SessionConfig()
         self.listeners = Listeners(listeners)
         # A random first seq: an agent that remembers the last 16 (msg_id, seq) it ACKed must not take a new
@@ -110,8 +116,23 @@ class SessionCore:
         """Send a message; a command is retried with the same bytes and seq until ACKed. `flags`: frame flags of
         ours (a tool's request to its run's hub is flagged as the ground's: links/hub_events.py).
 
-        With wait, returns the ACK and raises CommandError on a NACK, CommandTimeout without an ACK.
+        With wait, returns the ACK and raises CommandError on a NACK, CommandTimeout without an ACK. A BUSY is
+        waited out (busy_wait_s; an AGENT_BUSY event per answer), the command sent again with a new seq: nothing
+        ran, and the agent remembers no BUSY (SPEC s. 5).
         """
+        started = time.monotonic()
+        while True:
+            try:
+                return self._send_once(message, wait=wait, timeout_s=timeout_s, flags=flags)
+            except AgentBusy as e:
+                waited_s = time.monotonic() - started
+                if waited_s >= self.config.busy_wait_s or self._stop.is_set() or self._cancel.is_set():
+                    raise AgentBusy(f"{e} for {waited_s:.0f} s", e.result, e.reason) from e
+                self._emit(LinkEvent(EventKind.AGENT_BUSY, time.time_ns(), e.reason,
+                                     {"command": message.DEFINITION.name, "waited_s": round(waited_s, 1)}))
+                self._cancel.wait(BUSY_RETRY_S)
+
+    def _send_once(self, message: Message, *, wait: bool, timeout_s: float | None, flags: int) -> m.Ack | None:
         now = time.monotonic()
         ack_timeout_s = self._ack_timeout_s()
         with self._send_lock:

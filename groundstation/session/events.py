@@ -26,6 +26,7 @@ class EventKind(StrEnum):
     ALARM_CLEARED = "alarm_cleared"  # an alarm's condition has ended (past its hysteresis)
     ALARM_ACK = "alarm_ack"  # the operator acknowledged the alarms (dive ack, a key in the run pane)
     COMMAND = "command"  # an operator's command from a tool through the run's hub, with its answer (run/hub.py)
+    AGENT_BUSY = "agent_busy"  # a command answered BUSY, sent again soon (a virtual agent building its program)
 
 
 class Received(NamedTuple):

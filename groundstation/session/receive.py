@@ -328,6 +328,10 @@ class ReceiveLoop(SessionCore):
             self.send(m.Timesync(origin_us=msg.origin_us, receive_us=host_ns // 1000, transmit_us=now_us))
             return
         host_us = host_ns // 1000
+        if msg.receive_us == 0 and msg.origin_us in self._timesync_origins:
+            # A starting agent's clock reads 0 until its program runs (SPEC s. 4, a starting agent): no measurement
+            self._timesync_origins.remove(msg.origin_us)
+            return
         problem = "not an answer to a request of this session" if msg.origin_us not in self._timesync_origins \
             else timesync_problem(msg.origin_us, msg.receive_us, msg.transmit_us, host_us)
         if problem is not None:  # ignored and counted: one such frame must not move every recorded time

@@ -4,37 +4,38 @@ from __future__ import annotations
 
 import os
 from collections.abc import Callable
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from learning import n_states
-from protocol import (
-    PROTOCOL_VERSION,
-    AckResult,
-    DumpKind,
-    Frame,
-    FrameEncoder,
-    FrameFlag,
-    NodeKind,
-    StreamDecoder,
-    definitions_hash,
-    messages,
-)
+from protocol import AckResult, DumpKind, Frame, FrameEncoder, FrameFlag, StreamDecoder, messages
 from protocol.decoder import COMMAND_IDS_FROM, UndecodedCommand
 from protocol.frame import HEADER
 from protocol.registry import Message
 from simulator.agent import dumps as agent_dumps
 from simulator.agent.dumps import DumpStore
+from simulator.agent.identity import HELLO_REPEAT_S, agent_hello
 from simulator.agent.link_signing import RESYNCED, UNVERIFIED_SURFACE, LinkSigning, is_resync
 from simulator.agent.log_ring import LogRing
 from simulator.agent.program import OnboardProgram, Verdict
 from simulator.errors import ParamsError
 
-FIRMWARE_VERSION = (0, 1, 1)
 ACK_MEMORY = 16  # SPEC s. 5: the last 16 (msg_id, seq, result) answered on their merits
-HELLO_REPEAT_S = 1.0  # SPEC s. 4: HELLO once per second of link time until the ground is heard
 LOG_REPLAY_SAMPLES = 512  # SPEC s. 7: one LOG_REQUEST replays at most this many SAMPLE records
 _DUMP_KINDS = {int(k) for k in DumpKind}
 _ACK_ID = messages.Ack.MSG_ID
+
+@dataclass
+class LinkWire:
+    """The link's frame counter and receive side, and the connection's state: what the program's link takes over
+    from whoever spoke for the agent before it existed (serve/starting.py), so no frame is lost or numbered twice."""
+
+    encoder: FrameEncoder = field(default_factory=FrameEncoder)
+    decoder: StreamDecoder = field(default_factory=lambda: StreamDecoder(agent=True))
+    boot_id: int = field(default_factory=lambda: int.from_bytes(os.urandom(4), "little") or 1)
+    connected: bool = False
+    heard: bool = False  # a ground frame passed the CRC and version checks on this connection
+
 
 # A command's verdict and what follows its ACK: messages, or inner frames of the on-board log to replay.
 Outcome = tuple[Verdict, list[Message | bytes]]
@@ -46,28 +47,31 @@ class AgentLink:
 
     `write` takes wire bytes (the server passes them through fault injection to the transport). `link_clock_s`
     is the link's real clock (SPEC s. 4, time base): link silence, the HELLO repeat and the signing checks use it.
-    With a key, `mark_file` keeps the signing mark across restarts (SPEC s. 12).
+    With a key, `mark_file` keeps the signing mark across restarts (SPEC s. 12). `wire`: the frame counter, receive
+    side and connection state to carry on with (a starting agent's); a fresh one by default.
     """
 
     def __init__(self, write: Callable[[bytes], None], node_id: int, ring: LogRing | None = None,
                  key: bytes | None = None, link_clock_s: Callable[[], float] | None = None,
-                 mark_file: Path | None = None) -> None:
+                 mark_file: Path | None = None, wire: LinkWire | None = None) -> None:
+        wire = wire or LinkWire()
         self.write = write
         self.link_clock_s = link_clock_s or self._agent_clock_s
         # With a key, commands must be signed (SPEC s. 12); refusals are counted in HEARTBEAT.signing_rejects.
         self.signing = LinkSigning(key, mark_file) if key is not None else None
         self.signing_rejects = 0
         self.node_id = node_id
-        self.boot_id = int.from_bytes(os.urandom(4), "little") or 1
+        self.boot_id = wire.boot_id
         self.ring = ring or LogRing()
-        self.decoder = StreamDecoder(agent=True)
+        self.decoder = wire.decoder
         self.dumps = DumpStore()
         self.program: OnboardProgram | None = None
-        self._encoder = FrameEncoder()  # the agent's seq counter; frames keep their inner bytes for the log
+        self._encoder = wire.encoder  # the agent's seq counter; frames keep their inner bytes for the log
         # (msg_id, seq) -> (result, reason), oldest first: one lookup per command, not a scan of all 16
         self._answered: dict[tuple[int, int], tuple[int, str]] = {}
-        self._connected = False
-        self._heard = False  # a frame from the ground passed CRC and version checks on this link
+        self._wire = wire  # the connection's state is taken from it again at take_over()
+        self._connected = wire.connected
+        self._heard = wire.heard  # a frame from the ground passed CRC and version checks on this link
         self._next_hello_s = 0.0
         self._last_ground_rx_s = 0.0
         self._next_heartbeat_us = 0
@@ -110,6 +114,15 @@ class AgentLink:
     def attach(self, program: OnboardProgram) -> None:
         self.program = program
         self._last_ground_rx_s = self.link_clock_s()
+
+    def take_over(self) -> None:
+        """The program runs from now on (it was built while a starting agent spoke): the connection as the starting
+        agent leaves it (a client may have come, spoken or gone during the build), the ground's silence counted from
+        here, not from the build's start, and a HELLO repeat under way carried on at its pace."""
+        self._connected, self._heard = self._wire.connected, self._wire.heard
+        self._encoder.compiled = self.decoder.compiled = True  # off while the starting agent spoke
+        self._alive()
+        self._next_hello_s = self.link_clock_s() + HELLO_REPEAT_S
 
     def _agent_clock_s(self) -> float:
         return self._prog.t_us / 1e6 if self.program is not None else 0.0
@@ -157,13 +170,8 @@ class AgentLink:
                 self.send(chunk)
 
     def hello(self) -> None:
-        major, minor, patch = FIRMWARE_VERSION
         self._next_hello_s = self.link_clock_s() + HELLO_REPEAT_S
-        self.send(messages.Hello(
-            protocol_version=PROTOCOL_VERSION, node_kind=int(NodeKind.AGENT), definitions_hash=definitions_hash(),
-            firmware_major=major, firmware_minor=minor, firmware_patch=patch, node_id=self.node_id,
-            boot_id=self.boot_id, name="sim-agent", generation=self._prog.generation,
-        ))
+        self.send(agent_hello(self.node_id, self.boot_id, self._prog.generation))
 
     def heartbeat(self) -> None:
         prog, stats = self._prog, self.decoder.stats

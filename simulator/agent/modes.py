@@ -38,6 +38,7 @@ from learning.spec import direct_entry
 from protocol import Action, EndReason, Mode, Severity, messages
 from protocol.registry import Message
 from simulator.agent.hardware import SimulatedHardware
+from simulator.agent.identity import FIRST_GENERATION
 from simulator.agent.kernel import recovery_period_kernel, sense_kernel
 from simulator.agent.mission import MissionConfig
 from simulator.parameters import PlantParams
@@ -94,7 +95,7 @@ class ModeMachine:
         self.velocity_mps = 0.0
         self.pressure_pa = hw.read_pressure_pa()
         self.successes = 0
-        self.generation = 1  # SPEC 1.3 s. 6: the learner's generation since boot, +1 at every learner restart
+        self.generation = FIRST_GENERATION  # SPEC 1.3 s. 6: +1 at every learner restart
         self.episodes_left = 0  # 0 = no limit
         self._dive_start_us = 0
         self._hold_depth_m = 0.0  # recovery / hover / pause set point

@@ -15,7 +15,7 @@ import numpy as np
 from learning import LearnerConfig
 from simulator.agent.batch import StepBatcher
 from simulator.agent.hardware import SimulatedHardware
-from simulator.agent.link import AgentLink
+from simulator.agent.link import AgentLink, LinkWire
 from simulator.agent.mission import MissionConfig
 from simulator.agent.program import OnboardProgram
 from simulator.parameters import PlantParams
@@ -69,8 +69,9 @@ class PythonAgent:
 
     def __init__(self, plant: PlantParams, learner: LearnerConfig, mission: MissionConfig, rng: np.random.Generator,
                  write: Write, node_id: int, key: bytes | None, link_clock_s: Callable[[], float] | None = None,
-                 mark_file: Path | None = None) -> None:
-        self.link = AgentLink(write, node_id=node_id, key=key, link_clock_s=link_clock_s, mark_file=mark_file)
+                 mark_file: Path | None = None, wire: LinkWire | None = None) -> None:
+        self.link = AgentLink(write, node_id=node_id, key=key, link_clock_s=link_clock_s, mark_file=mark_file,
+                              wire=wire)
         self.hw = SimulatedHardware(plant, rng)
         self.program = OnboardProgram(plant, learner, mission, self.hw, rng, self.link)
         self.link.attach(self.program)
@@ -87,6 +88,10 @@ class PythonAgent:
     @property
     def true_depth_m(self) -> float:
         return self.hw.true_depth_m
+
+    def take_over(self) -> None:
+        """Called once, when the program starts serving a link a starting agent kept (serve/starting.py)."""
+        self.link.take_over()
 
     def step(self) -> None:
         self.program.step()

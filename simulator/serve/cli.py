@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import signal
 import sys
 from dataclasses import replace
@@ -20,6 +21,7 @@ from simulator.agent.params_table import Scope, binding, check_value
 from simulator.agent.signing_mark import mark_path
 from simulator.errors import ParamsError, SimulatorError, say_error
 from simulator.parameters import PlantParams, preset, read_param_table, read_plant_table, with_overrides
+from simulator.serve.build import BUILD_DELAY_ENV
 from simulator.serve.faults import FaultConfig
 from simulator.serve.firmware_qemu import PLANT_FIELDS, QemuConfig, serve_qemu
 from simulator.serve.loop import FIRMWARES, AgentServer, ServeConfig
@@ -84,6 +86,19 @@ def qemu_plant(params: Path | None, plant_file: Path | None) -> PlantParams | No
         raise ParamsError(f"the QEMU board's C plant takes hull, actuator and pressure-sensor figures only: "
                           f"{', '.join(foreign)} do not apply to --firmware qemu")
     return plant
+
+
+def build_delay_s() -> float:
+    """$DIVE_SIM_BUILD_DELAY_S, for tests only: the program's build waits this long first, as a cold compile cache
+    makes it, so a test sees the starting agent (serve/starting.py) without compiling anything."""
+    text = os.environ.get(BUILD_DELAY_ENV, "")
+    try:
+        delay = float(text) if text else 0.0
+    except ValueError:
+        delay = -1.0
+    if not 0.0 <= delay <= 3600.0:
+        raise ParamsError(f"{BUILD_DELAY_ENV} wants seconds 0-3600, got {text!r}")
+    return delay
 
 
 def parse_firmware(text: str) -> str:
@@ -220,7 +235,7 @@ def serve(
             host=host, port=port, pty=pty, speed=parse_speed(speed), seed=seed,
             key=read_key_file(key_file) if key_file is not None else None,
             mark_file=mark_path(key_file, state_dir) if key_file is not None else None,
-            firmware=parse_firmware(firmware), baud=baud,
+            firmware=parse_firmware(firmware), baud=baud, build_delay_s=build_delay_s(),
         )
         server = AgentServer(config)
     except (SimulatorError, LearningError) as e:
@@ -231,7 +246,7 @@ def serve(
     print(server.address, flush=True)
     try:
         server.serve_forever()
-    except SimulatorError as e:
+    except (SimulatorError, LearningError) as e:  # the program is built in there (serve/build.py)
         say_error(str(e))
         raise typer.Exit(1) from None
     finally:

@@ -14,14 +14,18 @@ import numpy as np
 from learning import LearnerConfig
 from protocol.link_taken import link_taken_notice
 from simulator.agent.batch_kernel import SAMPLE_WIRE
-from simulator.agent.mission import MissionConfig
+from simulator.agent.link import LinkWire
+from simulator.agent.mission import Battery, MissionConfig
 from simulator.agent.onboard import OnboardAgent, PythonAgent
 from simulator.parameters import PlantParams
+from simulator.serve.build import ProgramBuild
 from simulator.serve.faults import MAX_LOGGED_SEQS, DelayLine, FaultConfig, FrameFaults, frame_seq
+from simulator.serve.starting import StartingAgent
 from simulator.serve.transport import Pacer, PtyTransport, TcpTransport, Transport
 
 SLICE_S = 0.004  # longest the program runs before the sockets are served again
 MAX_WAIT_S = 0.02  # longest select() waits, so pty opens and delayed bytes are noticed
+STARTING_WAIT_S = 0.1  # the same while the program builds: frames wake it at once, the build gets the CPU otherwise
 ACK_DRAIN_S = 2.0  # a long command effect waits at most this for its ACK to leave (a paced link's queue)
 HIGH_WATER_BYTES = 256 * 1024  # real time drops frames above this (a UART FIFO does not wait for a slow reader)
 # --speed max runs the program only while the client takes what it sends: a few frames queued at most, so a
@@ -50,6 +54,7 @@ class ServeConfig:
     mark_file: Path | None = None  # where the signing mark survives a restart (SPEC s. 12)
     firmware: str = "python"  # the on-board program: python (the reference), c (firmware/ host build)
     baud: int | None = None  # bytes to the ground leave at a UART's rate (10 bits a byte); None = as fast as taken
+    build_delay_s: float = 0.0  # for tests ($DIVE_SIM_BUILD_DELAY_S): the program's build takes this much longer
 
 
 class AgentServer:
@@ -79,14 +84,20 @@ class AgentServer:
         self.connection_end_seqs: list[int] = []  # the seq after the last frame of each finished connection
         self._logged = 0
         self._connected_wall_s = 0.0
-        self.agent = _onboard_agent(config, rng, self._write, node_id=0x5100_0000 | (seed & 0xFFFF), seed=seed)
-        # Compiled batches of steps (onboard_batch.py) where nothing acts per frame or per step: with faults, each
-        # frame is dropped, corrupted, delayed or blacked out on its own, and a disconnect falls between two steps.
-        self._batches: PythonAgent | None = None
-        if isinstance(self.agent, PythonAgent) and not (
-            faults.active or faults.delay_ms or faults.disconnect_every_s or faults.blackout_below_m is not None
-        ):
-            self._batches = self.agent
+        node_id = 0x5100_0000 | (seed & 0xFFFF)
+        # The Python program is built (its kernels compiled: minutes on a cold cache) while a starting agent answers
+        # the link (SPEC s. 4, answer time); the C firmware's host build is made before the address is printed.
+        self._build: ProgramBuild[OnboardAgent] | None = None
+        self._starting: StartingAgent | None = None
+        self.agent: OnboardAgent
+        if config.firmware == "python":
+            build: ProgramBuild[OnboardAgent] = ProgramBuild(lambda: _onboard_agent(
+                config, rng, self._write, node_id, seed, starting.wire), config.build_delay_s)
+            starting = StartingAgent(self._write, node_id, Battery().voltage_v, build.progress)
+            self._build, self._starting, self.agent = build, starting, starting
+        else:
+            self.agent = _onboard_agent(config, rng, self._write, node_id, seed)
+        self._batches: PythonAgent | None = None  # see _take_over
         self.transport.on_connect = self._connected
         self.transport.on_data = self._received
         self.transport.on_disconnect = self._disconnected
@@ -96,6 +107,8 @@ class AgentServer:
         self._running = True
         self._next_disconnect_us = self._disconnect_period_us()
         self._ack_wait_until: float | None = None  # see _hold_for_ack
+        if self._build is None:
+            self._take_over(self.agent)
 
     @property
     def address(self) -> str:
@@ -192,9 +205,35 @@ class AgentServer:
     def serve_forever(self) -> None:
         """Run until stop() (a signal handler calls it, maybe before this starts); always closes the port."""
         try:
+            if self._build is not None:
+                self._start_program(self._build)
             self._loop()
         finally:
             self.close()
+
+    def _start_program(self, build: ProgramBuild[OnboardAgent]) -> None:
+        """The link served by the starting agent while the program builds; then the program takes over."""
+        build.start()
+        while self._running and not build.done:
+            self._io(STARTING_WAIT_S, eager=False)
+        if not self._running:
+            return  # stopped while building: the daemon thread ends with the process
+        program = build.result()  # the build's own error ends the server (serve/cli.py: one line, exit 1)
+        assert self._starting is not None
+        self._starting.built()
+        self.agent = program
+        if isinstance(program, PythonAgent):
+            program.take_over()
+        self._take_over(program)
+
+    def _take_over(self, agent: OnboardAgent) -> None:
+        """Compiled batches of steps (onboard_batch.py) where nothing acts per frame or per step: with faults, each
+        frame is dropped, corrupted, delayed or blacked out on its own, and a disconnect falls between two steps."""
+        faults = self.config.faults
+        if isinstance(agent, PythonAgent) and not (
+            faults.active or faults.delay_ms or faults.disconnect_every_s or faults.blackout_below_m is not None
+        ):
+            self._batches = agent
 
     def close(self) -> None:
         try:
@@ -290,12 +329,14 @@ class AgentServer:
                 wait = min(wait, max(0.0, release - time.monotonic()))
         return wait
 
-    def _io(self, timeout_s: float) -> None:
+    def _io(self, timeout_s: float, eager: bool = True) -> None:
+        """Serve the link for up to timeout_s; `eager` (a program that runs at --speed max): back at once once the
+        flush made room."""
         transport = self.transport
         transport.poll()
         self.agent.service()
         transport.flush()
-        if self.config.speed is None and timeout_s and transport.connected and \
+        if eager and self.config.speed is None and timeout_s and transport.connected and \
                 len(transport.outbuf) <= MAX_SPEED_QUEUE_BYTES:
             timeout_s = 0.0  # the flush made room: the program runs again at once (only reads are waited for)
         for key, mask in self.selector.select(timeout_s):
@@ -313,7 +354,7 @@ class AgentServer:
 
 
 def _onboard_agent(config: ServeConfig, rng: np.random.Generator, write: Callable[[bytes], None], node_id: int,
-                   seed: int) -> OnboardAgent:
+                   seed: int, wire: LinkWire | None = None) -> OnboardAgent:
     """The on-board program the configuration names: the Python reference, or the C firmware's host build.
 
     SPEC s. 4, time base: faster than real time, link silence, the HELLO repeat and signing ages are in wall
@@ -328,4 +369,4 @@ def _onboard_agent(config: ServeConfig, rng: np.random.Generator, write: Callabl
         return FirmwareAgent(config.plant, rng, write, node_id, config.key, seed, wall_link_clock=fast,
                              nv_file=nv_file)
     return PythonAgent(config.plant, config.learner, config.mission, rng, write, node_id, config.key,
-                       link_clock_s=time.monotonic if fast else None, mark_file=config.mark_file)
+                       link_clock_s=time.monotonic if fast else None, mark_file=config.mark_file, wire=wire)

@@ -44,7 +44,8 @@ class LinkRelay:
         self._link = qemu_link
         self._events = qemu_events
         self._client: socket.socket | None = None
-        self._aligned = False  # the current client has been sent a frame delimiter (0x00) already
+        self._aligned = False  # the current client starts at a frame boundary (it was sent none of a frame's start)
+        self._mid_frame = False  # QEMU's stream so far ends inside a frame (its last byte was not a 0x00)
         self._lock = threading.Lock()
         self._closed = threading.Event()
         threading.Thread(target=self._accept_loop, name="relay-accept", daemon=True).start()
@@ -105,10 +106,14 @@ class LinkRelay:
                 return  # QEMU ended
             with self._lock:
                 client = self._client
+                mid_frame, self._mid_frame = self._mid_frame, not data.endswith(b"\x00")
                 if client is not None and not self._aligned:
-                    # A new client starts at a frame boundary, never inside a frame another client got the
-                    # start of (the 0x00 is kept: an empty chunk is ignored by any decoder).
-                    boundary = data.find(b"\x00")
+                    # A new client starts at a frame boundary, never inside a frame another client got the start
+                    # of (the 0x00 is kept: an empty chunk is ignored by any decoder). Only then: a chunk that
+                    # starts a frame (the board idle between steps, its next frame the ACK of the client's first
+                    # command) is whole; cutting it to its first 0x00 lost that ACK (`dive check
+                    # sim://?firmware=qemu&speed=5`: "the agent does not answer commands", one start in two).
+                    boundary = data.find(b"\x00") if mid_frame else 0
                     data = data[boundary:] if boundary >= 0 else b""
                     self._aligned = boundary >= 0
             if client is None or not data:

@@ -18,6 +18,7 @@ from protocol import Frame, FrameEncoder, NodeKind, StreamDecoder, definitions_h
 from protocol.registry import Message
 
 M = TypeVar("M", bound=Message)
+PROGRAM_WAIT_S = 300.0  # a warm build takes a second or two; a cold compile cache minutes on a loaded machine
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 
@@ -88,6 +89,15 @@ class AgentClient:
         )
         return frame.message  # type: ignore[return-value]
 
+    def wait_program(self, timeout_s: float = PROGRAM_WAIT_S) -> None:
+        """Until the program runs (its first SAMPLE: a starting agent sends none, serve/starting.py), so that commands
+        are not answered BUSY; frames read meanwhile stay unseen for wait_for."""
+        deadline = time.monotonic() + timeout_s
+        while not any(isinstance(f.message, messages.Sample) for f in self.frames):
+            if time.monotonic() > deadline:
+                raise TimeoutError(f"the agent's program did not run within {timeout_s:g} s")
+            self.pump()
+
     def command(self, message: Message, timeout_s: float = 10.0) -> messages.Ack:
         seq = self.send(message)
         return self.wait_message(messages.Ack, timeout_s, cmd_seq=seq, cmd_msg_id=message.MSG_ID)
@@ -144,6 +154,7 @@ def connected(*args: str) -> Iterator[tuple[ServerProcess, AgentClient]]:
     with running(*args) as server:
         client = AgentClient.pty(server.address) if "--pty" in args else AgentClient.tcp(server.address)
         try:
+            client.wait_program()
             yield server, client
         finally:
             client.close()

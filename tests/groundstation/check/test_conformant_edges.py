@@ -46,6 +46,7 @@ def test_at_speed_1_the_check_waits_for_idle_after_a_surface_at_the_surface(tmp_
         link.open()
         probe = Probe(link, read_key_file(key_file), Timeouts(reply_s=10.0))
         try:
+            assert probe.await_program() == ""  # its program built (a starting agent answers BUSY)
             probe.accepted(m.ParamGet(index=0, name=""))
             surfaced = probe.accepted(m.Surface(), "CMD_SURFACE at the surface")  # as signing.surface_always does
             assert probe.wait_mode({Mode.SURFACING}, surfaced.ack_at, 5.0) == Mode.SURFACING

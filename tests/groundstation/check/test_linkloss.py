@@ -45,6 +45,7 @@ def test_an_ack_read_late_does_not_make_a_correct_agent_surface_early(tmp_path: 
         link = LateReads(make_link(url))
         link.open()
         probe = Probe(link)  # type: ignore[arg-type]
+        assert probe.await_program() == ""  # its program built (a starting agent answers BUSY)
         original_set = check_agent.require_set
 
         def set_then_read_late(p: Probe, name: str, value: float) -> object:

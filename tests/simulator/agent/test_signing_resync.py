@@ -53,6 +53,7 @@ def test_a_ground_locked_out_by_a_clock_an_hour_ahead_re_syncs_once_and_the_re_s
             str(tmp_path / "state"), *firmware)
     with running(*args) as server:
         ahead = AgentClient.tcp(server.address)
+        ahead.wait_program()  # commands meet the program, not the starting agent's BUSY
         ahead.encoder = FrameEncoder(100, signer=Signer(KEY, 5, clock_ns=lambda: time.time_ns() + HOUR_NS))
         assert ahead.command(messages.ParamGet(index=0)).result == AckResult.ACCEPTED  # first: sets the estimate
         right = AgentClient.tcp(server.address)  # another ground with the right time (a fresh link id)
@@ -85,6 +86,7 @@ def test_a_ground_locked_out_by_a_clock_an_hour_ahead_re_syncs_once_and_the_re_s
         return  # a reboot costs one more start (~5 s): the Python agent's here, the C agent's in test_core_signing
     with running(*args) as server:  # rebooted: the mark stored by the re-sync, not the hour-ahead one, holds
         right = AgentClient.tcp(server.address)
+        right.wait_program()
         try:  # the mark is 10 s past the last accepted frame (s. 12): a ground past it gets in, not one an hour on
             right.encoder = FrameEncoder(400, signer=Signer(KEY, 8, clock_ns=lambda: time.time_ns() + 15 * 10**9))
             after = right.command(messages.ParamGet(index=0))
