@@ -32,8 +32,9 @@ from groundstation.mcap_io import RecordingContents, iter_messages  # noqa: E402
 from groundstation.recording.recorder import Recorder, RecorderConfig  # noqa: E402
 from groundstation.session.agent_session import Session, SessionConfig  # noqa: E402
 from groundstation.session.events import Received  # noqa: E402
-from groundstation.view import replay  # noqa: E402
+from groundstation.view import replay_convert as replay  # noqa: E402
 from groundstation.view.model import ENTITIES, Batch, Kind  # noqa: E402
+from groundstation.view.replay_items import read_items  # noqa: E402
 from groundstation.view.rerun_sink import log_frame, new_recording, send_batch, send_styles  # noqa: E402
 from protocol import Mode  # noqa: E402
 from protocol import messages as m  # noqa: E402
@@ -62,7 +63,7 @@ def convert_rows(mcap: Path, rrd: Path) -> tuple[float, int]:
     """The anchor: the same rows, one rr.log call each (time set per row)."""
     began = time.perf_counter()
     batch: Batch
-    batch, _ = replay.convert(replay.read_items(mcap, RecordingContents()))
+    batch, _ = replay.convert(read_items(mcap, RecordingContents()))
     rec = rr.RecordingStream("diving_agent", recording_id=uuid.uuid4())
     rec.save(rrd)
     send_styles(rec)

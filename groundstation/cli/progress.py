@@ -10,7 +10,7 @@ from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
 from rich.table import Column
 
-from groundstation.run.job import ECHO, RunStatus
+from groundstation.run.status import ECHO, RunStatus
 from groundstation.safe_output import in_markup, styled
 from groundstation.session.status_line import status_line
 

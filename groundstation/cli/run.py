@@ -27,7 +27,7 @@ U32_MAX = 2**32 - 1  # CMD_START's max_episodes and the simulator's seed are U32
 VIEW_HANDOFF_FRAMES = 65_536  # frames waiting for the live view before the newest are not shown (and counted)
 
 if TYPE_CHECKING:
-    from groundstation.run.job import RunStatus
+    from groundstation.run.status import RunStatus
     from groundstation.view.foxglove.live import FoxgloveLive
 
 
@@ -88,8 +88,9 @@ def run_command(
     from groundstation.cli.progress import RunDisplay
     from groundstation.recording.recorder import RecorderConfig
     from groundstation.run.alarms import AlarmConfig
+    from groundstation.run.config import RunConfig, load_params_file
     from groundstation.run.history import HistoryConfig
-    from groundstation.run.job import RunConfig, load_params_file, run
+    from groundstation.run.job import run
     from groundstation.session.agent_session import SessionConfig
 
     if speed is not None:

@@ -30,8 +30,8 @@ from groundstation.view.options import (
 if TYPE_CHECKING:  # Rerun, mcap, foxglove and the replay code are imported by the commands that use them
     from rich.progress import Progress
 
-    from groundstation.view import replay as rp
     from groundstation.view.foxglove.live import FoxgloveLive
+    from groundstation.view.replay_items import Item
     from groundstation.view.rerun_sink import RerunView
 
 __all__ = ["FoxgloveOption", "GrpcPortOption", "RunViewerOption", "ViewerOption", "WebPortOption", "closing_foxglove",
@@ -173,7 +173,7 @@ def wait_for_interrupt(what: str) -> None:
         pass
 
 
-def _progress_items(items: Iterator[rp.Item], progress: Progress, task: object) -> Iterator[rp.Item]:
+def _progress_items(items: Iterator[Item], progress: Progress, task: object) -> Iterator[Item]:
     for i, item in enumerate(items, 1):
         if i % 2048 == 0:
             progress.update(task, completed=i)  # type: ignore[arg-type]
@@ -207,12 +207,15 @@ def replay(
         from groundstation.mcap_io import RecordingContents
         from groundstation.recording.files import expand
         from groundstation.view import replay as rp
+        from groundstation.view import replay_convert as rc
+        from groundstation.view import replay_window as rw
+        from groundstation.view.replay_items import read_parts
         from groundstation.view.rerun_sink import RerunView, ViewConfig
 
         factor = parse_speed(speed)
         try:
-            bounds = (rp.parse_bound(start) if start else None, rp.parse_bound(end) if end else None)
-            rp.check_order(*bounds)
+            bounds = (rw.parse_bound(start) if start else None, rw.parse_bound(end) if end else None)
+            rw.check_order(*bounds)
             parts = rp.plan(expand(files))  # every file's header read: a missing or non-MCAP one stops us here
         except ViewError as e:  # a bad bound, a reversed window, files of two recordings: bad usage
             raise UsageError(str(e)) from None
@@ -223,8 +226,8 @@ def replay(
         web_port, grpc_port = viewer_ports(chosen, web_port, grpc_port)
         config = ViewConfig(viewer=chosen, rrd=rrd, web_port=web_port, grpc_port=grpc_port, replay=True)
         statuses = [RecordingContents() for _ in parts.files]
-        tally = rp.Tally()
-        items = rp.select(rp.read_parts(parts, statuses), *bounds, tally)
+        tally = rw.Tally()
+        items = rw.select(read_parts(parts, statuses), *bounds, tally)
         shown = parts.files[0].name if len(parts.files) == 1 else f"{parts.name} ({len(parts.files)} parts)"
         began = time.perf_counter()
         partial = rrd if rrd is not None and not rrd.exists() else None  # removed again if nothing is shown
@@ -237,10 +240,10 @@ def replay(
                               TimeElapsedColumn(), transient=True, disable=not sys.stderr.isatty()) as progress:
                     task = progress.add_task(f"reading {in_markup(shown)}", total=None)
                     if bounds == (None, None):  # the whole recording: SAMPLEs in columns
-                        batch, count = rp.convert_parts(
+                        batch, count = rc.convert_parts(
                             parts, statuses, lambda done: progress.update(task, completed=done))  # type: ignore[arg-type]
                     else:
-                        batch, count = rp.convert(_progress_items(items, progress, task))
+                        batch, count = rc.convert(_progress_items(items, progress, task))
                 view.send(batch)
             else:
                 count = rp.play(items, view.feed_model, factor)

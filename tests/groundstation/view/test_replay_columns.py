@@ -8,8 +8,9 @@ import numpy as np
 import pytest
 
 from groundstation.mcap_io import RecordingContents
-from groundstation.view import replay
+from groundstation.view import replay_convert as replay
 from groundstation.view.model import Batch
+from groundstation.view.replay_items import read_items
 from tests.groundstation.synthetic_agent import generate, record
 
 
@@ -34,7 +35,7 @@ def _same(a: Batch, b: Batch) -> None:
 @pytest.mark.parametrize("backfill_every", [0, 7])
 def test_columnar_conversion_matches_the_per_frame_one(tmp_path: Path, backfill_every: int) -> None:
     path = record(generate(duration_s=240.0, rate_hz=40.0, backfill_every=backfill_every), tmp_path / "r.mcap")
-    expected, expected_count = replay.convert(replay.read_items(path, RecordingContents()))
+    expected, expected_count = replay.convert(read_items(path, RecordingContents()))
     got, count = replay.convert_recording(path, RecordingContents())
     assert count == expected_count
     _same(got, expected)
@@ -45,7 +46,7 @@ def test_damaged_frames_are_skipped_alike(tmp_path: Path) -> None:
     data = bytearray(path.read_bytes())
     cut = tmp_path / "cut.mcap"
     cut.write_bytes(bytes(data[: len(data) * 2 // 3]))  # truncated: what was complete is shown
-    expected, expected_count = replay.convert(replay.read_items(cut, RecordingContents()))
+    expected, expected_count = replay.convert(read_items(cut, RecordingContents()))
     got, count = replay.convert_recording(cut, RecordingContents())
     assert count == expected_count > 0
     _same(got, expected)
