@@ -6,7 +6,7 @@ import os
 import signal
 import sys
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
@@ -104,16 +104,22 @@ def open_live_view(viewer: Viewer | None, rrd: Path | None, web_port: int, name:
 
 
 @contextmanager
-def closing_view(live: RerunView | None, signalled: list[str] | None = None) -> Iterator[None]:
+def closing_view(live: RerunView | None, signalled: list[str] | None = None,
+                 closed: Callable[[], None] | None = None) -> Iterator[None]:
     """Close the live view however the run ends; a served web viewer stays up until Ctrl-C first, unless the run
-    was ended by a signal (`signalled`: SIGTERM from a service manager means stop now, with one signal)."""
+    was ended by a signal (`signalled`: SIGTERM from a service manager means stop now, with one signal). `closed`
+    is called once the viewer is down (the run's announcement as finished is withdrawn then)."""
     try:
         yield
     finally:
-        if live is not None:
-            if live.address and not signalled:
-                wait_for_interrupt(f"the run is over; the web viewer stays at {live.address}")
-            live.close()
+        try:
+            if live is not None:
+                if live.address and not signalled:
+                    wait_for_interrupt(f"the run is over; the web viewer stays at {live.address}")
+                live.close()
+        finally:
+            if closed is not None:
+                closed()
 
 
 LIVE_LAYOUT = "docs/foxglove/live-layout.json"

@@ -95,15 +95,19 @@ def run(config: RunConfig, on_progress: Callable[[RunStatus], None] | None = Non
     announced: RunInfo | None = None
     backfilled = False
     try:
+        if config.hub:
+            # Announced while it connects (a virtual agent compiles for minutes): `dive record` and `dive status`
+            # started now find the run and wait or say so, instead of "no dive run is running".
+            token = new_token()
+            announced = _announce(new_run(os.getpid(), "", link.url, token, state="connecting"), recorder)
         session.connect()
         status.link_up = True
-        if config.hub:
-            token = new_token()
-            hub = Hub(session, token)
+        if announced is not None:
+            hub = Hub(session, announced.token)
             hub.history = history
             hub.start()
             session.add_listener(hub)
-            announced = _announce(new_run(os.getpid(), hub.address, link.url, token), recorder)
+            announced = _announce(dataclasses.replace(announced, hub=hub.address, state="running"), recorder)
             status.hub = f"hub://{announced.run}"
         alarms = Alarms(session, status.messages.append, config.alarms)
         session.add_listener(alarms)
@@ -124,9 +128,9 @@ def run(config: RunConfig, on_progress: Callable[[RunStatus], None] | None = Non
                     ack.clear()
                     alarms.acknowledge("the run pane (key a)")
                 status.alarm_flag = alarms.flag()
-                if announced is not None and str(recorder.paths[-1] if recorder.paths else "") != \
-                        announced.recording:
-                    announced = _announce(announced, recorder)
+                if announced is not None and (announced.alarm != status.alarm_flag or
+                                              str(recorder.paths[-1] if recorder.paths else "") != announced.recording):
+                    announced = _announce(dataclasses.replace(announced, alarm=status.alarm_flag), recorder)
                 if on_progress is not None:
                     on_progress(status)
                 if watch.finished() or recorder.failure is not None or session.failure is not None or \
@@ -166,4 +170,4 @@ def run(config: RunConfig, on_progress: Callable[[RunStatus], None] | None = Non
         raise session.listeners.failure  # the recorder (or the live view) raised: one line naming it
     if on_progress is not None:
         on_progress(status)
-    return RunResult(list(recorder.paths), status, interrupted, missing, session.backfill_status()[0])
+    return RunResult(list(recorder.paths), status, interrupted, missing, session.backfill_status()[0], announced)

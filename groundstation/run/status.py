@@ -6,6 +6,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from groundstation.links.runs import RunInfo
 from groundstation.session.status_line import AgentStatus
 
 ECHO = "> "  # how the run pane's echo of a command, marker or acknowledgement begins (cli/progress.py styles it)
@@ -46,3 +47,4 @@ class RunResult:
     interrupted: bool
     still_missing: int
     lost: int = 0  # of still_missing: samples the agent's log no longer held (proved by its LOG_RANGE / HEARTBEAT)
+    announced: RunInfo | None = None  # how the run was last announced to the machine's other tools (links/runs.py)

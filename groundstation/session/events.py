@@ -26,6 +26,7 @@ class EventKind(StrEnum):
     ALARM_CLEARED = "alarm_cleared"  # an alarm's condition has ended (past its hysteresis)
     ALARM_ACK = "alarm_ack"  # the operator acknowledged the alarms (dive ack, a key in the run pane)
     COMMAND = "command"  # an operator's command from a tool through the run's hub, with its answer (run/hub.py)
+    RUN_ENDED = "run_ended"  # the run a tool was attached to ended and closed its hub: not a link loss
 
 
 class Received(NamedTuple):
