@@ -27,13 +27,27 @@ _UNCOMMON_FLAGS = INCOMPATIBLE_FLAGS_MASK | int(FrameFlag.SIGNED)  # such a fram
 
 
 def convert(items: Iterator[Item], progress: Callable[[int], None] | None = None) -> tuple[Batch, int]:
-    """Feed everything to one model and return all its rows at once (for columnar logging) and the item count."""
+    """Feed everything to one model and return all its rows at once (for columnar logging) and the item count.
+
+    Of the SAMPLEs before a window only the last before each other item is fed: the window keeps the state they
+    leave (the last current cell, the timelines the next item's rows take, the count of backfilled ones), not
+    their rows, and feeding each was most of a late window's time (`dive replay --from 150` of an hour)."""
     model = ViewModel()
     count, seen, before = 0, 0, False
+    passed: Item | None = None  # the latest SAMPLE before the window, not fed yet
     for seen, item in enumerate(items, 1):  # noqa: B007
         if item.before:
-            item.feed(model)
             before = True
+            if isinstance(item.message, m.Sample):
+                if passed is not None and passed.flags & _REPLAYED:
+                    model.count_backfilled()
+                passed = item
+                continue
+        if passed is not None:
+            passed.feed(model)
+            passed = None
+        if item.before:
+            item.feed(model)
             continue
         if before:  # the window opens on the latest heatmaps and the learning curve so far, not on nothing
             model.keep_state()
@@ -55,20 +69,41 @@ def convert_recording(path: Path, info: RecordingContents | None = None,
     return model.take(), count
 
 
-def convert_parts(parts: Parts, infos: list[RecordingContents],
-                  progress: Callable[[int], None] | None = None) -> tuple[Batch, int]:
-    """convert_recording over every part into one model: one timeline, the view's state carried across parts."""
+FIRST_SLICE_ITEMS = 8192  # a viewer fed in slices gets this many items first (a few minutes of a recording)
+
+
+def convert_parts(parts: Parts, infos: list[RecordingContents], progress: Callable[[int], None] | None = None,
+                  sink: Callable[[Batch], None] | None = None) -> tuple[Batch, int]:
+    """convert_recording over every part into one model: one timeline, the view's state carried across parts.
+
+    With `sink`, the rows are handed to it in slices as they are made, the first after FIRST_SLICE_ITEMS items and
+    each next one twice as large: a viewer opens on the recording's first minutes while the rest is converted,
+    instead of on nothing until the whole hour is (the rows and their order are the same; the last slice is
+    returned)."""
     model = ViewModel()
     for item in header_items(parts):
         item.feed(model)
     count = 0
+    slices = _Slices(model, sink) if sink is not None else None
     for path, info in zip(parts.files, infos, strict=True):
-        count = _convert_into(model, path, info, progress, count)
+        count = _convert_into(model, path, info, progress, count, slices)
     return model.take(), count
 
 
+class _Slices:
+    """Hands the model's rows to a sink at growing item counts (FIRST_SLICE_ITEMS, then twice as many, ...)."""
+
+    def __init__(self, model: ViewModel, sink: Callable[[Batch], None]) -> None:
+        self._model, self._sink, self.next_at = model, sink, FIRST_SLICE_ITEMS
+
+    def send(self, count: int) -> None:
+        self._sink(self._model.take())
+        self.next_at = 2 * count
+
+
 def _convert_into(model: ViewModel, path: Path, info: RecordingContents | None = None,
-                  progress: Callable[[int], None] | None = None, count: int = 0) -> int:
+                  progress: Callable[[int], None] | None = None, count: int = 0,
+                  slices: _Slices | None = None) -> int:
     """convert(read_items(path)) with runs of SAMPLEs decoded and turned into rows as columns.
 
     A recorded hour holds some 133,000 SAMPLEs: decoding and feeding them one by one is most of a
@@ -88,6 +123,9 @@ def _convert_into(model: ViewModel, path: Path, info: RecordingContents | None =
             times.clear()
 
     for topic, log_time_ns, data in iter_topic_data(path, TOPICS, info):
+        if slices is not None and count >= slices.next_at:
+            flush()
+            slices.send(count)
         if topic == RAW_RX_TOPIC:
             if (len(data) == _SAMPLE_SIZE and data[4] == _SAMPLE_ID and data[0] == PROTOCOL_VERSION
                     and not data[1] & _UNCOMMON_FLAGS and not crc_hqx(data, CRC_INIT)):

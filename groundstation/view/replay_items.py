@@ -6,7 +6,7 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
-from groundstation.mcap_io import RecordingContents, iter_messages
+from groundstation.mcap_io import RecordingContents, iter_topic_data
 from groundstation.recording.files import RecordingParts as Parts
 from groundstation.recording.recorded import json_object
 from groundstation.view.model import ViewModel
@@ -18,9 +18,11 @@ RAW_RX_TOPIC = "/raw/rx"
 TOPICS = {RAW_RX_TOPIC, "/link", "/event", "/marker"}  # decoded copies (/agent/...) and /dump/... add nothing
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True)
 class Item:
-    """One thing to show, in file order: a decoded frame or a ground-station record (/event, /link, /marker)."""
+    """One thing to show, in file order: a decoded frame or a ground-station record (/event, /link, /marker).
+
+    Not frozen: a replay window marks the items before it (`before`) in place, 100,000 of them in an hour."""
 
     host_time_ns: int
     agent_time_s: float | None  # the message's own clock, when it has one
@@ -29,6 +31,7 @@ class Item:
     setup: bool = False  # state the view needs whatever the window (a parameter: the grid's size), no rows
     before: bool = False  # before the window: fed for the state it leaves (dumps, learning curve), not shown
     message: Message | None = None  # the agent's frame, decoded (what says where a chapter begins)
+    flags: int = 0  # the frame's flags (REPLAYED: backfilled)
 
 
 def decode(inner: bytes) -> tuple[Message, int] | None:
@@ -51,7 +54,7 @@ def _frame_item(log_time_ns: int, inner: bytes) -> Item | None:
         model.feed(message, log_time_ns, flags=flags)
 
     return Item(log_time_ns, None if t_us is None else t_us / 1e6, getattr(message, "episode", None), feed,
-                setup=isinstance(message, m.ParamValue), message=message)
+                setup=isinstance(message, m.ParamValue), message=message, flags=flags)
 
 
 def record_item(topic: str, log_time_ns: int, data: bytes) -> Item | None:
@@ -70,12 +73,12 @@ def record_item(topic: str, log_time_ns: int, data: bytes) -> Item | None:
 
 
 def read_items(path: Path, info: RecordingContents | None = None) -> Iterator[Item]:
-    """The recording's received frames and ground-station records, in file order (a truncated file: up to the cut)."""
-    for record in iter_messages(path, TOPICS, info):
-        if record.topic == RAW_RX_TOPIC:
-            item = _frame_item(record.log_time_ns, record.data)
-        else:
-            item = record_item(record.topic, record.log_time_ns, record.data)
+    """The recording's received frames and ground-station records, in file order (a truncated file: up to the cut).
+
+    Read with the bulk reader (iter_topic_data), not the mcap library's records: a window late in an hour reads
+    the whole file, and building a record for each of its messages was most of `dive replay --from`'s time."""
+    for topic, log_time_ns, data in iter_topic_data(path, TOPICS, info):
+        item = _frame_item(log_time_ns, data) if topic == RAW_RX_TOPIC else record_item(topic, log_time_ns, data)
         if item is not None:
             yield item
 

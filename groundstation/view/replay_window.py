@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import dataclasses
 import re
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -128,7 +127,8 @@ def select(items: Iterator[Item], start: Bound | None, end: Bound | None,
             (start.episode is not None and (chapter, episode) < (start.chapter, start.episode))
             or (start.offset_s is not None and offset_s < start.offset_s)
         ):
-            yield dataclasses.replace(item, before=True)  # for the heatmaps and curve the window opens on
+            item.before = True  # fed for the heatmaps and curve the window opens on, not shown
+            yield item
             continue
         if end is not None and end.episode is not None and (chapter, episode) > (end.chapter, end.episode):
             break
