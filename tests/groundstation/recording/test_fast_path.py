@@ -13,8 +13,8 @@ from hypothesis import strategies as st
 
 from groundstation.mcap_io import McapFileWriter, read_recording
 from groundstation.recording.analyst_columns import float32_fields
+from groundstation.recording.bodies import message_json
 from groundstation.recording.environments import wire_float32
-from groundstation.recording.recorder import message_json
 from protocol import Message, messages
 from tests.protocol.strategies import any_message
 
