@@ -118,7 +118,7 @@ def being_recorded(path: Path) -> str | None:
     except OSError:
         return None
     for run in running():
-        if run.recording and Path(run.recording).resolve() == target:
+        if run.state != "finished" and run.recording and Path(run.recording).resolve() == target:
             return f"dive run {run.run}"
     return None
 

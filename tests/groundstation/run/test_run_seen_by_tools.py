@@ -84,6 +84,10 @@ def test_a_run_connecting_then_over_with_its_viewer_up_as_other_tools_see_it(tmp
         assert status.returncode == 0, status.stderr
         assert f"dive run {run.pid} is finished (sim://" in status.stdout, status.stdout
         assert f"its web viewer is still up at {address}" in status.stdout, status.stdout
+        [announced] = (runtime / "runs").glob("*.json")
+        recording = json.loads(announced.read_text())["recording"]
+        info = dive(runtime, "log", "info", recording)  # finished and whole: not "being recorded" any more
+        assert info.returncode == 0 and "being recorded" not in info.stdout and "episodes " in info.stdout, info
         run.send_signal(signal.SIGINT)  # the viewer's Ctrl-C
         run.communicate(timeout=60)
         gone = dive(runtime, "status")
