@@ -30,7 +30,8 @@ from mcap.writer import CompressionType, Writer
 
 from groundstation.links import open_link
 from groundstation.links.sim import SimLink
-from groundstation.recording.recorder import Recorder, RecorderConfig, message_json, message_schema
+from groundstation.recording.bodies import message_json
+from groundstation.recording.recorder import Recorder, RecorderConfig, message_schema
 from groundstation.session.agent_session import Session, SessionConfig
 from groundstation.session.events import Received
 from groundstation.session.stats import percentile

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import time
 from enum import StrEnum
 from pathlib import Path
@@ -28,6 +29,11 @@ def status(url: UrlArg = None, key_file: KeyFileOption = None) -> None:
     from groundstation.cli.status_episodes import StatusEpisodes
     from groundstation.session.status_line import AgentStatus, status_line
 
+    idle = _runs_not_up(url)
+    if idle:
+        for line in idle:
+            out.print(one_line(line), soft_wrap=True, highlight=False)
+        return
     with agent_session(url, key_file) as s:
         agent = AgentStatus()
         history = StatusEpisodes(agent)
@@ -60,7 +66,31 @@ def status(url: UrlArg = None, key_file: KeyFileOption = None) -> None:
             agent.param("target_depth_m", s.params.get("target_depth_m").value)  # no EPISODE_START seen yet
         if history.last_end is not None:
             out.print(history.last_end_text(), highlight=False)
-        out.print(f"status: {status_line(agent, snap, s.link_up)}", soft_wrap=True, highlight=False)
+        out.print(f"status: {status_line(agent, snap, s.link_up, _run_alarm(s.link.url))}", soft_wrap=True,
+                  highlight=False)
+
+
+def _runs_not_up(url: str | None) -> list[str]:
+    """With no agent named: what the runs announced on this machine are doing when none has a hub to attach to
+    (one still connecting, one over whose web viewer is still up); empty when there is one to ask, or none."""
+    if url or os.environ.get("DIVE_URL"):
+        return []
+    from groundstation.links.runs import running
+
+    announced = running()
+    return [] if any(info.state == "running" for info in announced) else [info.state_line() for info in announced]
+
+
+def _run_alarm(url: str) -> str:
+    """Through a run's hub: the run's alarm flag, as its status line shows it (the run announces it)."""
+    if not url.startswith("hub://"):
+        return ""  # an agent asked directly has no run watching it: no alarms are kept
+    from groundstation.links.runs import NoRunError, hub_address
+
+    try:
+        return hub_address(url)[0].alarm
+    except NoRunError:
+        return ""  # the run ended while we asked
 
 
 _PARAM_ACTIONS = ("get", "set", "save", "diff", "load")

@@ -12,7 +12,7 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, SpinnerColumn
 from rich.table import Column
 
 from groundstation.cli.waiting import PLAIN_EVERY_S, busy_text
-from groundstation.run.job import ECHO, RunStatus
+from groundstation.run.status import ECHO, RunStatus
 from groundstation.safe_output import in_markup, styled
 from groundstation.session.events import EventKind, LinkEvent, Received, Sent
 from groundstation.session.status_line import status_line

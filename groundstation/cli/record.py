@@ -8,10 +8,12 @@ can be started and stopped at any time (a second copy on another disk, a recordi
 
 from __future__ import annotations
 
+import os
 import signal
 import time
 from pathlib import Path
 from typing import Annotated
+from urllib.parse import urlsplit
 
 import typer
 
@@ -28,6 +30,20 @@ def _interrupt(signum: int, frame: object) -> None:
 def _fail(message: str, code: int = 1) -> typer.Exit:
     typer.echo(f"dive: {one_line(message)}", err=True)  # the prefix of every dive error (cli.py)
     return typer.Exit(code)
+
+
+def _wait_while_connecting(url: str | None) -> None:
+    """A run still connecting to its agent (a virtual one compiles for minutes) is waited for, not "no dive run"."""
+    from groundstation.links.runs import holder, wait_while_connecting
+
+    given = url or os.environ.get("DIVE_URL")
+    if given and not given.startswith("hub://"):
+        held = holder(given)  # an agent URL a run holds: that run's hub
+        if held is None:
+            return
+        given = f"hub://{held.run}"
+    wait_while_connecting(urlsplit(given).netloc or None if given else None,
+                          lambda line: typer.echo(one_line(line), err=True))
 
 
 def record(
@@ -49,8 +65,9 @@ def record(
         from groundstation.cli.common import err
         from groundstation.cli.waiting import BusyLine
         from groundstation.links import make_link
-        from groundstation.links.runs import attach_url
+        from groundstation.links.runs import attach_url, hub_address
         from groundstation.recording.recorder import Recorder, RecorderConfig
+        from groundstation.recording.run_end import RunEndAware
         from groundstation.run.job import session_info
         from groundstation.session.agent_session import Session, SessionConfig
 
@@ -61,14 +78,16 @@ def record(
         if config.first_file is not None and config.first_file.exists():  # before attaching, as dive run does
             raise RecordingExistsError(f"{one_line(config.first_file)} exists; a recording is never overwritten: "
                                        "give another name or a directory")
+        _wait_while_connecting(url)
         link = make_link(attach_url(url))
         through_hub = link.url.startswith("hub://")
         recorder = Recorder(config, session_info(link.url))
         # Through a hub the run backfills for every tool (its replayed frames are fanned out) and its end ends ours:
-        # no LOG_REQUESTs of our own, no reconnecting to a run that is gone.
+        # no LOG_REQUESTs of our own, no reconnecting to a run that is gone, and no link loss recorded for its end.
         session_config = SessionConfig(key=resolve_key(key_file), backfill=not through_hub, reconnect=not through_hub)
         busy = BusyLine(err)  # an agent still starting answers BUSY: one line says we wait
-        session = Session(link, session_config, listeners=[recorder, busy])
+        listener = RunEndAware(recorder, hub_address(link.url)[0].run) if through_hub else recorder
+        session = Session(link, session_config, listeners=[listener, busy])
         try:
             hello = session.connect()
             recorder.set_parameters(session.params.values())

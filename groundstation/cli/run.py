@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import threading
 from collections.abc import Callable
 from pathlib import Path
@@ -28,7 +29,8 @@ U32_MAX = 2**32 - 1  # CMD_START's max_episodes and the simulator's seed are U32
 VIEW_HANDOFF_FRAMES = 65_536  # frames waiting for the live view before the newest are not shown (and counted)
 
 if TYPE_CHECKING:
-    from groundstation.run.job import RunStatus
+    from groundstation.links.runs import RunInfo
+    from groundstation.run.status import RunStatus
     from groundstation.view.foxglove.live import FoxgloveLive
 
 
@@ -89,8 +91,9 @@ def run_command(
     from groundstation.cli.progress import RunDisplay
     from groundstation.recording.recorder import RecorderConfig
     from groundstation.run.alarms import AlarmConfig
+    from groundstation.run.config import RunConfig, load_params_file
     from groundstation.run.history import HistoryConfig
-    from groundstation.run.job import RunConfig, load_params_file, run
+    from groundstation.run.job import run
     from groundstation.session.agent_session import SessionConfig
 
     if speed is not None:
@@ -125,7 +128,9 @@ def run_command(
                        history=HistoryConfig(window_s=history_minutes * 60.0),
                        alarms=AlarmConfig(link_lost_s=alarm_link_lost, silent_s=alarm_link_lost, depth_m=alarm_depth))
     stop, signalled, ack = threading.Event(), list[str](), threading.Event()
-    with stop_on_signals(stop, signalled), view_cli.closing_foxglove(fox), view_cli.closing_view(view, signalled):
+    finished: list[RunInfo] = []  # the run over, its web viewer up: still announced, so `dive status` says where
+    with stop_on_signals(stop, signalled), view_cli.closing_foxglove(fox), \
+            view_cli.closing_view(view, signalled, lambda: _withdraw(finished)):
         # the live view is fed from a thread of its own: a slow viewer never holds up the session that records
         rerun = Handoff(view, VIEW_HANDOFF_FRAMES, "dive-rerun-publish") if view is not None else None
         try:
@@ -152,6 +157,8 @@ def run_command(
             err.print(f"the live view {'stopped: ' + rerun.failure if rerun.failure else 'fell behind'}"
                       f"{f' ({rerun.dropped} frames not shown)' if rerun.dropped else ''}; the recording is complete",
                       style="yellow", soft_wrap=True)
+        if view is not None and view.address and not signalled and result.announced is not None:
+            finished.append(_announce_finished(result.announced, view.address, result.paths))
         # After the status line has ended (a path written under a live display was glued to its last line), before
         # a served web viewer waits: the path is printed however the run ends.
         for path in result.paths:
@@ -173,6 +180,24 @@ def run_command(
         err.print(f"stopped by {signalled[0] if signalled else 'Ctrl-C'}{did}; the recording is complete",
                   style="dim", soft_wrap=True)
         raise typer.Exit(130)  # the one convention: interrupted = 130, whatever was saved
+
+
+def _announce_finished(info: RunInfo, viewer: str, paths: list[Path]) -> RunInfo:
+    """The run announced again as finished, with its web viewer's address (best effort, as every announcement)."""
+    from groundstation.links.runs import announce
+
+    over = dataclasses.replace(info, state="finished", hub="", viewer=viewer, alarm="",
+                               recording=str(paths[-1]) if paths else info.recording)
+    with contextlib.suppress(OSError):
+        announce(over)
+    return over
+
+
+def _withdraw(finished: list[RunInfo]) -> None:
+    from groundstation.links.runs import withdraw
+
+    for info in finished:
+        withdraw(info)
 
 
 def _attaching(show: Callable[[RunStatus], None], fox: FoxgloveLive,

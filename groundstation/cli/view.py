@@ -6,7 +6,7 @@ import os
 import signal
 import sys
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
@@ -30,8 +30,8 @@ from groundstation.view.options import (
 if TYPE_CHECKING:  # Rerun, mcap, foxglove and the replay code are imported by the commands that use them
     from rich.progress import Progress
 
-    from groundstation.view import replay as rp
     from groundstation.view.foxglove.live import FoxgloveLive
+    from groundstation.view.replay_items import Item
     from groundstation.view.rerun_sink import RerunView
 
 __all__ = ["FoxgloveOption", "GrpcPortOption", "RunViewerOption", "ViewerOption", "WebPortOption", "closing_foxglove",
@@ -104,16 +104,22 @@ def open_live_view(viewer: Viewer | None, rrd: Path | None, web_port: int, name:
 
 
 @contextmanager
-def closing_view(live: RerunView | None, signalled: list[str] | None = None) -> Iterator[None]:
+def closing_view(live: RerunView | None, signalled: list[str] | None = None,
+                 closed: Callable[[], None] | None = None) -> Iterator[None]:
     """Close the live view however the run ends; a served web viewer stays up until Ctrl-C first, unless the run
-    was ended by a signal (`signalled`: SIGTERM from a service manager means stop now, with one signal)."""
+    was ended by a signal (`signalled`: SIGTERM from a service manager means stop now, with one signal). `closed`
+    is called once the viewer is down (the run's announcement as finished is withdrawn then)."""
     try:
         yield
     finally:
-        if live is not None:
-            if live.address and not signalled:
-                wait_for_interrupt(f"the run is over; the web viewer stays at {live.address}")
-            live.close()
+        try:
+            if live is not None:
+                if live.address and not signalled:
+                    wait_for_interrupt(f"the run is over; the web viewer stays at {live.address}")
+                live.close()
+        finally:
+            if closed is not None:
+                closed()
 
 
 LIVE_LAYOUT = "docs/foxglove/live-layout.json"
@@ -173,7 +179,7 @@ def wait_for_interrupt(what: str) -> None:
         pass
 
 
-def _progress_items(items: Iterator[rp.Item], progress: Progress, task: object) -> Iterator[rp.Item]:
+def _progress_items(items: Iterator[Item], progress: Progress, task: object) -> Iterator[Item]:
     for i, item in enumerate(items, 1):
         if i % 2048 == 0:
             progress.update(task, completed=i)  # type: ignore[arg-type]
@@ -207,12 +213,15 @@ def replay(
         from groundstation.mcap_io import RecordingContents
         from groundstation.recording.files import expand
         from groundstation.view import replay as rp
+        from groundstation.view import replay_convert as rc
+        from groundstation.view import replay_window as rw
+        from groundstation.view.replay_items import read_parts
         from groundstation.view.rerun_sink import RerunView, ViewConfig
 
         factor = parse_speed(speed)
         try:
-            bounds = (rp.parse_bound(start) if start else None, rp.parse_bound(end) if end else None)
-            rp.check_order(*bounds)
+            bounds = (rw.parse_bound(start) if start else None, rw.parse_bound(end) if end else None)
+            rw.check_order(*bounds)
             parts = rp.plan(expand(files))  # every file's header read: a missing or non-MCAP one stops us here
         except ViewError as e:  # a bad bound, a reversed window, files of two recordings: bad usage
             raise UsageError(str(e)) from None
@@ -223,24 +232,26 @@ def replay(
         web_port, grpc_port = viewer_ports(chosen, web_port, grpc_port)
         config = ViewConfig(viewer=chosen, rrd=rrd, web_port=web_port, grpc_port=grpc_port, replay=True)
         statuses = [RecordingContents() for _ in parts.files]
-        tally = rp.Tally()
-        items = rp.select(rp.read_parts(parts, statuses), *bounds, tally)
+        tally = rw.Tally()
+        items = rw.select(read_parts(parts, statuses), *bounds, tally)
         shown = parts.files[0].name if len(parts.files) == 1 else f"{parts.name} ({len(parts.files)} parts)"
         began = time.perf_counter()
         partial = rrd if rrd is not None and not rrd.exists() else None  # removed again if nothing is shown
         with _removed_on_error(partial), RerunView.open(config, name=parts.files[0].stem
                                                          if len(parts.files) == 1 else parts.name) as view:
-            if view.address and factor is not None:
+            if view.address:  # now: the browser loads the viewer while the recording is read, and gets it in slices
                 typer.echo(f"Rerun web viewer: {view.address}")
             if factor is None:
                 with Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.completed} frames"),
                               TimeElapsedColumn(), transient=True, disable=not sys.stderr.isatty()) as progress:
                     task = progress.add_task(f"reading {in_markup(shown)}", total=None)
                     if bounds == (None, None):  # the whole recording: SAMPLEs in columns
-                        batch, count = rp.convert_parts(
-                            parts, statuses, lambda done: progress.update(task, completed=done))  # type: ignore[arg-type]
+                        # in slices: the viewer opens on the first minutes while the rest is converted
+                        batch, count = rc.convert_parts(
+                            parts, statuses, lambda done: progress.update(task, completed=done),  # type: ignore[arg-type]
+                            sink=view.send)
                     else:
-                        batch, count = rp.convert(_progress_items(items, progress, task))
+                        batch, count = rc.convert(_progress_items(items, progress, task))
                 view.send(batch)
             else:
                 count = rp.play(items, view.feed_model, factor)
@@ -263,7 +274,7 @@ def replay(
             if view.address:
                 if factor is None:
                     view.flush()
-                    typer.echo(f"Rerun web viewer: {view.address}")
+                    typer.echo(f"sent {count} frames to the viewer in {time.perf_counter() - began:.2f} s", err=True)
                 wait_for_interrupt("serving the web viewer")
                 stopped = True
     if stopped:

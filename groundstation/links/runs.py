@@ -16,6 +16,7 @@ import json
 import os
 import stat
 import time
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from urllib.parse import urlsplit
@@ -57,10 +58,27 @@ class RunInfo:
     recording: str  # the current recording file ("" before the first)
     started: float  # time.time()
     token: str = field(default="", repr=False)  # the hub's secret (hex): never printed, never sent (hub_auth.py)
+    # connecting: the run exists but has no hub yet (a virtual agent compiling); running: tools attach to `hub`;
+    # finished: the run is over, its agent's link closed, but its web viewer (`viewer`) is still up
+    state: str = "running"
+    viewer: str = ""
+    alarm: str = ""  # the run's alarm flag, as its status line shows it (run/alarms.py): `dive status` shows it too
 
     @property
     def path(self) -> Path:
         return runs_dir() / f"{self.run}.json"
+
+    def state_line(self) -> str:
+        """What the run is doing, for `dive status` and a tool that finds no run to attach to."""
+        if self.state == "connecting":
+            return (f"dive run {self.run} is connecting to {self.url} (for {time.time() - self.started:.0f} s): "
+                    "tools attach once it is up")
+        if self.state == "finished":
+            viewer = f"; its web viewer is still up at {self.viewer} (Ctrl-C in its pane closes it)" \
+                if self.viewer else ""
+            recording = f", recording {self.recording}" if self.recording else ""
+            return f"dive run {self.run} is finished ({self.url}{recording}){viewer}"
+        return f"dive run {self.run} is running: hub://{self.run} ({self.url})"
 
 
 def _alive(pid: int) -> bool:
@@ -135,16 +153,23 @@ def running() -> list[RunInfo]:
 
 
 def find_run(run: str | None = None, hint: str = "") -> RunInfo:
-    """The run named, or the one run there is; NoRunError with one line (and `hint`) otherwise."""
-    runs = running()
+    """The run named, or the one run there is, that tools can attach to; NoRunError with one line (and `hint`)
+    otherwise, naming a run that is still connecting or is over."""
+    announced = running()
+    runs = [info for info in announced if info.state == "running"]
     if run:
-        for info in runs:
+        for info in announced:
             if info.run == run:
+                if info.state != "running":
+                    raise NoRunError(info.state_line())
                 return info
         known = ", ".join(r.run for r in runs) or "none"
         raise NoRunError(f"no dive run {run!r} on this machine (running: {known})")
     if not runs:
-        raise NoRunError(f"no `dive run` is running on this machine{hint}")
+        others = "; ".join(info.state_line() for info in announced)
+        if any(info.state == "connecting" for info in announced):
+            raise NoRunError(others)  # it is there: "no dive run" would send the user to start a second one
+        raise NoRunError(f"no `dive run` is running on this machine{hint}" + (f" ({others})" if others else ""))
     if len(runs) > 1:
         listed = ", ".join(f"hub://{r.run} ({r.url})" for r in runs)
         raise NoRunError(f"{len(runs)} dive runs are running; name one: {listed}")
@@ -174,7 +199,23 @@ def holder(url: str) -> RunInfo | None:
     key = _agent_key(url)
     if key is None:
         return None
-    return next((info for info in running() if _agent_key(info.url) == key), None)
+    # a connecting run holds it already; a finished one has closed its link
+    return next((info for info in running() if info.state != "finished" and _agent_key(info.url) == key), None)
+
+
+def wait_while_connecting(run: str | None, notice: Callable[[str], None], poll_s: float = 0.2) -> None:
+    """While the run named (or the only one announced) is still connecting, wait for it, saying so once; return
+    when it is up, or when none is connecting (find_run then says what there is)."""
+    said = False
+    while True:
+        announced = [info for info in running() if run is None or info.run == run]
+        connecting = [info for info in announced if info.state == "connecting"]
+        if not connecting or any(info.state == "running" for info in announced):
+            return
+        if not said:
+            notice(f"{connecting[0].state_line()}: waiting for it; Ctrl-C to give up")
+            said = True
+        time.sleep(poll_s)
 
 
 def refuse_if_held(url: str) -> None:
@@ -205,5 +246,6 @@ def run_url_default(url: str | None) -> str:
     return url or os.environ.get("DIVE_URL") or DEFAULT_URL
 
 
-def new_run(pid: int, hub: str, url: str, token: str) -> RunInfo:
-    return RunInfo(run=str(pid), pid=pid, hub=hub, url=url, recording="", started=time.time(), token=token)
+def new_run(pid: int, hub: str, url: str, token: str, state: str = "running") -> RunInfo:
+    return RunInfo(run=str(pid), pid=pid, hub=hub, url=url, recording="", started=time.time(), token=token,
+                   state=state)

@@ -13,11 +13,11 @@ log_next_sample of the first HEARTBEAT that carried it).
 
 from __future__ import annotations
 
-import json
 from bisect import bisect_right
 from dataclasses import dataclass
 from typing import Any
 
+from groundstation.recording.recorded import json_object
 from protocol import AckResult
 from protocol import messages as m
 
@@ -58,6 +58,7 @@ class Chapters:
         self.restarts: list[Restart] = []
         self._boot = 0
         self.current = 1
+        self.number = 0  # the chapter in file order, 1, 2, ... (a boot's first learner, then each restart)
         self._pending = ""  # why the learner restarted, inferred, before the next episode starts
         self._last_episode = 0
         self._from_wire = False
@@ -67,6 +68,7 @@ class Chapters:
         """The generation of this message (for SAMPLEs: the chapter at the time it arrived, see sample_generation)."""
         if boot != self._boot:  # a reboot: the first learner of a boot is generation 1 (or what the wire says)
             self._boot, self.current, self._pending, self._last_episode = boot, 1, "", 0
+            self.number += 1
             self._from_wire = False
         wire = wire_generation(body)
         if topic == TEXT and restart_words(str(body.get("text", ""))):
@@ -97,6 +99,7 @@ class Chapters:
     def _restart(self, generation: int, inferred: bool, why: str) -> None:
         self.restarts.append(Restart(self._boot, generation, inferred, why, self._last_episode, self.current))
         self.current, self._pending, self._last_episode = generation, "", 0
+        self.number += 1
 
     def _note_first(self, sample: int) -> None:
         key = (self._boot, self.current)
@@ -130,11 +133,8 @@ CHAPTER_TOPICS = (HELLO, TEXT, ACK, EPISODE_START)  # besides EPISODE_END: what 
 def follow_recorded(chapters: Chapters, boot: int, topic: str, data: bytes | str) -> dict[str, Any] | None:
     """A recorded message of CHAPTER_TOPICS or EPISODE_END, followed: its JSON body with `boot` and `generation`
     set, or None when it is not a JSON object (malformed: the caller counts it)."""
-    try:
-        body = json.loads(data)
-    except (ValueError, UnicodeDecodeError):
-        return None
-    if not isinstance(body, dict):
+    body = json_object(data)
+    if body is None:
         return None
     body["generation"] = chapters.follow(boot, topic, body)
     body["boot"] = boot

@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from groundstation.errors import GroundStationError
-from groundstation.recording.environments import tidy_value, wire_float32
+from groundstation.recording.environments import tidy_value
 
 _HEX_IDS = ("node_id", "boot_id")  # shown in hex everywhere else (dive status, file names)
 
@@ -118,7 +118,7 @@ def being_recorded(path: Path) -> str | None:
     except OSError:
         return None
     for run in running():
-        if run.recording and Path(run.recording).resolve() == target:
+        if run.state != "finished" and run.recording and Path(run.recording).resolve() == target:
             return f"dive run {run.run}"
     return None
 
@@ -140,9 +140,6 @@ def _number(text: Any) -> Any:
     return value
 
 
-_EPISODE_F32 = ("duration_s", "episode_return")
-
-
 def json_summary(summary: dict[str, Any]) -> dict[str, Any]:
     """`dive log info --json`: numbers as numbers, node and boot ids in hex as `dive status` shows them."""
     out = dict(summary)
@@ -154,7 +151,4 @@ def json_summary(summary: dict[str, Any]) -> dict[str, Any]:
     out["parameters"] = {k: _number(v) for k, v in dict(summary.get("parameters", {})).items()}
     out["boots"] = [{**boot, "boot_id": f"{boot['boot_id']:08x}" if isinstance(boot.get("boot_id"), int) else None}
                     for boot in summary.get("boots", [])]
-    # EPISODE_END's duration and return are the wire's float32: 2.8, not 2.799999952316284
-    out["episodes"] = [{k: wire_float32(v) if k in _EPISODE_F32 and isinstance(v, float) else v for k, v in e.items()}
-                       for e in summary.get("episodes", [])]
     return out

@@ -16,6 +16,7 @@ from groundstation.recording.chapters import (
     chapter_summaries,
     follow_recorded,
 )
+from groundstation.recording.environments import wire_float32
 from groundstation.recording.recorded import Boots, json_fields
 from groundstation.session.exactness import SampleIndexCheck
 from groundstation.session.gaps import SampleRanges
@@ -202,9 +203,10 @@ def summarize_stream(path: Path) -> RecordingSummary:
 def _episode(body: dict[str, Any]) -> EpisodeSummary:
     reason = body["reason"]
     outcome = EndReason(reason).name.lower() if reason in (1, 2, 3) else str(reason)
-    return EpisodeSummary(body["episode"], outcome, body["steps"], body["duration_s"] or 0.0,
-                          body["episode_return"] or 0.0, bool(body.get("_backfilled")), int(body.get("boot", 1)),
-                          int(body.get("generation", 1)))
+    # the wire's float32 at its precision (2.8): as a recording holds it now, or widened by an older recorder
+    return EpisodeSummary(body["episode"], outcome, body["steps"], wire_float32(body["duration_s"] or 0.0),
+                          wire_float32(body["episode_return"] or 0.0), bool(body.get("_backfilled")),
+                          int(body.get("boot", 1)), int(body.get("generation", 1)))
 
 
 def _chapters(chapters: Chapters, episodes: list[EpisodeSummary]) -> list[ChapterSummary]:

@@ -15,14 +15,20 @@ from groundstation.mcap_io import RecordedMessage
 _NUMBER = (int, float)
 
 
+def json_object(data: bytes | str) -> dict[str, Any] | None:
+    """A recorded body's JSON object; None when it is not JSON or not an object (malformed: the caller counts it)."""
+    try:
+        body = json.loads(data)
+    except (ValueError, UnicodeDecodeError):
+        return None
+    return body if isinstance(body, dict) else None
+
+
 def json_fields(msg: RecordedMessage, integers: tuple[str, ...] = (), numbers: tuple[str, ...] = ()
                 ) -> dict[str, Any] | None:
     """The message's JSON object if it is one with these integer and number fields; None (malformed) otherwise."""
-    try:
-        body = json.loads(msg.data)
-    except (ValueError, UnicodeDecodeError):
-        return None
-    if not isinstance(body, dict):
+    body = json_object(msg.data)
+    if body is None:
         return None
     for key in integers:
         value = body.get(key)

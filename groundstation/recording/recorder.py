@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import functools
-import json
 import os
 import platform
 import socket
@@ -15,10 +14,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TypeVar
 
-import orjson
-
 from groundstation.errors import RecordingError, RecordingExistsError
 from groundstation.mcap_io import RAW_ENCODING, McapFileWriter, mcap_library_version
+from groundstation.recording.bodies import body_json, compact_json, message_json
 from groundstation.recording.held_frames import EarlyFrames, UnusedFrames
 from groundstation.recording.safe_files import unused_name
 from groundstation.session.dumps import DumpAssembler
@@ -27,7 +25,6 @@ from groundstation.session.hello import tool_version
 from protocol import DumpKind, Message, messages
 from protocol.cobs import cobs_decode
 from protocol.jsonschema import message_json_schema
-from protocol.registry import message_classes
 
 ENVELOPE = {
     "_seq": {"type": "integer", "description": "frame sequence number", "minimum": 0, "maximum": 65535},
@@ -75,35 +72,6 @@ def event_topic(event: LinkEvent) -> tuple[str, str, dict[str, Any], Any]:
                                                           "data": event.data}
 
 
-# One encoder each: json.dumps with any option builds a new JSONEncoder per call, more than a SAMPLE's encoding costs.
-_compact_json = json.JSONEncoder(separators=(",", ":")).encode
-_compact_json_any = json.JSONEncoder(separators=(",", ":"), default=str).encode
-
-
-def body_json(body: Any) -> bytes:
-    """An event's or a dump's body as the recording writes it: compact JSON, anything else as its text."""
-    return _compact_json_any(body).encode()
-
-
-def message_json(message: Message, seq: int, flags: int, backfilled: bool) -> bytes:
-    """The JSON body of a frame: its fields and the envelope, compact.
-
-    orjson, not json: every frame is encoded, and orjson takes a fraction of the time. It writes the
-    shortest text that reads back as the same float (as json does, in places with another exponent
-    form) and writes NaN and infinities as null (JSON has none), as this recording always did. A message
-    of numbers and text is serialised by orjson straight from its dataclass fields, and the envelope
-    appended to the object; bytes fields (hex in JSON) and empty messages go through to_dict.
-    """
-    if message.__class__ in _DIRECT:
-        return orjson.dumps(message)[:-1] + b',"_seq":%d,"_flags":%d,"_backfilled":%s}' % (
-            seq, flags, b"true" if backfilled else b"false")
-    body = message.to_dict()
-    body["_seq"], body["_flags"], body["_backfilled"] = seq, flags, backfilled
-    return orjson.dumps(body)
-
-
-# Messages orjson can serialise from their fields as the recording wants them (not empty, no bytes to hex).
-_DIRECT = frozenset(cls for cls in message_classes().values() if cls._names and not cls._bytes_names)
 _NOTED = frozenset((messages.ParamValue, messages.DumpChunk, messages.Hello))  # see Recorder._note
 
 
@@ -355,7 +323,7 @@ class Recorder:
         elif isinstance(msg, messages.DumpChunk):
             dump = self._dumps.feed(msg)
             if dump is not None:
-                body = _compact_json(dump.as_dict()).encode()
+                body = compact_json(dump.as_dict()).encode()
                 topic, schema_name, schema = dump_topic(dump.kind)
                 w.write(w.channel(topic, "json", schema_name, schema), body, host_ns)
         elif isinstance(msg, messages.Hello):  # after a reboot the next part's header names the new boot

@@ -27,6 +27,7 @@ class EventKind(StrEnum):
     ALARM_ACK = "alarm_ack"  # the operator acknowledged the alarms (dive ack, a key in the run pane)
     COMMAND = "command"  # an operator's command from a tool through the run's hub, with its answer (run/hub.py)
     AGENT_BUSY = "agent_busy"  # a command answered BUSY, sent again soon (a virtual agent building its program)
+    RUN_ENDED = "run_ended"  # the run a tool was attached to ended and closed its hub: not a link loss
 
 
 class Received(NamedTuple):

@@ -81,6 +81,10 @@ class ViewModel:
         self._untried: NDArray[np.bool_] | None = None  # the states the latest POLICY dump says were never left
         self._backfilled = 0
 
+    def count_backfilled(self) -> None:
+        """A backfilled SAMPLE a replay passed over unfed (before its window): the count the window opens on."""
+        self._backfilled += 1
+
     def take(self) -> Batch:
         batch, self._batch = self._batch, {}
         return batch

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import os
 import re
 import signal
@@ -32,17 +33,29 @@ def one_line_failure(done: subprocess.CompletedProcess[str], text: str, code: in
     assert len(lines) == 1 and text in lines[0] and "Traceback" not in done.stderr, done.stderr
 
 
+def hub_announced(runtime: Path) -> set[Path]:
+    """The runs announced in `runtime` whose hub is up (a run is announced while it connects, before its hub)."""
+    up = set()
+    for path in (runtime / "runs").glob("*.json"):
+        try:
+            if json.loads(path.read_text()).get("state", "running") == "running":
+                up.add(path)
+        except (OSError, ValueError):
+            continue  # being replaced, or gone
+    return up
+
+
 @contextmanager
 def running(runtime: Path, url: str, out: Path, *options: str,
             start_timeout_s: float = 30.0) -> Iterator[subprocess.Popen[str]]:
     """`dive run URL OPTIONS` until the block ends with a Ctrl-C (SIGINT); its hub announced before the block."""
-    before = set((runtime / "runs").glob("*.json")) if (runtime / "runs").is_dir() else set()
+    before = hub_announced(runtime)
     proc = subprocess.Popen([*DIVE, "run", url, "--out", str(out), *options], env=dive_env(runtime),
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         deadline = time.monotonic() + start_timeout_s
         while time.monotonic() < deadline and proc.poll() is None:
-            if set((runtime / "runs").glob("*.json")) - before:
+            if hub_announced(runtime) - before:
                 break
             time.sleep(0.05)
         assert proc.poll() is None, proc.communicate()

@@ -13,7 +13,8 @@ import foxglove
 from groundstation.links.hub import MARKER_CONFIRMATION
 from groundstation.links.hub_events import ACK_ANSWERS
 from groundstation.mcap_io import RAW_ENCODING
-from groundstation.recording.recorder import body_json, dump_topic, event_topic, message_json, message_topic
+from groundstation.recording.bodies import body_json, message_json
+from groundstation.recording.recorder import dump_topic, event_topic, message_topic
 from groundstation.session.dumps import Dump, DumpAssembler
 from groundstation.session.events import LinkEvent, Received, Sent
 from groundstation.view.foxglove import console

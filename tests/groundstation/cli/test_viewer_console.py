@@ -17,7 +17,7 @@ from typer.testing import CliRunner
 from groundstation.cli.app import app
 from groundstation.cli.validate import free_port
 from groundstation.mcap_io import read_recording
-from tests.groundstation.hub_helpers import DIVE, dive_env
+from tests.groundstation.hub_helpers import DIVE, dive_env, hub_announced
 
 
 @pytest.mark.slow
@@ -41,7 +41,7 @@ def test_one_sigterm_ends_a_run_serving_the_web_viewer(tmp_path: Path) -> None:
                            env=dive_env(runtime), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         deadline = time.monotonic() + 120
-        while time.monotonic() < deadline and run.poll() is None and not list(runtime.glob("runs/*.json")):
+        while time.monotonic() < deadline and run.poll() is None and not hub_announced(runtime):
             time.sleep(0.1)
         time.sleep(1.0)
         run.send_signal(signal.SIGTERM)  # once

@@ -66,7 +66,9 @@ def test_a_message_without_the_field_or_with_0_carries_no_generation() -> None:
 def test_replay_names_a_chapter_and_its_curves_start_afresh(tmp_path: Path) -> None:
     """`dive replay --from 2:1 --to 2:2`: chapter 2's episodes 1-2, not the first learner's; the view's learning
     curves restart at the chapter (the by-episode bars never hold two learners' episode 1) and its log says so."""
-    from groundstation.view.replay import convert, parse_bound, read_items, select
+    from groundstation.view.replay_convert import convert
+    from groundstation.view.replay_items import read_items
+    from groundstation.view.replay_window import parse_bound, select
     from protocol import messages as m
 
     (path,) = record_onboard(tmp_path / "tank.mcap", "paper", "python", seed=3, episodes=5, restart_after=2)

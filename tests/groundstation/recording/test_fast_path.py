@@ -7,11 +7,14 @@ import math
 import random
 from pathlib import Path
 
+import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from groundstation.mcap_io import McapFileWriter, read_recording
-from groundstation.recording.recorder import message_json
+from groundstation.recording.analyst_columns import float32_fields
+from groundstation.recording.bodies import message_json
+from groundstation.recording.environments import wire_float32
 from protocol import Message, messages
 from tests.protocol.strategies import any_message
 
@@ -49,9 +52,13 @@ def test_the_fast_message_writer_writes_the_bytes_of_mcaps_add_message(tmp_path:
 
 
 def _reference_json(message: Message, seq: int, flags: int, backfilled: bool) -> bytes:
-    """The recorder's JSON before orjson: the standard library, NaN and infinities as null."""
+    """The recorder's JSON before orjson: the standard library, NaN and infinities as null; a float32 field as the
+    shortest number that is the same float32 (issue 40)."""
     body = message.to_dict()
+    single = float32_fields(f"/agent/{message.DEFINITION.name}")
     for key, value in body.items():
+        if key in single and isinstance(value, float):
+            value = body[key] = wire_float32(value)
         if isinstance(value, float) and not math.isfinite(value):
             body[key] = None
     body["_seq"], body["_flags"], body["_backfilled"] = seq, flags, backfilled
@@ -76,4 +83,6 @@ def test_nan_and_infinities_become_null_and_every_float_reads_back_exactly(value
     for name, value in zip(("pressure_pa", "depth_m", "velocity_mps", "actuator_deg", "actuator_cmd_deg", "reward"),
                            values, strict=True):
         expected = messages.Sample.unpack(sample.pack()).to_dict()[name]
-        assert body[name] == (expected if math.isfinite(value) else None)
+        # the same float32, as its shortest text (116085810.0 for 116085808.0)
+        assert body[name] == (wire_float32(expected) if math.isfinite(value) else None)
+        assert body[name] is None or np.float32(body[name]) == np.float32(expected)

@@ -19,7 +19,8 @@ from groundstation.recording.export import export_csv
 from groundstation.recording.info import summarize
 from groundstation.recording.recorder import Recorder, RecorderConfig
 from groundstation.run.job import RunConfig, run
-from groundstation.view import replay as rp
+from groundstation.view.replay_convert import convert
+from groundstation.view.replay_items import read_items
 from protocol import DumpKind
 from protocol import messages as m
 from tests.groundstation.recording_fixtures import hello, make_recording, received, sample
@@ -176,7 +177,7 @@ def test_a_recorded_dump_announcing_256_mib_replays_in_bounded_memory(tmp_path: 
     recorder.close()
     tracemalloc.start()
     try:
-        _, count = rp.convert(rp.read_items(path))
+        _, count = convert(read_items(path))
         peak = tracemalloc.get_traced_memory()[1]
     finally:
         tracemalloc.stop()

@@ -17,6 +17,9 @@ from groundstation.recording.files import expand
 from groundstation.recording.recorder import Recorder, RecorderConfig
 from groundstation.recording.tables import open_recording
 from groundstation.view import replay as rp
+from groundstation.view import replay_convert as rc
+from groundstation.view import replay_window as rw
+from groundstation.view.replay_items import read_parts
 from protocol import Frame
 from protocol import messages as m
 from protocol.frame import build_inner
@@ -103,13 +106,13 @@ def test_a_part_carries_the_parameter_table_for_the_view(parts: list[Path]) -> N
     """A later part holds no PARAM_VALUE: the heatmaps take the grid from its header (zdot_cells 10 columns)."""
     later = rp.plan([parts[3]])
     assert {"zdot_cells", "z_cells"} <= set(later.header["parameters"][-1])
-    batch, _ = rp.convert_parts(later, [RecordingContents()])
+    batch, _ = rc.convert_parts(later, [RecordingContents()])
     assert any(rows.values and rows.values[0].shape[1] == 10 for path, rows in batch.items() if path.endswith("image"))
 
 
 def test_the_folder_replays_as_the_unsplit_recording(parts: list[Path], whole: Path) -> None:
-    split, _ = rp.convert_parts(rp.plan(expand([parts[0].parent])), [RecordingContents() for _ in parts])
-    one, _ = rp.convert_recording(whole, RecordingContents())
+    split, _ = rc.convert_parts(rp.plan(expand([parts[0].parent])), [RecordingContents() for _ in parts])
+    one, _ = rc.convert_recording(whole, RecordingContents())
     assert {path: len(rows.values) for path, rows in split.items()} == \
         {path: len(rows.values) for path, rows in one.items()}
     assert split["depth/z_up_m"].agent_time_s == one["depth/z_up_m"].agent_time_s
@@ -118,8 +121,8 @@ def test_the_folder_replays_as_the_unsplit_recording(parts: list[Path], whole: P
 def test_a_window_across_parts_is_one_timeline(parts: list[Path], tmp_path: Path) -> None:
     plan = rp.plan(list(reversed(parts)))  # given in any order: played by part number
     assert plan.files == parts
-    items = rp.select(rp.read_parts(plan, [RecordingContents() for _ in parts]), rp.parse_bound("100s"),
-                      rp.parse_bound("400s"))
+    items = rw.select(read_parts(plan, [RecordingContents() for _ in parts]), rw.parse_bound("100s"),
+                      rw.parse_bound("400s"))
     times = [item.agent_time_s for item in items if item.agent_time_s is not None and not item.before]
     assert times[0] == pytest.approx(100.0) and times[-1] == pytest.approx(400.0)
     assert all(b >= a for a, b in zip(times, times[1:], strict=False))

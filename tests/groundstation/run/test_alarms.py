@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 from mcap.reader import make_reader
 
-from tests.groundstation.hub_helpers import DIVE, dive, dive_env
+from tests.groundstation.hub_helpers import DIVE, dive, dive_env, hub_announced
 
 pytestmark = pytest.mark.slow
 
@@ -41,7 +41,7 @@ def test_alarms_are_printed_recorded_and_status_shows_the_block(tmp_path: Path) 
                                 "--alarm-link-lost", "1"], env=dive_env(runtime), stdout=subprocess.PIPE,
                                stderr=subprocess.PIPE, text=True)
         deadline = time.monotonic() + 60
-        while time.monotonic() < deadline and not list(runtime.glob("runs/*.json")):
+        while time.monotonic() < deadline and not hub_announced(runtime):
             time.sleep(0.1)
         time.sleep(3.0)  # 60 s of agent time: it dives past 0.3 m and for 18 s
         status = dive(runtime, "status")

@@ -1,7 +1,7 @@
 """The run pane on a real terminal (issue 40 item 1): a `dive run` in a pseudo-terminal, the operator's tools in
 other "panes" (child processes attached to its hub); every command echoed with who sent it, the held time and the
 target on the status line, a depth alarm's flag through acknowledge (`dive ack` and the key `a`) and clear, and
-the line Ctrl-C leaves."""
+the line Ctrl-C leaves; `dive status` from another pane shows the run's alarm flag as the pane does."""
 
 from __future__ import annotations
 
@@ -89,6 +89,13 @@ def _tool(runtime: Path, *args: str) -> str:
     return done.stdout
 
 
+def _status_alarm(runtime: Path) -> str:
+    """The alarm field at the end of `dive status`'s status line ("" when it ends with the link's field)."""
+    line = next(line for line in _tool(runtime, "status").splitlines() if line.startswith("status: "))
+    last = line.rsplit(" | ", 1)[-1]
+    return "" if last.startswith(("rtt", "link down")) else last
+
+
 def test_a_tank_day_in_the_run_pane(tmp_path: Path) -> None:
     runtime = tmp_path / "runtime"
     env = {**dive_env(runtime), "TERM": "xterm-256color"}
@@ -113,10 +120,12 @@ def test_a_tank_day_in_the_run_pane(tmp_path: Path) -> None:
         at = pane.wait_for(r"> dive hover: hover 1\.2 m: accepted", at)
         at = pane.wait_for(r"ALARM: depth \d\.\d+ m is past the 0\.9 m limit", at)
         pane.wait_for(r"\| ALARM depth", at)
+        assert _status_alarm(runtime) == "ALARM depth"  # `dive status` from another pane shows the run's flag
         acked = _tool(runtime, "ack")
         assert "alarms acknowledged by dive ack: depth (active)" in acked, acked
         at = pane.wait_for(r"> alarms acknowledged by dive ack: depth \(active\)", at)
         pane.wait_for(r"\| alarm depth \(acked\)", at)
+        assert _status_alarm(runtime) == "alarm depth (acked)"
         _tool(runtime, "hover", "0.3")
         at = pane.wait_for(r"cleared: depth 0\.\d\d m, back above the 0\.9 m limit", at)
 
@@ -126,8 +135,10 @@ def test_a_tank_day_in_the_run_pane(tmp_path: Path) -> None:
         _tool(runtime, "hover", "0.3")
         at = pane.wait_for(r"cleared: depth", at)
         pane.wait_for(r"\| ALARM depth \(cleared\)", at)
+        assert _status_alarm(runtime) == "ALARM depth (cleared)"
         pane.type(b"a")
         at = pane.wait_for(r"> alarms acknowledged by the run pane \(key a\): depth \(cleared\)", at)
+        assert _status_alarm(runtime) == ""
         assert "no alarm to acknowledge" in _tool(runtime, "ack")  # nothing left: the flag has gone
 
         _tool(runtime, "start")
