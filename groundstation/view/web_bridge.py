@@ -10,9 +10,11 @@ data stream) and gets back a TCP socket connected to it inside, by SCM_RIGHTS. A
 made in, so the owner's process then reads and writes the server directly, with no copy here
 (view/web_gate.py is the door on 127.0.0.1 that a browser reaches).
 
-Run as `python -m groundstation.view.web_bridge FOLDER WEB_PORT GRPC_PORT RERUN ARGS...` (web_server.py does):
-the first line on stdout is `ready` once both servers listen, or `error: <why>`; it ends when its stdin closes
-(dive ended), when dive dies (PR_SET_PDEATHSIG), or when rerun does. Standard library only, stdin/stdout only.
+Run as `python -m groundstation.view.web_bridge FOLDER w=PORT,g=PORT MODE RERUN ARGS...` (web_server.py does):
+the first line on stdout is `ready` once rerun listens on every port, or `error: <why>`. MODE `attached` (the web
+viewer): it ends when its stdin closes (dive ended), when dive dies (PR_SET_PDEATHSIG), or when rerun does.
+`detached` (the native viewer, whose window outlives the run that opened it, as rr.spawn's does): it ends when
+rerun does, and removes FOLDER. Standard library only.
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ import ctypes
 import fcntl
 import os
 import selectors
+import shutil
 import signal
 import socket
 import struct
@@ -80,20 +83,21 @@ def enter_private_network() -> None:
         raise PrivateNetworkError(e.errno, f"cannot set up the private network: {e.strerror or e}") from e
 
 
-def _listening(port: int) -> bool:
+def listening(port: int) -> bool:
+    """Whether something accepts on 127.0.0.1:`port` (in whichever network namespace the caller is)."""
     with socket.socket() as s:
         s.settimeout(0.5)
         return s.connect_ex((HOST, port)) == 0
 
 
-def _wait_ready(rerun: subprocess.Popen[bytes], ports: tuple[int, int]) -> str | None:
-    """None once both ports listen; else why not."""
+def _wait_ready(rerun: subprocess.Popen[bytes], ports: list[int]) -> str | None:
+    """None once every port listens; else why not."""
     deadline = time.monotonic() + READY_WAIT_S
-    while not all(_listening(port) for port in ports):
+    while not all(listening(port) for port in ports):
         if rerun.poll() is not None:
-            return f"rerun stopped at its start (exit code {rerun.returncode}; its log follows dive's last line)"
+            return f"rerun stopped at its start (exit code {rerun.returncode})"
         if time.monotonic() > deadline:
-            return f"rerun did not listen on ports {ports[0]} and {ports[1]} within {READY_WAIT_S:.0f} s"
+            return f"rerun did not listen on ports {', '.join(map(str, ports))} within {READY_WAIT_S:.0f} s"
         time.sleep(0.05)
     return None
 
@@ -116,9 +120,11 @@ def _hand_over(client: socket.socket, ports: dict[bytes, int]) -> None:
                 client.sendall(b"-")
 
 
-def serve(folder: Path, web_port: int, grpc_port: int, rerun_command: list[str]) -> int:
-    """The program: the private network, rerun in it, then hand-overs until stdin closes or rerun ends."""
-    die_with_parent()
+def serve(folder: Path, ports: dict[bytes, int], detached: bool, rerun_command: list[str]) -> int:
+    """The program: the private network, rerun in it, then hand-overs until rerun ends (attached: or stdin closes)."""
+    if not detached:
+        die_with_parent()
+    signal.signal(signal.SIGTERM, lambda *_: sys.exit(0))  # stopped: stop rerun and tidy up first (finally below)
     try:
         enter_private_network()
     except PrivateNetworkError as e:
@@ -129,16 +135,18 @@ def serve(folder: Path, web_port: int, grpc_port: int, rerun_command: list[str])
     listener.bind(str(folder / SOCKET_NAME))
     os.umask(old_mask)
     listener.listen(16)
-    rerun = subprocess.Popen(rerun_command, stdin=subprocess.DEVNULL, preexec_fn=die_with_parent)
+    # rerun's output goes where ours does (dive's log of it, or nowhere), never into the pipe of our `ready` line,
+    # which nobody reads after it: a full pipe would stop rerun
+    rerun = subprocess.Popen(rerun_command, stdin=subprocess.DEVNULL, stdout=sys.stderr, preexec_fn=die_with_parent)
     try:
-        problem = _wait_ready(rerun, (web_port, grpc_port))
+        problem = _wait_ready(rerun, list(ports.values()))
         print(f"error: {problem}" if problem else "ready", flush=True)
         if problem:
             return RERUN_FAILED
-        ports = {b"w": web_port, b"g": grpc_port}
         with selectors.DefaultSelector() as selector:
             selector.register(listener, selectors.EVENT_READ, "accept")
-            selector.register(sys.stdin, selectors.EVENT_READ, "stdin")
+            if not detached:
+                selector.register(sys.stdin, selectors.EVENT_READ, "stdin")
             while rerun.poll() is None:
                 for key, _ in selector.select(0.5):
                     if key.data == "stdin" and not os.read(sys.stdin.fileno(), 4096):
@@ -156,6 +164,21 @@ def serve(folder: Path, web_port: int, grpc_port: int, rerun_command: list[str])
             except subprocess.TimeoutExpired:
                 rerun.kill()
                 rerun.wait()
+        if detached:  # nobody else is left to tidy up after a window that outlived its run
+            shutil.rmtree(folder, ignore_errors=True)
+
+
+def port_spec(ports: dict[bytes, int]) -> str:
+    """`w=9090,g=9876`: the ports argument, from the byte that names each port to its number."""
+    return ",".join(f"{which.decode()}={port}" for which, port in ports.items())
+
+
+def _parse_ports(spec: str) -> dict[bytes, int]:
+    ports = {}
+    for item in spec.split(","):
+        which, _, port = item.partition("=")
+        ports[which.encode()] = int(port)
+    return ports
 
 
 def probe() -> int:
@@ -172,11 +195,11 @@ def probe() -> int:
 def main(argv: list[str]) -> int:
     if argv == ["--probe"]:
         return probe()
-    if len(argv) < 4:
-        print("error: usage: python -m groundstation.view.web_bridge FOLDER WEB_PORT GRPC_PORT RERUN [ARGS...]",
-              flush=True)
+    if len(argv) < 4 or argv[2] not in ("attached", "detached"):
+        print("error: usage: python -m groundstation.view.web_bridge FOLDER w=PORT,g=PORT attached|detached RERUN "
+              "[ARGS...]", flush=True)
         return 2
-    return serve(Path(argv[0]), int(argv[1]), int(argv[2]), argv[3:])
+    return serve(Path(argv[0]), _parse_ports(argv[1]), argv[2] == "detached", argv[3:])
 
 
 if __name__ == "__main__":

@@ -13,12 +13,13 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Callable
 from pathlib import Path
 from urllib.parse import quote
 
 from groundstation.links.peer import table_readable
 from groundstation.view.errors import PrivateViewerUnavailable, ViewError
-from groundstation.view.web_bridge import NO_PRIVATE_NETWORK, SOCKET_NAME
+from groundstation.view.web_bridge import NO_PRIVATE_NETWORK, SOCKET_NAME, port_spec
 from groundstation.view.web_gate import WebGate, WebGateCounts
 
 HOST = "127.0.0.1"
@@ -64,49 +65,53 @@ def private_network_problem() -> str | None:
     return (lines[0].removeprefix("error: ") if lines else f"its helper failed (exit code {done.returncode})")
 
 
-class WebViewerServer:
-    """The web viewer's page server and gRPC data stream, private, behind a door on 127.0.0.1 at the given ports.
+class PrivateRerun:
+    """A `rerun` program in a private network (web_bridge.py) behind a door on 127.0.0.1 at the given ports
+    (web_gate.py), which lets in the owner's processes only: the base of the web viewer and the native viewer.
 
-    Not rerun-sdk's serve_web_viewer (0.41 listens on every interface) nor a plain `rerun --serve-web --bind
-    127.0.0.1` (any local user could read it): the rerun CLI's servers run in a network namespace of their own,
-    where the same port numbers are free whatever this machine runs, and the door forwards the owner's connections
-    to them. The recording streams through the door too, as the browser's data does.
+    The rerun servers' own ports are in a network namespace of their own, where the same port numbers are free
+    whatever this machine runs; the door forwards the owner's connections to them. The recording streams through
+    the door too. `detached`: rerun (a window) outlives this process and the door, as rr.spawn's viewer does.
     """
 
-    def __init__(self, web_port: int, grpc_port: int, server_memory_limit: str) -> None:
-        self._folder = Path(tempfile.mkdtemp(prefix="dive-web-"))  # 0700: the bridge's socket is the owner's only
+    uri: str  # the data stream's address at the door, which the recording streams to
+
+    def __init__(self, ports: dict[bytes, int], rerun_args: Callable[[dict[bytes, int]], list[str]],
+                 detached: bool = False, folder: Path | None = None) -> None:
+        # 0700 (mkdtemp's, or the caller's of the owner's own): the bridge's socket is the owner's only
+        self._folder = folder or Path(tempfile.mkdtemp(prefix="dive-rerun-"))
+        self.bridge_socket = self._folder / SOCKET_NAME  # the owner's way to the private servers (web_gate.py)
         try:  # the ports, taken now (a port in use: OSError)
-            self._gate = WebGate(HOST, {b"w": web_port, b"g": grpc_port}, self._folder / SOCKET_NAME)
+            self._gate = WebGate(HOST, ports, self.bridge_socket)
         except OSError:
             shutil.rmtree(self._folder, ignore_errors=True)
             raise
-        self.web_port, self.grpc_port = self._gate.ports[b"w"], self._gate.ports[b"g"]
-        self.bridge_socket = self._folder / SOCKET_NAME  # the owner's way to the private servers (web_gate.py)
-        self.uri = f"rerun+http://{HOST}:{self.grpc_port}/proxy"
-        self.address = f"http://{HOST}:{self.web_port}/?url={quote(self.uri, safe='')}"
-        self._log = tempfile.TemporaryFile()  # the children's output: its last line is the reason if they fail
-        rerun = [rerun_binary(), "--serve-web", "--bind", HOST, "--web-viewer-port", str(self.web_port),
-                 "--port", str(self.grpc_port), "--server-memory-limit", server_memory_limit]
-        command = [*BRIDGE, str(self._folder), str(self.web_port), str(self.grpc_port), *rerun]
+        self.ports = self._gate.ports
+        self._detached = detached
+        self.address: str | None = None  # a page to open, where there is one
+        # the children's output, whose last line is the reason if they fail; a detached window's goes nowhere (it
+        # would fill a file no process is left to read)
+        self._log = tempfile.TemporaryFile()
+        rerun = rerun_args(self.ports)
+        command = [*BRIDGE, str(self._folder), port_spec(self.ports), "detached" if detached else "attached", *rerun]
         try:
-            self._process = subprocess.Popen(command, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
-                                             stderr=self._log)
+            self._process = subprocess.Popen(command, stdin=subprocess.DEVNULL if detached else subprocess.PIPE,
+                                             stdout=subprocess.PIPE,
+                                             stderr=subprocess.DEVNULL if detached else self._log,
+                                             start_new_session=detached,
+                                             env={**os.environ, "RERUN_APP_ONLY": "true"})
         except OSError as e:
             self._release()
-            raise ViewError(f"cannot start the Rerun web viewer ({rerun[0]}): {e.strerror or e}") from e
+            raise ViewError(f"cannot start Rerun ({rerun[0]}): {e.strerror or e}") from e
 
-    @classmethod
-    def start(cls, web_port: int, grpc_port: int, server_memory_limit: str) -> WebViewerServer:
-        """The two servers, listening: a ViewError (with the reason) if they do not come up; PrivateViewerUnavailable
-        if this machine gives no private network."""
-        server = cls(web_port, grpc_port, server_memory_limit)
+    def serve(self) -> None:
+        """Wait for the bridge's `ready` and open the door; on any failure stop everything and raise."""
         try:
-            server._wait_ready()
+            self._wait_ready()
         except BaseException:
-            server.close()
+            self.stop()
             raise
-        server._gate.start()
-        return server
+        self._gate.start()
 
     def _wait_ready(self) -> None:
         """The bridge's first line: `ready`, or `error: why` (its exit code NO_PRIVATE_NETWORK: none here)."""
@@ -116,8 +121,7 @@ class WebViewerServer:
         while not line.endswith(b"\n"):
             left_s = deadline - time.monotonic()
             if left_s <= 0:
-                raise ViewError(f"the Rerun web viewer did not listen on ports {self.web_port} and {self.grpc_port} "
-                                f"within {READY_WAIT_S:.0f} s")
+                raise ViewError(f"Rerun did not listen on ports {port_spec(self.ports)} within {READY_WAIT_S:.0f} s")
             if select.select([self._process.stdout], [], [], min(left_s, 0.5))[0]:
                 byte = os.read(self._process.stdout.fileno(), 1)
                 if not byte:
@@ -127,8 +131,8 @@ class WebViewerServer:
         if text == "ready":
             return
         if text.startswith("error: ") and self._process.wait(STOP_WAIT_S) == NO_PRIVATE_NETWORK:
-            raise PrivateViewerUnavailable(private_refusal(text.removeprefix("error: ")))
-        raise ViewError(f"the Rerun web viewer stopped at its start: {self._last_line() or text}")
+            raise PrivateViewerUnavailable(text.removeprefix("error: "))
+        raise ViewError(f"Rerun stopped at its start: {self._last_line() or text}")
 
     def _last_line(self) -> str:
         self._log.seek(0)
@@ -141,13 +145,20 @@ class WebViewerServer:
         """What the door did (web_gate.WebGateCounts)."""
         return self._gate.counts
 
+    def stop(self) -> None:
+        """Close the door and stop the child, detached or not (the window closes)."""
+        self._detached = False
+        self.close()
+
     def close(self) -> None:
-        """Stop the door and the child (the viewer page and its data go with them)."""
+        """Close the door; stop the child unless it is detached (a window stays open with what it was sent)."""
         self._gate.close()
-        if self._process.poll() is None:
-            with contextlib.suppress(OSError):
-                assert self._process.stdin is not None
-                self._process.stdin.close()  # the bridge's sign to stop rerun and end
+        if not self._detached and self._process.poll() is None:
+            if self._process.stdin is not None:
+                with contextlib.suppress(OSError):
+                    self._process.stdin.close()  # the bridge's sign to stop rerun and end
+            else:
+                self._process.terminate()  # a detached bridge reads no stdin; SIGTERM makes it tidy up
             try:
                 self._process.wait(STOP_WAIT_S)
             except subprocess.TimeoutExpired:
@@ -166,10 +177,38 @@ class WebViewerServer:
     def _release(self) -> None:
         self._gate.close()
         self._log.close()
-        shutil.rmtree(self._folder, ignore_errors=True)
+        if not self._detached or self._process.poll() is not None:  # a detached bridge removes its own folder
+            shutil.rmtree(self._folder, ignore_errors=True)
+
+
+class WebViewerServer(PrivateRerun):
+    """The web viewer's page server and gRPC data stream, for the owner alone, at `web_port` and `grpc_port`.
+
+    Not rerun-sdk's serve_web_viewer (0.41 listens on every interface) nor a plain `rerun --serve-web --bind
+    127.0.0.1` (any local user could read it): the rerun CLI's `--serve-web` in the private network.
+    """
+
+    def __init__(self, web_port: int, grpc_port: int, server_memory_limit: str) -> None:
+        super().__init__({b"w": web_port, b"g": grpc_port}, lambda ports: [
+            rerun_binary(), "--serve-web", "--bind", HOST, "--web-viewer-port", str(ports[b"w"]),
+            "--port", str(ports[b"g"]), "--server-memory-limit", server_memory_limit])
+        self.web_port, self.grpc_port = self.ports[b"w"], self.ports[b"g"]
+        self.uri = f"rerun+http://{HOST}:{self.grpc_port}/proxy"
+        self.address = f"http://{HOST}:{self.web_port}/?url={quote(self.uri, safe='')}"
+
+    @classmethod
+    def start(cls, web_port: int, grpc_port: int, server_memory_limit: str) -> WebViewerServer:
+        """The two servers, listening: a ViewError (with the reason) if they do not come up; PrivateViewerUnavailable
+        (its line says what works instead) if this machine gives no private network."""
+        server = cls(web_port, grpc_port, server_memory_limit)
+        try:
+            server.serve()
+        except PrivateViewerUnavailable as e:
+            raise PrivateViewerUnavailable(private_refusal(str(e))) from None
+        return server
 
 
 def private_refusal(reason: str) -> str:
     """The one line for a machine where the web viewer cannot be kept to its owner, and what works instead."""
     return (f"--viewer web cannot keep its servers to you on this machine ({reason}), and every local user could "
-            "read them: use the native viewer (--viewer spawn), Foxglove (--foxglove) or a file (--rrd FILE)")
+            "read them: use Foxglove (--foxglove), which answers your user only, or a file (--rrd FILE)")
