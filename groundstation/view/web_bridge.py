@@ -14,7 +14,7 @@ Run as `python -m groundstation.view.web_bridge FOLDER w=PORT,g=PORT MODE RERUN 
 the first line on stdout is `ready` once rerun listens on every port, or `error: <why>`. MODE `attached` (the web
 viewer): it ends when its stdin closes (dive ended), when dive dies (PR_SET_PDEATHSIG), or when rerun does.
 `detached` (the native viewer, whose window outlives the run that opened it, as rr.spawn's does): it ends when
-rerun does, and removes FOLDER. Standard library only.
+rerun does. Either way it removes FOLDER at its end. Standard library only.
 """
 
 from __future__ import annotations
@@ -164,8 +164,7 @@ def serve(folder: Path, ports: dict[bytes, int], detached: bool, rerun_command: 
             except subprocess.TimeoutExpired:
                 rerun.kill()
                 rerun.wait()
-        if detached:  # nobody else is left to tidy up after a window that outlived its run
-            shutil.rmtree(folder, ignore_errors=True)
+        shutil.rmtree(folder, ignore_errors=True)  # dive may be gone (kill -9, or a window that outlived its run)
 
 
 def port_spec(ports: dict[bytes, int]) -> str:
