@@ -26,7 +26,7 @@ HOST = "127.0.0.1"
 READY_WAIT_S = 40.0  # the bridge's Python and rerun start in ~0.3 s; a loaded machine may take many seconds
 PROBE_WAIT_S = 30.0
 STOP_WAIT_S = 5.0
-BRIDGE = [sys.executable, "-m", "groundstation.view.web_bridge"]
+BRIDGE = [sys.executable, "-P", "-m", "groundstation.view.web_bridge"]  # -P: simulator_process.py says why
 _STYLE = re.compile(r"\x1b\[[0-9;]*[A-Za-z]")  # the child's log colours its lines even into a file
 
 
