@@ -14,8 +14,10 @@ PROG_NAME_VARIABLE = "DIVE_SIMULATOR_PROG_NAME"  # read by simulator/cli.py (the
 
 
 def simulator_command(args: Sequence[str]) -> list[str]:
-    """The argv that runs `python -m simulator ARGS` with this interpreter."""
-    return [sys.executable, "-m", "simulator", *args]
+    """The argv that runs `python -m simulator ARGS` with this interpreter. `-P`: the current folder is not put
+    first on the import path, as `-m` otherwise does, so a `simulator/` folder in it (another user's, in /tmp or a
+    shared folder the run is started from) is never what runs, as the run's user (issue 38)."""
+    return [sys.executable, "-P", "-m", "simulator", *args]
 
 
 def _die_with_parent(libc: Any) -> None:

@@ -60,11 +60,17 @@ DEFAULT_PORTS = {"--web-port": 9090, "--grpc-port": 9876}
 
 
 def viewer_ports(viewer: Viewer, web_port: int, grpc_port: int) -> tuple[int, int]:
-    """The ports a served web viewer uses: both must be free, else the address printed would show another
-    process's data. A default port in use (a second viewer beside `dive run --viewer web`) moves to a free one; a
-    port given that is in use fails, every such port named in one line."""
+    """The ports a served web viewer uses, on a machine that can keep it to its owner (else UsageError, exit 2).
+    Both must be free, else the address printed would show another process's data. A default port in use (a second
+    viewer beside `dive run --viewer web`) moves to a free one; a port given that is in use fails, every such port
+    named in one line."""
     if viewer != Viewer.WEB:
         return web_port, grpc_port
+    from groundstation.view.web_server import private_network_problem, private_refusal
+
+    reason = private_network_problem()
+    if reason is not None:  # served anyway, every local user could read the run: refused before anything starts
+        raise UsageError(private_refusal(reason))
     chosen, problems = [], []
     for option, port in (("--web-port", web_port), ("--grpc-port", grpc_port)):
         problem = port_problem(port, option)

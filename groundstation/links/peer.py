@@ -9,6 +9,7 @@ None: the caller falls back to a secret (the hub's token handshake, a token in t
 
 from __future__ import annotations
 
+import contextlib
 import ipaddress
 import os
 import socket
@@ -16,6 +17,7 @@ import struct
 from pathlib import Path
 
 TABLES = (Path("/proc/net/tcp"), Path("/proc/net/tcp6"))
+LISTEN = "0A"  # the state column's value for a listening socket
 TABLE_LIMIT_BYTES = 64 * 1024 * 1024  # a machine with a million sockets still answers; more is not read
 
 
@@ -56,6 +58,27 @@ def peer_uid(sock: socket.socket) -> int | None:
                     return int(fields[7])
                 except ValueError:
                     return None
+    return None
+
+
+def listener_uid(port: int) -> int | None:
+    """The uid that owns the socket listening on 127.0.0.1:`port` (or on every address); None where the kernel's
+    table cannot tell or nothing listens there."""
+    for table in TABLES:
+        width = 16 if table.name.endswith("6") else 4
+        wanted = {_hex_address(host, port, width) for host in ("127.0.0.1", "0.0.0.0")}
+        if width == 16:
+            wanted.add(_hex_address("::", port, width))
+        try:
+            with table.open("rb") as lines:
+                text = lines.read(TABLE_LIMIT_BYTES).decode("ascii", "replace")
+        except OSError:
+            continue
+        for line in text.splitlines()[1:]:
+            fields = line.split()
+            if len(fields) > 7 and fields[3] == LISTEN and fields[1] in wanted:
+                with contextlib.suppress(ValueError):
+                    return int(fields[7])
     return None
 
 

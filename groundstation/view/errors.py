@@ -11,3 +11,7 @@ class ViewError(GroundStationError, RuntimeError):
 
 class ReplayError(ViewError, ValueError):
     """A replay request that cannot be met: a bad range or speed, or nothing to show in the file."""
+
+
+class PrivateViewerUnavailable(ViewError):
+    """The web viewer cannot be kept to the run's owner on this machine (no private network): it is not served."""

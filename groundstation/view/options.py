@@ -34,7 +34,8 @@ class Viewer(StrEnum):
     NONE = "none"  # no viewer (an .rrd file only, or nothing)
 
 
-_VIEWERS = "spawn: the native viewer; web: serve the web viewer on --web-port; none: no viewer. "
+_VIEWERS = ("spawn: the native viewer; web: serve the web viewer on --web-port to your user only (Linux: a "
+            "private network); none: no viewer. ")
 ViewerOption = Annotated[
     Viewer | None,
     typer.Option("--viewer", metavar="VIEWER", help=_VIEWERS + "Default: spawn where there is a display, else "
@@ -57,7 +58,8 @@ FoxgloveOption = Annotated[int | None, typer.Option(
     FOXGLOVE_FLAG, callback=ranged(0, 65535), metavar="[PORT]", show_default=False,
     help=f"Serve the agent live to the Foxglove app on ws://127.0.0.1:PORT (default {FOXGLOVE_DEFAULT_PORT}, "
          "0: any free port): every channel, the parameters, and services for the controls. Loopback only, and "
-         "every local user of this machine can watch and command through it (Foxglove has no login).")]
+         "only your user's clients get through (the kernel names each client's user; elsewhere than Linux, the "
+         "secret path printed).")]
 
 
 def with_flag_value(args: list[str], flag: str = FOXGLOVE_FLAG, value: str = str(FOXGLOVE_DEFAULT_PORT)) -> list[str]:

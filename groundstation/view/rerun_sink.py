@@ -21,8 +21,9 @@ from groundstation.view.entities import ENTITIES, Batch, Kind, Rows
 from groundstation.view.errors import ViewError
 from groundstation.view.heatmap import AXIS_COLOUR, DEFAULT_GRID, SWATCH_RADIUS, Bounds, Frame, bounds, default_grid
 from groundstation.view.model import ViewModel
+from groundstation.view.native_viewer import ServedViewer, start_native_viewer
 from groundstation.view.options import Viewer
-from groundstation.view.web_server import WebViewerServer, rerun_executable
+from groundstation.view.web_server import WebViewerServer
 
 APPLICATION_ID = "diving_agent"
 SERIES_COLOURS: dict[str, tuple[int, int, int]] = {
@@ -257,18 +258,16 @@ def _has_display() -> bool:
     return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")) or os.name == "nt"
 
 
-def open_sinks(rec: rr.RecordingStream, config: ViewConfig) -> WebViewerServer | None:
+def open_sinks(rec: rr.RecordingStream, config: ViewConfig) -> ServedViewer | None:
     """Connect the stream to the configured viewer and file; returns the web viewer's server, if one was started."""
     sinks: list[Any] = []
-    server: WebViewerServer | None = None
+    server: ServedViewer | None = None
     try:
         if config.viewer == Viewer.SPAWN:
             if not _has_display():
                 raise ViewError("no display for the native viewer: use --viewer web on a headless machine")
-            rr.spawn(port=config.grpc_port, connect=False, memory_limit=config.viewer_memory_limit,
-                     server_memory_limit=config.server_memory_limit, executable_path=rerun_executable(),
-                     hide_welcome_screen=True)
-            sinks.append(rr.GrpcSink(f"rerun+http://127.0.0.1:{config.grpc_port}/proxy"))
+            server = start_native_viewer(config.grpc_port, config.viewer_memory_limit, config.server_memory_limit)
+            sinks.append(rr.GrpcSink(server.uri))
         elif config.viewer == Viewer.WEB:
             server = WebViewerServer.start(config.web_port, config.grpc_port, config.server_memory_limit)
             sinks.append(rr.GrpcSink(server.uri))
@@ -294,7 +293,7 @@ class RerunView:
     `view.close()` at the end (or `with RerunView.open(...) as view:`).
     """
 
-    def __init__(self, rec: rr.RecordingStream, server: WebViewerServer | None = None, flush_interval_s: float = 0.1,
+    def __init__(self, rec: rr.RecordingStream, server: ServedViewer | None = None, flush_interval_s: float = 0.1,
                  replay: bool = False) -> None:
         self._rec = rec
         self._server = server
