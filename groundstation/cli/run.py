@@ -17,9 +17,8 @@ from groundstation.cli.common import UrlArg, err, one_line_errors
 from groundstation.cli.pane_keys import AckKey
 from groundstation.cli.signals import stop_on_signals
 from groundstation.cli.validate import UsageError, check_presets, parse_speed
-from groundstation.errors import AgentBusy
 from groundstation.run.alarm_limits import DEPTH_LIMIT_M, LINK_LOST_S
-from groundstation.safe_output import one_line, printable
+from groundstation.safe_output import printable
 from groundstation.session.handoff import Handoff
 from groundstation.session.keys import KeyFileOption, resolve_key
 from groundstation.view.options import Viewer, ranged
@@ -138,18 +137,9 @@ def run_command(
                     AckKey(ack) if display.live else contextlib.nullcontext():
                 show = display.show if fox is None else _attaching(display.show, fox, key)
                 # Foxglove publishes from the run's own session: the frames, commands and alarms the recording gets
-                try:
-                    result = run(config, show, stop=stop, listeners=[display, *([rerun] if rerun is not None
-                                                                                 else []),
-                                                                     *([fox.listener] if fox is not None else [])],
-                                 ack=ack)
-                except AgentBusy as e:
-                    if not stop.is_set():
-                        raise
-                    # stopped by a signal while the agent was still starting: as a stop, not as an error
-                    err.print(f"stopped by {signalled[0] if signalled else 'a signal'} while the agent was starting "
-                              f"({one_line(e.reason)}); the recording is complete", style="dim", soft_wrap=True)
-                    raise typer.Exit(130) from None
+                result = run(config, show, stop=stop, listeners=[display, *([rerun] if rerun is not None else []),
+                                                                 *([fox.listener] if fox is not None else [])],
+                             ack=ack)
         finally:
             if rerun is not None:
                 rerun.close(5.0)  # what is queued reaches the view before it closes

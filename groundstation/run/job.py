@@ -13,7 +13,7 @@ import time
 from collections.abc import Callable, Sequence
 from urllib.parse import parse_qsl, urlsplit
 
-from groundstation.errors import GroundStationError, RecordingExistsError
+from groundstation.errors import AgentBusy, GroundStationError, RecordingExistsError
 from groundstation.links import make_link
 from groundstation.links.hub_auth import new_token
 from groundstation.links.runs import RunInfo, announce, new_run, refuse_if_held, withdraw
@@ -148,6 +148,13 @@ def run(config: RunConfig, on_progress: Callable[[RunStatus], None] | None = Non
             watch.stop_if_still_learning()
         missing = session.request_backfill(config.backfill_wait_s, final=True)
         backfilled = True
+    except AgentBusy as e:
+        if not stop.is_set():
+            raise
+        # Stopped by a signal while the agent was still starting: a stop like any other (the file named, exit 130),
+        # with nothing of the agent's to stop yet.
+        interrupted = True
+        status.stopped = f"nothing to stop: the agent was still starting ({one_line(e.reason)})"
     except GroundStationError as e:
         # A run that ends on an error (CMD_START refused or unanswered, a parameter refused) still fetches what
         # the agent holds of what was lost before it closes: the recording is what matters.

@@ -109,7 +109,7 @@ def simulate(params: PlantParams, windows: Windows, z0_m: NDArray[np.float64],
 
 
 @dataclass
-class _Jacobian:
+class WindowJacobian:
     """The least squares' Jacobian in its structure: the shared figures' columns dense, and each sample's two
     columns of its own window's start depth and velocity (windows are contiguous runs of rows)."""
 
@@ -122,7 +122,7 @@ class _Jacobian:
         return np.asarray(np.add.reduceat(a, starts, axis=0), dtype=np.float64)
 
 
-def _normal_blocks(jac: _Jacobian, r: NDArray[np.float64], starts: NDArray[np.int64]) -> tuple[
+def _normal_blocks(jac: WindowJacobian, r: NDArray[np.float64], starts: NDArray[np.int64]) -> tuple[
         NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
     """J^T J and J^T r in blocks: (H_tt p x p, H_ts W x p x 2, H_ss W x 2 x 2, g_t p, g_s W x 2)."""
     states = np.stack((jac.z0, jac.v0), axis=1)
@@ -152,7 +152,7 @@ def _solve_blocks(h_tt: NDArray[np.float64], h_ts: NDArray[np.float64], h_ss: ND
     return step_t, step_s
 
 
-def _robust_covariance(jac: _Jacobian, residuals: NDArray[np.float64], starts: NDArray[np.int64],
+def robust_covariance(jac: WindowJacobian, residuals: NDArray[np.float64], starts: NDArray[np.int64],
                        ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """(bread inverse, the bias-reduced cluster sandwich) of the shared figures, each window's start profiled out.
 
@@ -243,7 +243,7 @@ def fit_hull(base: PlantParams, windows: Windows, free: Sequence[str], on_eval: 
             on_eval(count[0], float(np.sqrt(np.mean(r * r))) * _RESIDUAL_UNIT_M)
         return _whiten(r, first, phi)
 
-    def jacobian(x: NDArray[np.float64], at: NDArray[np.float64]) -> _Jacobian:
+    def jacobian(x: NDArray[np.float64], at: NDArray[np.float64]) -> WindowJacobian:
         # Forward differences in n_free + 2 runs of the plant, not one per number: a window's residuals depend
         # on its own start state only, so every window's z0 (then v0) is nudged in the same run.
         columns = []
@@ -257,7 +257,7 @@ def fit_hull(base: PlantParams, windows: Windows, free: Sequence[str], on_eval: 
             nudged[block:block + n_win] += _STEP
             columns.append((depth_of(nudged) - at) / _STEP / _RESIDUAL_UNIT_M)
         values = _whiten(np.column_stack(columns), first, phi)
-        return _Jacobian(shared=values[:, :n_free], z0=values[:, n_free], v0=values[:, n_free + 1])
+        return WindowJacobian(shared=values[:, :n_free], z0=values[:, n_free], v0=values[:, n_free + 1])
 
     # Levenberg-Marquardt on the structure: each window's start state is eliminated in closed form, so an
     # iteration costs samples x free figures, not samples x (free + 2 windows) as MINPACK's dense QR does (ten
@@ -298,7 +298,7 @@ def fit_hull(base: PlantParams, windows: Windows, free: Sequence[str], on_eval: 
     sigma2 = cost / dof
     # d(figure)/dx: the scale, and the sign where the optimiser saw |x|.
     chain = scales[:n_free] * np.where(reflect[:n_free] & (x[:n_free] < 0), -1.0, 1.0)
-    inv_bread, sandwich = _robust_covariance(final, r, windows.starts)
+    inv_bread, sandwich = robust_covariance(final, r, windows.starts)
     covariance = sigma2 * inv_bread * np.outer(chain, chain)
     robust = sandwich * np.outer(chain, chain)
     quantile = float(student_t.ppf(0.975, max(n_win - 1, 1)))  # CR2's: the spread of G - 1 windows

@@ -85,6 +85,8 @@ def test_sigterm_while_the_agent_starts_stops_dive_run_at_once(tmp_path: Path) -
         if line.startswith("waiting: the agent answers BUSY"):
             break
     proc.send_signal(signal.SIGTERM)
-    _, err = proc.communicate(timeout=30)
+    out, err = proc.communicate(timeout=30)
     assert proc.returncode == 130, err
-    assert "stopped by SIGTERM while the agent was starting" in err and "Traceback" not in err, err
+    assert "stopped by SIGTERM; nothing to stop: the agent was still starting" in err and "Traceback" not in err, err
+    assert out.splitlines() == [str(tmp_path / "run.mcap")], out  # the file is named, as after any other stop
+    assert (tmp_path / "run.mcap").stat().st_size > 0

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from simulator.fit.estimate import with_scale
-from simulator.fit.model import Z95, _Jacobian, _robust_covariance
+from simulator.fit.model import Z95, WindowJacobian, robust_covariance
 
 
 def _textbook_cr2(shared: np.ndarray, states: np.ndarray, r: np.ndarray, sizes: list[int]) -> np.ndarray:
@@ -41,7 +41,8 @@ def test_the_sandwich_is_bell_and_mccaffreys_cr2_with_each_windows_start_profile
     states = np.column_stack((np.ones(n), t))  # a window's start depth and velocity: a level and a slope
     r = rng.normal(size=n) * (1.0 + t)  # heteroscedastic: the sandwich's case
     starts = np.cumsum([0, *sizes[:-1]]).astype(np.int64)
-    inv, cr2 = _robust_covariance(_Jacobian(shared=shared, z0=states[:, 0].copy(), v0=states[:, 1].copy()), r, starts)
+    jacobian = WindowJacobian(shared=shared, z0=states[:, 0].copy(), v0=states[:, 1].copy())
+    inv, cr2 = robust_covariance(jacobian, r, starts)
     expected = _textbook_cr2(shared, states, r, sizes)
     assert np.allclose(cr2, expected, rtol=1e-8, atol=0.0), (cr2, expected)
     # And it is not the plain sandwich: each window's leverage makes it wider.
