@@ -63,8 +63,9 @@ def test_foxglove_watches_sets_and_commands_a_running_keyed_run(tmp_path: Path) 
     the run's key, and `dive view --foxglove --key-file` beside it signs its own (the agent refuses even a
     PARAM_LIST unsigned, so its Parameters panel filled is the proof)."""
     key = write_key(tmp_path / "agent.key")
+    # low_batt_v at its floor: at speed max the battery would end the run on its own before the test's Ctrl-C
     proc = start_dive(tmp_path, "run", f"{FAST_SIM}&key_file={key}", "--key-file", str(key),
-                      "--out", str(tmp_path / "rec"))
+                      "--param", "low_batt_v=3.0", "--out", str(tmp_path / "rec"))
     with foxglove_client(proc) as fox:
         assert fox.ws.subprotocol == SUBPROTOCOL
         # the server advertises its channels once the run's agent is up (a first start compiles the simulator)
