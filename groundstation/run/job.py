@@ -299,6 +299,7 @@ class RunResult:
     interrupted: bool
     still_missing: int
     lost: int = 0  # of still_missing: samples the agent's log no longer held (proved by its LOG_RANGE / HEARTBEAT)
+    tools_dropped: int = 0  # tools the hub dropped for falling a whole queue behind (run/hub_outbox.py)
 
 
 def session_info(url: str) -> dict[str, str]:
@@ -427,4 +428,5 @@ def run(config: RunConfig, on_progress: Callable[[RunStatus], None] | None = Non
         raise session.listeners.failure  # the recorder (or the live view) raised: one line naming it
     if on_progress is not None:
         on_progress(status)
-    return RunResult(list(recorder.paths), status, interrupted, missing, session.backfill_status()[0])
+    return RunResult(list(recorder.paths), status, interrupted, missing, session.backfill_status()[0],
+                     hub.dropped_slow if hub is not None else 0)
