@@ -43,9 +43,8 @@ def ground_text(kind: str, detail: str, data: dict[str, Any]) -> m.Text:
 
 def dropped_text(behind: int) -> m.Text:
     """Why the hub drops a tool: it fell `behind` frames behind. The tool's session stops with this as its line."""
-    return ground_text(DROPPED, f"the run's hub dropped this tool: it fell {behind} frames behind reading them (it "
-                       "or its machine too slow); what the run's history still holds is given again on attaching",
-                       {"behind": behind})
+    return ground_text(DROPPED, f"the run's hub dropped this tool: it fell {behind} frames behind reading them (the "
+                       "tool or its machine too slow); the run goes on, attach again to follow it", {"behind": behind})
 
 
 def parse_ground_text(text: str, kinds: frozenset[str] | tuple[str, ...] = FANNED_OUT,

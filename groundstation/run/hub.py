@@ -41,7 +41,7 @@ from groundstation.links.peer import peer_is_owner
 from groundstation.run.echo import echo
 from groundstation.run.history import History
 from groundstation.run.hub_clients import EMERGENCY, FORWARDED, HANDSHAKE_S, MAX_CLIENTS, MAX_REJECTS, HubClient
-from groundstation.run.hub_outbox import ToolOutbox
+from groundstation.run.hub_outbox import TOOL_QUEUE_FRAMES, ToolOutbox
 from groundstation.run.marker import CONFIRMATION as MARKER_CONFIRMATION
 from groundstation.safe_output import one_line
 from groundstation.session.agent_session import Session
@@ -59,8 +59,10 @@ _Client = HubClient
 class Hub:
     """A session listener and a loopback TCP server; start() after the session is connected."""
 
-    def __init__(self, session: Session, token: str, host: str = "127.0.0.1", port: int = 0) -> None:
+    def __init__(self, session: Session, token: str, host: str = "127.0.0.1", port: int = 0,
+                 tool_queue_frames: int = TOOL_QUEUE_FRAMES) -> None:
         self.session = session
+        self.tool_queue_frames = tool_queue_frames  # how far behind a tool may fall before it is dropped
         self._token = token
         self._listener = socket.create_server((host, port))
         self._listener.setblocking(False)
@@ -298,7 +300,8 @@ class Hub:
                 self._drop(client)  # no token: not one byte reaches the decoder, let alone the agent
                 return
             if client.attached:
-                client.outbox = ToolOutbox(client.sock, client.encoder, "dive-hub-tool", self._wake)
+                client.outbox = ToolOutbox(client.sock, client.encoder, "dive-hub-tool", self._wake,
+                                           self.tool_queue_frames)
             if not data:
                 return
         rejects = client.decoder.stats.rejects

@@ -10,16 +10,18 @@ The queue is bounded (TOOL_QUEUE_FRAMES). A tool counts frames by sequence numbe
 hole: a tool whose queue is full is dropped instead. What was queued for it is let go, it is sent what was already on
 its way and then a ground TEXT saying why (links/hub_events.py `dropped`; its session stops on it with that line, as
 on the agent's "link taken" TEXT), given REASON_WAIT_S to read them, and closed. The run counts it (Hub.dropped_slow).
+A tool that does not read again within REASON_WAIT_S is closed without the reason (it is not reading it anyway).
 """
 
 from __future__ import annotations
 
 import select
 import socket
+import threading
 import time
 from collections.abc import Callable
 
-from groundstation.links.hub_events import dropped_text
+from groundstation.links.hub_events import GROUND_FLAG, dropped_text
 from groundstation.session.handoff import Outbox
 from protocol import FrameEncoder, Message
 
@@ -28,7 +30,7 @@ from protocol import FrameEncoder, Message
 # What it holds are references to frames every tool shares, about 150 B each: 10 MB if all tools are that far behind.
 TOOL_QUEUE_FRAMES = 65_536
 BATCH_FRAMES = 256  # encoded and sent at a time: what is already on its way when a tool is found too slow
-REASON_WAIT_S = 2.0  # a tool dropped for falling behind gets this long to read what was on its way, and why
+REASON_WAIT_S = 10.0  # a tool dropped for falling behind gets this long to read what was on its way, and why
 _POLL_MS = 250
 
 AgentFrame = tuple[int, bytes, int]  # (msg_id, payload, flags): built once per frame, shared by every tool's queue
@@ -50,6 +52,7 @@ class ToolOutbox(Outbox):
         self._out = bytearray()
         self._drop_by: float | None = None  # monotonic time by which an overflowed tool has read its last frames
         self._on_end = on_end
+        self._let_go = threading.Event()  # the hub is done with it (the tool closed, or the run ends)
         self._poll = select.poll()
         self._poll.register(sock, select.POLLOUT)
         super().__init__(capacity, name)
@@ -123,9 +126,18 @@ class ToolOutbox(Outbox):
     def _ended(self) -> None:
         try:
             if self.too_slow and self.failure is None:
-                self._out += self.encoder.encode(dropped_text(self.behind or 0)).wire
-                self._flush()
+                self._out += self.encoder.encode(dropped_text(self.behind or 0), GROUND_FLAG).wire
+                if self._flush():
+                    # Only our side closed: the tool reads to the reason and the end, and it is its close that ends
+                    # the connection. Closed both ways at once, a tool still sending (a HEARTBEAT) would fail its
+                    # send and drop its link before it read why.
+                    self.sock.shutdown(socket.SHUT_WR)
+                    self._let_go.wait(REASON_WAIT_S)
         except OSError:
             pass  # gone already: it cannot be told
         finally:
             self._on_end()
+
+    def close(self, timeout_s: float = 2.0) -> None:
+        self._let_go.set()
+        super().close(timeout_s)
