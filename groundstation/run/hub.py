@@ -41,7 +41,7 @@ from groundstation.links.peer import peer_is_owner
 from groundstation.run.echo import echo
 from groundstation.run.history import History
 from groundstation.run.hub_clients import EMERGENCY, FORWARDED, HANDSHAKE_S, MAX_CLIENTS, MAX_REJECTS, HubClient
-from groundstation.run.hub_outbox import TOOL_QUEUE_FRAMES, ToolOutbox
+from groundstation.run.hub_outbox import TOOL_QUEUE_FRAMES, ToolOutbox, frame_entry
 from groundstation.run.marker import CONFIRMATION as MARKER_CONFIRMATION
 from groundstation.safe_output import one_line
 from groundstation.session.agent_session import Session
@@ -137,9 +137,9 @@ class Hub:
             return
         if isinstance(message, m.Timesync):
             return  # the run's own clock exchange; a tool's TIMESYNC is answered by the hub (_answer_timesync)
-        item = (frame.msg_id, frame.payload, frame.flags & _KEPT_FLAGS)  # one for every tool's queue
+        entry = frame_entry((frame.msg_id, frame.payload, frame.flags & _KEPT_FLAGS))  # one for every tool's queue
         for client in self._fanout:
-            client.outbox.frame(item)  # type: ignore[union-attr]  # every tool in _fanout has its outbox
+            client.outbox.put_frame(entry)  # type: ignore[union-attr]  # every tool in _fanout has its outbox
 
     def on_sent(self, sent: Sent) -> None:
         if self._forwarding is not None and sent.message is self._forwarding:

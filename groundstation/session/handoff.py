@@ -19,7 +19,8 @@ from typing import Any
 
 from groundstation.session.events import LinkEvent, Received, Sent, SessionListener
 
-_Call = tuple[Callable[[Any], None], Any, int]  # (method, item, weight)
+# (method, item, weight); a subclass may queue entries of its own kind with method None (see _run)
+_Call = tuple[Callable[[Any], None] | None, Any, int]
 
 
 class Outbox:
@@ -40,6 +41,11 @@ class Outbox:
 
     def call(self, method: Callable[[Any], None], item: object, weight: int = 1) -> None:
         """method(item) on this object's thread, after what is queued; it takes `weight` of the capacity."""
+        self._put((method, item, weight))
+
+    def _put(self, entry: _Call) -> None:
+        """Queue an entry as it is: one the caller built once can go to many queues (8 bytes a queue)."""
+        weight = entry[2]
         with self._ready:
             if self._closed:
                 self.dropped += weight
@@ -47,7 +53,7 @@ class Outbox:
             if self._queued + weight > self.capacity:
                 self._full(weight)
                 return
-            self._queue.append((method, item, weight))
+            self._queue.append(entry)
             self._queued += weight
             if len(self._queue) == 1:
                 self._ready.notify()
@@ -55,6 +61,11 @@ class Outbox:
     def _full(self, weight: int) -> None:
         """No room for `weight` more (called holding the queue's lock): a viewer's newest items are dropped."""
         self.dropped += weight
+
+    def _run(self, method: Callable[[Any], None] | None, item: object) -> None:
+        """One queued entry, on this object's thread."""
+        assert method is not None  # entries without a method are a subclass's, which says what they mean
+        method(item)
 
     def _delivered(self) -> None:
         """After each batch handed to the listener, on this object's thread (a writer flushes here)."""
@@ -95,7 +106,7 @@ class Outbox:
                     return  # closed, everything delivered
                 for method, item, _ in batch:
                     try:
-                        method(item)
+                        self._run(method, item)
                     except Exception as e:  # noqa: BLE001 a viewer's (a writer's) bug: it stops; the session goes on
                         self.failure = f"{type(e).__name__}: {e}"
                         break
