@@ -2,7 +2,7 @@
 
 The hub used to encode every frame for every tool on the session's reader thread, under the lock the hub's own
 thread held while it wrote to the tools and encoded their history replays: the thread that feeds the recorder and
-answers the agent paid for each tool. Now the reader thread only appends one shared (msg_id, payload, flags) to each
+answers the agent paid for each tool. Now the reader thread only appends one entry per frame, built once, to each
 tool's queue, and each tool's writer thread encodes with the tool's own seq (so its loss count is its own link's)
 and blocks in send as long as that tool is slow: nobody else waits for it.
 
@@ -28,7 +28,8 @@ from protocol import FrameEncoder, Message
 
 # Frames queued for one tool (a history replay counts each of its frames; the history holds at most 2 MiB, about
 # 30 000): over a minute behind at the virtual agent's --speed 100, more than an hour at the agent's own rate.
-# What it holds are references to frames every tool shares, about 150 B each: 10 MB if all tools are that far behind.
+# A queued frame costs each tool 8 bytes, and the run about 220 B once, however many tools hold it: 16 tools a whole
+# queue behind hold about 8 MB of references and 15 MB of frames.
 TOOL_QUEUE_FRAMES = 65_536
 BATCH_FRAMES = 256  # encoded and sent at a time: what is already on its way when a tool is found too slow
 REASON_WAIT_S = 10.0  # a tool dropped for falling behind gets this long to read what was on its way, and why
@@ -46,7 +47,7 @@ def frame_entry(frame: AgentFrame) -> tuple[None, AgentFrame, int]:
 class ToolOutbox(Outbox):
     """What the hub sends one tool (the agent's frames re-framed, answers, replays), in order, from its own thread.
 
-    `ended` (the hub's wake-up) is called from this thread when it ends: dropped for falling behind, the tool gone,
+    `on_end` (the hub's wake-up) is called from this thread when it ends: dropped for falling behind, the tool gone,
     or closed by the hub. The hub closes the socket after that, never this thread (its fd could be reused)."""
 
     batch_limit = BATCH_FRAMES
@@ -70,9 +71,6 @@ class ToolOutbox(Outbox):
 
     def message(self, message: Message, flags: int = 0) -> None:
         self.call(self._message, (message, flags))
-
-    def raw(self, data: bytes) -> None:
-        self.call(self._raw, data)
 
     def frames(self, items: list[tuple[int, bytes]], flags: int) -> None:
         """A history replay: one call, as many frames of the queue as it holds."""
@@ -104,9 +102,6 @@ class ToolOutbox(Outbox):
 
     def _message(self, item: tuple[Message, int]) -> None:
         self._out += self.encoder.encode(item[0], item[1]).wire
-
-    def _raw(self, data: bytes) -> None:
-        self._out += data
 
     def _frames(self, item: tuple[list[tuple[int, bytes]], int]) -> None:
         items, flags = item
