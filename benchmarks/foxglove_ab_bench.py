@@ -230,7 +230,8 @@ def job(folder: Path, speed: int, seed: int, seconds: float, attack: str | None)
     out = folder / "rec"
     # low_batt_v at its floor: the simulated battery (2 h, 72 s at --speed 100) never ends a long run by surfacing
     proc = subprocess.Popen([*DIVE, "run", f"sim://?speed={speed}&seed={seed}", "--out", str(out),
-                             "--foxglove", "0", "--param", "low_batt_v=3.0"], env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                             "--foxglove", "0", "--param", "low_batt_v=3.0"],
+                            env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     assert proc.stderr is not None
     port = int(re.search(r"ws://127\.0\.0\.1:(\d+)", proc.stderr.readline()).group(1))  # type: ignore[union-attr]
     lines: list[str] = []
