@@ -83,3 +83,7 @@ class ListenerError(GroundStationError):
 
 class LinkTakenError(LinkError):
     """The agent told this ground that another ground's connection replaced it (SPEC.md s. 3)."""
+
+
+class HubDroppedError(LinkError):
+    """The run's hub dropped this tool: it fell too far behind reading what the hub fans out (run/hub_outbox.py)."""

@@ -165,6 +165,9 @@ def run_command(
     if result.still_missing - result.lost:
         err.print(f"{result.still_missing - result.lost} samples not backfilled though the agent's log still "
                   "holds them (the link did not bring them in time)", style="yellow")
+    if result.tools_dropped:
+        err.print(f"{result.tools_dropped} tools attached to the run's hub were dropped for falling behind (each was "
+                  "told why); the recording is not affected", style="yellow")
     if result.interrupted or signalled:
         did = f"; {result.status.stopped}" if result.status.stopped else ""
         err.print(f"stopped by {signalled[0] if signalled else 'Ctrl-C'}{did}; the recording is complete",

@@ -21,6 +21,8 @@ from protocol import messages as m
 GROUND_FLAG = 0x08  # flags bit 3: a frame the hub itself says (never set on a frame from the agent)
 # the ground's event kinds its tools get (not its link's own events)
 FANNED_OUT = frozenset(("marker", "alarm", "alarm_cleared", "alarm_ack", "command"))
+DROPPED = "dropped"  # the hub's last word to one tool it drops for falling behind (run/hub_outbox.py), never fanned out
+TOOL_KINDS = FANNED_OUT | {DROPPED}  # the ground TEXTs a tool's session reads from its hub
 ACK_REQUEST = "ack"  # a tool's ground-flagged TEXT to its run's hub: acknowledge the alarms (dive ack)
 ACK_ANSWERS = ("alarms acknowledged by ", "no alarm to acknowledge")  # how the hub's TEXT answer to it begins
 TEXT_BYTES = 238  # TEXT's tail (protocol/messages.py)
@@ -37,6 +39,12 @@ def ground_text(kind: str, detail: str, data: dict[str, Any]) -> m.Text:
     room = TEXT_BYTES - len(head.encode())
     body = detail.encode()[:max(0, room)].decode(errors="ignore")  # cut on a character, never inside one
     return m.Text(t_us=time.time_ns() // 1000, severity=_SEVERITY.get(kind, 1), text=head + body)
+
+
+def dropped_text(behind: int) -> m.Text:
+    """Why the hub drops a tool: it fell `behind` frames behind. The tool's session stops with this as its line."""
+    return ground_text(DROPPED, f"the run's hub dropped this tool: it fell {behind} frames behind reading them (the "
+                       "tool or its machine too slow); the run goes on, attach again to follow it", {"behind": behind})
 
 
 def parse_ground_text(text: str, kinds: frozenset[str] | tuple[str, ...] = FANNED_OUT,

@@ -18,7 +18,9 @@ own protocol, so `dive view`, `status`, `mark`, `surface`, ... attach with the s
 - the run's markers and alarms are fanned out too, each as a TEXT flagged as the ground's (links/hub_events.py): a
   `dive record` attached to the run records them, a `dive view` shows them, as the run's own recorder and view do.
 
-A client that does not keep up is dropped (its queue is bounded): a slow viewer never slows the run.
+Every tool has a writer thread and a bounded queue of its own (run/hub_outbox.py): the session's reader thread only
+appends each frame to the queues, and never waits for a tool. A tool that falls a whole queue behind is dropped,
+told why in a last ground TEXT its session stops on; the run counts it (dropped_slow, in the run's last lines).
 """
 
 from __future__ import annotations
@@ -39,6 +41,7 @@ from groundstation.links.peer import peer_is_owner
 from groundstation.run.echo import echo
 from groundstation.run.history import History
 from groundstation.run.hub_clients import EMERGENCY, FORWARDED, HANDSHAKE_S, MAX_CLIENTS, MAX_REJECTS, HubClient
+from groundstation.run.hub_outbox import TOOL_QUEUE_FRAMES, ToolOutbox, frame_entry
 from groundstation.run.marker import CONFIRMATION as MARKER_CONFIRMATION
 from groundstation.safe_output import one_line
 from groundstation.session.agent_session import Session
@@ -46,7 +49,6 @@ from groundstation.session.events import EventKind, LinkEvent, Received, Sent
 from protocol import AckResult, FrameFlag, Message
 from protocol import messages as m
 
-CLIENT_QUEUE_LIMIT = 4 * 1024 * 1024  # bytes queued for one client before it is dropped as too slow
 FORWARDED_MEMORY = 256  # forwarded commands remembered (for ACK mapping and client retries)
 _KEPT_FLAGS = int(FrameFlag.REPLAYED)  # of an agent frame; the rest (GROUND_FLAG too) cleared: no forged events
 _TAKE_OVER_IDS = {kind.MSG_ID: kind.DEFINITION.name for kind in (m.Surface, m.Stop, m.Hover, m.Pause)}
@@ -57,8 +59,10 @@ _Client = HubClient
 class Hub:
     """A session listener and a loopback TCP server; start() after the session is connected."""
 
-    def __init__(self, session: Session, token: str, host: str = "127.0.0.1", port: int = 0) -> None:
+    def __init__(self, session: Session, token: str, host: str = "127.0.0.1", port: int = 0,
+                 tool_queue_frames: int = TOOL_QUEUE_FRAMES) -> None:
         self.session = session
+        self.tool_queue_frames = tool_queue_frames  # how far behind a tool may fall before it is dropped
         self._token = token
         self._listener = socket.create_server((host, port))
         self._listener.setblocking(False)
@@ -72,6 +76,10 @@ class Hub:
         self._selector.register(self._wake_r, selectors.EVENT_READ, None)
         self._lock = threading.Lock()
         self._clients: list[_Client] = []
+        # The attached tools that said HELLO, those every frame goes to: a tuple replaced whole under the lock, read
+        # without it by the session's reader thread (which so takes no lock the hub's thread holds)
+        self._fanout: tuple[_Client, ...] = ()
+        self._closing: list[_Client] = []  # dropped, their writer thread still ending: the socket closed after it
         # session seq of a forwarded command -> (client, client seq); and the client's retries -> session seq
         self._by_session_seq: OrderedDict[tuple[int, int], tuple[_Client, int, Message]] = OrderedDict()
         self._by_client_seq: OrderedDict[tuple[int, int, int], tuple[int, m.Ack | None]] = OrderedDict()
@@ -82,6 +90,7 @@ class Hub:
         self.markers = 0
         self.clients_served = 0
         self.refused_users = 0  # connections from another user's processes, closed at accept
+        self.dropped_slow = 0  # tools dropped for falling a whole queue behind (run/hub_outbox.py)
         # The last command a tool sent that takes the agent out of learning (CMD_SURFACE, STOP, HOVER, PAUSE), or
         # None after a tool's CMD_START: the run must not start learning again behind an operator's back.
         self.taken_over: str | None = None
@@ -100,8 +109,13 @@ class Hub:
         if self._thread.is_alive():
             self._thread.join(5.0)
         with self._lock:
-            clients, self._clients = self._clients, []
+            clients, self._clients, self._fanout = self._clients + self._closing, [], ()
+            self._closing = []
         for client in clients:
+            self._shut(client)
+        for client in clients:
+            if client.outbox is not None:
+                client.outbox.close(1.0)
             with contextlib.suppress(OSError):
                 client.sock.close()
         for sock in (self._listener, self._wake_r, self._wake_w):
@@ -123,13 +137,9 @@ class Hub:
             return
         if isinstance(message, m.Timesync):
             return  # the run's own clock exchange; a tool's TIMESYNC is answered by the hub (_answer_timesync)
-        payload = frame.payload
-        flags = frame.flags & _KEPT_FLAGS
-        with self._lock:
-            for client in self._clients:
-                if client.hello_seen and client.attached:
-                    client.outbuf += client.encoder.encode_payload(frame.msg_id, payload, flags).wire
-        self._wake()
+        entry = frame_entry((frame.msg_id, frame.payload, frame.flags & _KEPT_FLAGS))  # one for every tool's queue
+        for client in self._fanout:
+            client.outbox.put_frame(entry)  # type: ignore[union-attr]  # every tool in _fanout has its outbox
 
     def on_sent(self, sent: Sent) -> None:
         if self._forwarding is not None and sent.message is self._forwarding:
@@ -139,11 +149,8 @@ class Hub:
         if event.kind not in FANNED_OUT:
             return  # the run's own link's life (lost, restored, stats): each tool has its own link to the hub
         text = ground_text(event.kind, event.detail, event.data)
-        with self._lock:
-            for client in self._clients:
-                if client.hello_seen and client.attached:
-                    client.outbuf += client.encoder.encode(text, GROUND_FLAG).wire
-        self._wake()
+        for client in self._fanout:
+            client.queue(text, GROUND_FLAG)
 
     def _answer_forwarded(self, ack: m.Ack) -> None:
         beat = self.session.last_heartbeat
@@ -161,8 +168,7 @@ class Hub:
             if key in self._by_client_seq:
                 self._by_client_seq[key] = (ack.cmd_seq, mapped)
             if client in self._clients:
-                client.outbuf += client.encoder.encode(mapped).wire
-        self._wake()
+                client.queue(mapped)
         said = echo(client.tool, message, ack, beat.mode if beat is not None else None) if first else None
         if said is not None:  # outside the lock: the event comes back to this hub's on_event
             self.session.listeners.event(LinkEvent(EventKind.COMMAND, time.time_ns(), *said))
@@ -187,8 +193,12 @@ class Hub:
             now_s = time.monotonic()
             with self._lock:
                 slow = [c for c in self._clients if not c.attached and now_s - c.accepted_s > HANDSHAKE_S]
+                ended = [c for c in self._clients if c.outbox is not None and c.outbox.ended]
             for late in slow:
                 self._drop(late)
+            for gone in ended:  # dropped for falling behind (told why), or its socket failed
+                self._drop(gone)
+            self._reap()
             for key, mask in self._selector.select(0.2):
                 if key.fileobj is self._listener:
                     self._accept()
@@ -199,7 +209,6 @@ class Hub:
                     client: _Client = key.data
                     if mask & selectors.EVENT_READ:
                         self._read(client)
-            self._flush_all()
 
     def _accept(self) -> None:
         try:
@@ -242,12 +251,35 @@ class Hub:
             if client not in self._clients:
                 return
             self._clients.remove(client)
+            self._fanout = tuple(c for c in self._fanout if c is not client)
             for key in [k for k, (c, _, _) in self._by_session_seq.items() if c is client]:
                 del self._by_session_seq[key]
+            if client.outbox is not None:
+                self._closing.append(client)
+        if client.outbox is not None and client.outbox.too_slow:
+            self.dropped_slow += 1
         with contextlib.suppress(KeyError, ValueError, OSError):
             self._selector.unregister(client.sock)
+        if client.outbox is None:
+            with contextlib.suppress(OSError):
+                client.sock.close()
+            return
+        self._shut(client)  # its writer, blocked in a send or waiting, ends on this
+        client.outbox.close(0)
+
+    @staticmethod
+    def _shut(client: _Client) -> None:
         with contextlib.suppress(OSError):
-            client.sock.close()
+            client.sock.shutdown(socket.SHUT_RDWR)
+
+    def _reap(self) -> None:
+        """Close the sockets of dropped tools whose writer thread has ended (never before: its fd could be reused)."""
+        with self._lock:
+            done = [c for c in self._closing if c.outbox is None or c.outbox.ended]
+            self._closing = [c for c in self._closing if c not in done]
+        for client in done:
+            with contextlib.suppress(OSError):
+                client.sock.close()
 
     def _read(self, client: _Client) -> None:
         try:
@@ -262,11 +294,14 @@ class Hub:
         if not client.attached:
             try:
                 reply, data = client.handshake.feed(data)
-            except HubAuthError:
+                if reply:
+                    client.sock.send(reply)  # one short line to an empty socket: it fits, or it is no tool
+            except (HubAuthError, OSError):
                 self._drop(client)  # no token: not one byte reaches the decoder, let alone the agent
                 return
-            with self._lock:
-                client.outbuf += reply
+            if client.attached:
+                client.outbox = ToolOutbox(client.sock, client.encoder, "dive-hub-tool", self._wake,
+                                           self.tool_queue_frames)
             if not data:
                 return
         rejects = client.decoder.stats.rejects
@@ -280,10 +315,12 @@ class Hub:
         if isinstance(message, m.Hello):
             hello = self.session.agent_hello
             with self._lock:
-                client.hello_seen = True
                 client.tool = one_line(message.name) or client.tool
                 if hello is not None:
-                    client.outbuf += client.encoder.encode(hello).wire
+                    client.queue(hello)
+                if not client.hello_seen and client in self._clients:
+                    client.hello_seen = True
+                    self._fanout += (client,)  # the agent's HELLO first, then its frames
         elif isinstance(message, m.Text) and flags & GROUND_FLAG:
             request = parse_ground_text(message.text, (ACK_REQUEST,))
             if request is not None and self.acknowledge is not None:
@@ -293,9 +330,7 @@ class Hub:
         elif isinstance(message, m.Text):
             self.session.mark(message.text, by=client.tool)
             self.markers += 1
-            reply = m.Text(t_us=time.time_ns() // 1000, severity=1, text=MARKER_CONFIRMATION)
-            with self._lock:
-                client.outbuf += client.encoder.encode(reply).wire
+            client.queue(m.Text(t_us=time.time_ns() // 1000, severity=1, text=MARKER_CONFIRMATION))
         elif isinstance(message, m.Timesync):
             if message.receive_us == 0 and message.transmit_us == 0:
                 self._answer_timesync(client, message)
@@ -339,12 +374,11 @@ class Hub:
         ack = m.Ack(cmd_msg_id=request.MSG_ID, cmd_seq=seq, result=int(AckResult.ACCEPTED), reason="")
         history = self.history
         frames = history.replay(request.first_sample, request.end_sample) if history is not None else []
-        with self._lock:
-            client.outbuf += client.encoder.encode(ack).wire
-            for msg_id, payload in frames:
-                client.outbuf += client.encoder.encode_payload(msg_id, payload, _KEPT_FLAGS).wire
-            if history is not None:
-                client.outbuf += client.encoder.encode(history.log_range(len(frames))).wire
+        client.queue(ack)
+        if client.outbox is not None and frames:
+            client.outbox.frames(frames, _KEPT_FLAGS)  # encoded by the tool's writer, holding nothing the run needs
+        if history is not None:
+            client.queue(history.log_range(len(frames)))
 
     def _forward_command(self, client: _Client, message: Message, seq: int) -> None:
         key = (id(client), message.MSG_ID, seq)
@@ -355,7 +389,7 @@ class Hub:
             if known is not None:
                 _, ack = known
                 if ack is not None:  # a retry after the ACK was lost: answer it again, do not act twice
-                    client.outbuf += client.encoder.encode(ack).wire
+                    client.queue(ack)
                 return  # still in flight: the session retries it itself
             session_seq = self._send(message)
             if session_seq is None:
@@ -377,23 +411,3 @@ class Hub:
         finally:
             self._forwarding = None
         return self._forwarded_seq
-
-    def _flush_all(self) -> None:
-        with self._lock:
-            clients = list(self._clients)
-        for client in clients:
-            with self._lock:
-                if not client.outbuf:
-                    continue
-                too_slow = len(client.outbuf) > CLIENT_QUEUE_LIMIT
-                if not too_slow:
-                    try:
-                        sent = client.sock.send(client.outbuf)
-                    except (BlockingIOError, InterruptedError):
-                        sent = 0
-                    except OSError:
-                        too_slow = True
-                        sent = 0
-                    del client.outbuf[:sent]
-            if too_slow:
-                self._drop(client)

@@ -14,6 +14,7 @@ from collections import OrderedDict
 from dataclasses import dataclass, field
 
 from groundstation.links.hub_auth import HubSide
+from groundstation.run.hub_outbox import ToolOutbox
 from protocol import AckResult, FrameEncoder, Message, SignatureCheck, SignatureVerifier, StreamDecoder
 from protocol import messages as m
 
@@ -34,9 +35,9 @@ class HubClient:
     handshake: HubSide
     key: bytes | None = field(default=None, repr=False)
     accepted_s: float = field(default_factory=time.monotonic)
-    encoder: FrameEncoder = field(default_factory=FrameEncoder)
+    encoder: FrameEncoder = field(default_factory=FrameEncoder)  # its writer thread's alone, once attached
     decoder: StreamDecoder = field(default_factory=StreamDecoder)
-    outbuf: bytearray = field(default_factory=bytearray)
+    outbox: ToolOutbox | None = None  # what is sent to it, by a thread of its own (made once it proved the token)
     hello_seen: bool = False
     tool: str = "a tool"  # its HELLO's name ("dive target", "foxglove"): who the run pane says sent a command
     rejects: int = 0
@@ -51,8 +52,9 @@ class HubClient:
     def attached(self) -> bool:
         return self.handshake.done
 
-    def queue(self, message: Message) -> None:
-        self.outbuf += self.encoder.encode(message).wire
+    def queue(self, message: Message, flags: int = 0) -> None:
+        if self.outbox is not None:  # nothing is sent to a connection that has not proved the token
+            self.outbox.message(message, flags)
 
     def refuse(self, message: Message, seq: int, result: AckResult, reason: str) -> None:
         """A NACK from the hub itself: the command never reached the agent."""

@@ -178,4 +178,5 @@ def run(config: RunConfig, on_progress: Callable[[RunStatus], None] | None = Non
         raise session.listeners.failure  # the recorder (or the live view) raised: one line naming it
     if on_progress is not None:
         on_progress(status)
-    return RunResult(list(recorder.paths), status, interrupted, missing, session.backfill_status()[0], announced)
+    return RunResult(list(recorder.paths), status, interrupted, missing, session.backfill_status()[0], announced,
+                     hub.dropped_slow if hub is not None else 0)

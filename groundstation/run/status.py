@@ -48,3 +48,4 @@ class RunResult:
     still_missing: int
     lost: int = 0  # of still_missing: samples the agent's log no longer held (proved by its LOG_RANGE / HEARTBEAT)
     announced: RunInfo | None = None  # how the run was last announced to the machine's other tools (links/runs.py)
+    tools_dropped: int = 0  # tools the hub dropped for falling a whole queue behind (run/hub_outbox.py)

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import time
 
-from groundstation.errors import AgentChangedError, LinkError, LinkTakenError
-from groundstation.links.hub_events import GROUND_FLAG, parse_ground_text
+from groundstation.errors import AgentChangedError, HubDroppedError, LinkError, LinkTakenError
+from groundstation.links.hub_events import DROPPED, GROUND_FLAG, TOOL_KINDS, parse_ground_text
 from groundstation.safe_output import one_line
 from groundstation.session.clock import timesync_problem
 from groundstation.session.core import HELLO_TRIES, SessionCore
@@ -188,8 +188,11 @@ class ReceiveLoop(SessionCore):
         elif isinstance(msg, m.Text) and msg.text == LINK_TAKEN_TEXT and not backfilled:
             self._link_taken()
         elif isinstance(msg, m.Text) and frame.flags & GROUND_FLAG and self.link.url.startswith("hub://"):
-            event = parse_ground_text(msg.text)  # the run's marker or alarm (links/hub_events.py): its event here too
-            if event is not None:
+            event = parse_ground_text(msg.text, TOOL_KINDS)  # the run's marker or alarm (links/hub_events.py)
+            if event is not None and event[0] == DROPPED:
+                self._give_up(HubDroppedError(f"{self.link.url}: {event[1]}"))  # the hub closes this link next
+                return
+            if event is not None:  # its event here too
                 self._emit(LinkEvent(EventKind(event[0]), host_ns, event[1], event[2]))
                 return
         elif isinstance(msg, m.ParamValue):

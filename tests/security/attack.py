@@ -77,12 +77,12 @@ def sample_indices(folder: Path) -> list[int]:
 
 
 @contextmanager
-def hub_run(agent_url: str, key: bytes | None = None) -> Iterator[tuple[Session, Hub, RunInfo]]:
+def hub_run(agent_url: str, key: bytes | None = None, **hub_options: Any) -> Iterator[tuple[Session, Hub, RunInfo]]:
     """A run's session with an agent and its hub, announced in $DIVE_RUNTIME_DIR as `dive run` does it."""
     session = Session(make_link(agent_url), SessionConfig(reconnect=False, key=key))
     with session:
         token = new_token()
-        hub = Hub(session, token).start()
+        hub = Hub(session, token, **hub_options).start()
         session.add_listener(hub)
         info = new_run(os.getpid(), hub.address, agent_url, token)
         announce(info)
