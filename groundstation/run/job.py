@@ -91,6 +91,7 @@ def run(config: RunConfig, on_progress: Callable[[RunStatus], None] | None = Non
     session = Session(link, config.session, [recorder, progress, *([history] if history else []), *listeners],
                       cancel=stop)  # a signal while a starting agent answers BUSY ends the wait
     interrupted = False
+    commanded = False
     missing = 0
     hub: Hub | None = None
     announced: RunInfo | None = None
@@ -119,6 +120,7 @@ def run(config: RunConfig, on_progress: Callable[[RunStatus], None] | None = Non
         _set_parameters(config, session, recorder, status)
         watch = AgentWatch(session, config.episodes, status, progress.restarts)
         watch.hub = hub
+        commanded = True  # from here the agent may be learning: an interrupt must stop it
         watch.start()
         try:
             while not stop.is_set() and not (config.episodes and status.completed >= config.episodes):
@@ -148,6 +150,13 @@ def run(config: RunConfig, on_progress: Callable[[RunStatus], None] | None = Non
             watch.stop_if_still_learning()
         missing = session.request_backfill(config.backfill_wait_s, final=True)
         backfilled = True
+    except KeyboardInterrupt:
+        # Ctrl-C before the loop (a starting agent's BUSY wait, the parameters being set) or after it: a stop like
+        # any other, the file named and exit 130; the agent stopped if the run had set it going.
+        interrupted = True
+        if not status.stopped:
+            status.stopped = stop_agent(session, status.agent.depth_m) if commanded and session.failure is None \
+                else "nothing to stop: the run had not set the agent going"
     except AgentBusy as e:
         if not stop.is_set():
             raise

@@ -74,8 +74,13 @@ def test_a_tool_on_a_terminal_shows_one_waiting_line_then_its_answer(
     assert "gamma" in text.rsplit("waiting:", 1)[-1], text  # the answer after the line
 
 
-def test_sigterm_while_the_agent_starts_stops_dive_run_at_once(tmp_path: Path) -> None:
-    """The wait for a BUSY agent ends with the run's stop: not minutes later, when the agent has built its program."""
+@pytest.mark.parametrize(("signum", "said"), [
+    (signal.SIGTERM, "stopped by SIGTERM; nothing to stop: the agent was still starting"),
+    (signal.SIGINT, "stopped by Ctrl-C; nothing to stop: the run had not set the agent going"),
+], ids=["SIGTERM", "SIGINT"])
+def test_a_signal_while_the_agent_starts_stops_dive_run_at_once(tmp_path: Path, signum: int, said: str) -> None:
+    """The wait for a BUSY agent ends with the run's stop: not minutes later, when the agent has built its program;
+    the recording is named as after any other stop."""
     env = {**os.environ, BUILD_DELAY_ENV: "120"}
     proc = subprocess.Popen([sys.executable, "-c", DIVE_MAIN, "run", "sim://?speed=max&seed=3", "--viewer", "none",
                              "--out", str(tmp_path / "run.mcap")], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
@@ -84,9 +89,9 @@ def test_sigterm_while_the_agent_starts_stops_dive_run_at_once(tmp_path: Path) -
     for line in proc.stderr:  # until the run says it waits
         if line.startswith("waiting: the agent answers BUSY"):
             break
-    proc.send_signal(signal.SIGTERM)
+    proc.send_signal(signum)
     out, err = proc.communicate(timeout=30)
     assert proc.returncode == 130, err
-    assert "stopped by SIGTERM; nothing to stop: the agent was still starting" in err and "Traceback" not in err, err
+    assert said in err and "Traceback" not in err, err
     assert out.splitlines() == [str(tmp_path / "run.mcap")], out  # the file is named, as after any other stop
     assert (tmp_path / "run.mcap").stat().st_size > 0
