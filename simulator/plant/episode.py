@@ -6,7 +6,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from learning.acting import reward_kernel, state_index_kernel
+from learning.acting import reward_kernel, state_index_kernel, step_size_kernel
 from learning.config import MAX_VELOCITY_DIFF_STEPS
 from learning.rng import uniform
 from learning.shared import raw_cell_kernel
@@ -205,9 +205,7 @@ def episode_step_kernel(
     rng_state: NDArray[np.uint64],
 ) -> tuple[int, float, bool, bool]:
     """Apply action (0 = less volume, 1 = more) for one control period: (state, reward, term, trunc)."""
-    size = spec.action_step_deg
-    if lspec.fine_step_deg > 0.0 and abs(env[E_VEL_EST]) < lspec.fine_speed_mps:
-        size = lspec.fine_step_deg  # near a hover (LearnerConfig.fine_step_deg)
+    size = step_size_kernel(env[E_VEL_EST], spec.action_step_deg, lspec)
     step = size if action == 1 else -size
     low = env[E_CENTER] - spec.action_window_deg
     high = env[E_CENTER] + spec.action_window_deg
