@@ -86,6 +86,10 @@ _PRESETS: dict[str, LearnerConfig] = {
 _PRESETS["fine41"] = replace(_PRESETS["shared-z20-bins7-fdepth-term100-vpen1"], z_cells=41, fine_step_deg=0.7,
                              fine_speed_mps=0.016)
 
+# fine41 with the fine step only in the two velocity cells either side of 0 (under 8 mm/s, one cell's width): screened
+# on seed 13 (48 trials x 400 episodes, hardware-fast) it lost no trial where fine41 lost 3 (docs/learners-hold.md).
+_PRESETS["fine41-v8"] = replace(_PRESETS["fine41"], fine_speed_mps=0.008)
+
 # Each -fastplan learner is its base with _FAST_PLAN (the base's figures are kept for comparison).
 _FAST_PLAN_BASES = {
     "shared-fastplan": "shared",
@@ -127,6 +131,7 @@ DESCRIPTIONS: dict[str, str] = {
     "hardware-fastplan": "hardware, planning stops early",
     "fine41": "41 depth cells, 0.7 deg at a hover",
     "fine41-fastplan": "fine41, planning stops early",
+    "fine41-v8": "fine41, fine step under 8 mm/s",
 }
 
 
