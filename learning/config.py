@@ -91,6 +91,10 @@ class LearnerConfig:
     # of the plant's step; far from a hover the full step still brakes in time.
     fine_step_deg: float = 0.0
     fine_speed_mps: float = 0.0
+    # With the fine step: an action that reverses the last one's direction steps the plant's full step instead (it
+    # takes up a gear's lost motion, which a fine step would spend moving nothing); only continuing steps are fine.
+    # A research switch for the study's environment (scripts/screen_hold.py): neither agent implements it yet.
+    fine_full_reversal: bool = False
 
     def __post_init__(self) -> None:
         if self.z_cells < 1 or self.zdot_cells < 1 or self.actuator_bins < 1:

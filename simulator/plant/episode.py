@@ -34,7 +34,8 @@ E_RING = E_CMD + 13  # measured depths of the last MAX_VELOCITY_DIFF_STEPS contr
 E_FILT_Z = E_RING + MAX_VELOCITY_DIFF_STEPS  # the learner's velocity filter: depth, m
 E_FILT_V = E_FILT_Z + 1  # velocity, m/s
 E_FILT_B = E_FILT_Z + 2  # acceleration bias, m/s^2
-ENV_SIZE = E_FILT_Z + 3
+E_LAST_ACTION = E_FILT_Z + 3  # the learner's last action this episode (-1 before its first)
+ENV_SIZE = E_FILT_Z + 4
 _MAX_RECOVERY_ATTEMPTS = 20
 
 
@@ -100,6 +101,7 @@ def episode_reset_kernel(
     """Start an episode at a random depth of the learning region; returns the first state index."""
     env[E_STEPS] = 0.0
     env[E_RECOVERY_S] = 0.0
+    env[E_LAST_ACTION] = -1.0
     half_m = spec.start_depth_fraction * lspec.z_tol_m
     if spec.start_with_recovery:
         if env[E_STARTED] == 0.0:
@@ -206,6 +208,9 @@ def episode_step_kernel(
 ) -> tuple[int, float, bool, bool]:
     """Apply action (0 = less volume, 1 = more) for one control period: (state, reward, term, trunc)."""
     size = step_size_kernel(env[E_VEL_EST], spec.action_step_deg, lspec)
+    if lspec.fine_full_reversal and action != env[E_LAST_ACTION]:
+        size = spec.action_step_deg  # a reversal takes up the gear's lash (LearnerConfig.fine_full_reversal)
+    env[E_LAST_ACTION] = action
     step = size if action == 1 else -size
     low = env[E_CENTER] - spec.action_window_deg
     high = env[E_CENTER] + spec.action_window_deg

@@ -80,7 +80,10 @@ class LearnerConfigC(ctypes.Structure):
 C_NAMES = {"sparse_slots": "slots", "actuator_bins": "act_bins", "vi_tolerance": "vi_tol",
            "terminal_reward": "term_reward", "untried_q_value": "untried_q", "dirichlet_weight": "dirichlet_w",
            "velocity_diff_steps": "vel_diff_steps", "velocity_penalty": "vel_penalty"}
-NO_C_TWIN = ("model_form",)
+# A research switch of issue 43 (a reversal steps the full step), screened in Python only: a config that uses it is
+# refused here rather than replayed in C without it.
+PYTHON_ONLY = ("fine_full_reversal",)
+NO_C_TWIN = ("model_form", *PYTHON_ONLY)
 
 
 def c_field_names() -> dict[str, str]:
@@ -90,6 +93,9 @@ def c_field_names() -> dict[str, str]:
 
 def c_config(lib: ctypes.CDLL, config: LearnerConfig) -> LearnerConfigC:
     """The Python config as learner_config_t: the C default, then every LearnerConfig field at its C name."""
+    used = [name for name in PYTHON_ONLY if getattr(config, name) != getattr(LearnerConfig(), name)]
+    if used:
+        raise ValueError(f"{used} have no C twin: the firmware's learner cannot replay this config")
     c = LearnerConfigC()
     lib.learner_default_config(ctypes.byref(c))
     for name, c_name in c_field_names().items():  # test_field_names_cover_python_config: each c_name exists

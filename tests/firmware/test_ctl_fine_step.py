@@ -41,11 +41,12 @@ def ctl(tmp_path_factory: pytest.TempPathFactory) -> ctypes.CDLL:
     return build_ctl_library(tmp_path_factory.mktemp("fine"))
 
 
-def test_c_step_follows_python_step_by_step(ctl: ctypes.CDLL) -> None:
-    """fine41 on the hardware plant, random actions (both step sizes occur): C's velocity, step and commanded offset
+@pytest.mark.parametrize("learner", ["fine41", "fine41-v8"])
+def test_c_step_follows_python_step_by_step(ctl: ctypes.CDLL, learner: str) -> None:
+    """The learner on the hardware plant, random actions (both step sizes occur): C's velocity, step and commanded offset
     follow the Python environment's at every step; where the velocity is within float32 rounding of fine_speed_mps
     the two may choose differently, so C takes Python's offset there (counted, and rare)."""
-    config = learner_preset("fine41")
+    config = learner_preset(learner)
     params = preset("hardware")
     assert ctl.learner_configure(ctypes.byref(c_config(ctl, config)))
     spec = kernel_spec(config)

@@ -29,3 +29,29 @@ def test_the_step_is_fine_at_a_hover_and_full_when_moving() -> None:
             obs, info = env.reset()
     assert steps[True] == {config.fine_step_deg}
     assert steps[False] == {params.action_step_deg}
+
+
+def test_a_reversal_steps_full_with_fine_full_reversal() -> None:
+    """LearnerConfig.fine_full_reversal: near a hover an action that reverses the last one steps the plant's 2.1 deg
+    (taking up a gear's lash), one that continues steps 0.7 deg; the first action of an episode counts as a reversal."""
+    params = preset("hardware")
+    config = learner_preset("fine41", fine_full_reversal=True)
+    env = DivingEnv(params, config)
+    obs, info = env.reset(seed=3)
+    rng = np.random.default_rng(4)
+    last = -1
+    steps: dict[tuple[bool, bool], set[float]] = {}
+    for _ in range(3000):
+        action = int(rng.integers(2))
+        slow = abs(obs[1]) < config.fine_speed_mps
+        before = info["alpha_cmd_deg"]
+        obs_next, _, terminated, truncated, info = env.step(action)
+        moved = round(abs(info["alpha_cmd_deg"] - before), 6)
+        if abs(obs_next[2]) < params.action_window_deg - 1e-9 and not (terminated or truncated):
+            steps.setdefault((slow, action != last), set()).add(moved)
+        obs, last = obs_next, action
+        if terminated or truncated:
+            obs, info = env.reset()
+            last = -1
+    assert steps[(True, False)] == {config.fine_step_deg}
+    assert steps[(True, True)] == steps[(False, True)] == steps[(False, False)] == {params.action_step_deg}
