@@ -80,9 +80,9 @@ class LearnerConfigC(ctypes.Structure):
 C_NAMES = {"sparse_slots": "slots", "actuator_bins": "act_bins", "vi_tolerance": "vi_tol",
            "terminal_reward": "term_reward", "untried_q_value": "untried_q", "dirichlet_weight": "dirichlet_w",
            "velocity_diff_steps": "vel_diff_steps", "velocity_penalty": "vel_penalty"}
-# A research switch of issue 43 (a reversal steps the full step), screened in Python only: a config that uses it is
+# A research switch of issue 43 (a reversal near a hover steps more than the fine step), screened in Python only: a config that uses it is
 # refused here rather than replayed in C without it.
-PYTHON_ONLY = ("fine_full_reversal",)
+PYTHON_ONLY = ("fine_reversal_deg",)
 NO_C_TWIN = ("model_form", *PYTHON_ONLY)
 
 

@@ -31,11 +31,12 @@ def test_the_step_is_fine_at_a_hover_and_full_when_moving() -> None:
     assert steps[False] == {params.action_step_deg}
 
 
-def test_a_reversal_steps_full_with_fine_full_reversal() -> None:
-    """LearnerConfig.fine_full_reversal: near a hover an action that reverses the last one steps the plant's 2.1 deg
-    (taking up a gear's lash), one that continues steps 0.7 deg; the first action of an episode counts as a reversal."""
+def test_a_reversal_near_a_hover_steps_fine_reversal_deg() -> None:
+    """LearnerConfig.fine_reversal_deg: near a hover an action that reverses the last one steps 1.4 deg (taking up a
+    gear's lash), one that continues 0.7 deg; away from a hover every step is the plant's 2.1 deg; the first action
+    of an episode counts as a reversal."""
     params = preset("hardware")
-    config = learner_preset("fine41", fine_full_reversal=True)
+    config = learner_preset("fine41", fine_reversal_deg=1.4)
     env = DivingEnv(params, config)
     obs, info = env.reset(seed=3)
     rng = np.random.default_rng(4)
@@ -54,4 +55,5 @@ def test_a_reversal_steps_full_with_fine_full_reversal() -> None:
             obs, info = env.reset()
             last = -1
     assert steps[(True, False)] == {config.fine_step_deg}
-    assert steps[(True, True)] == steps[(False, True)] == steps[(False, False)] == {params.action_step_deg}
+    assert steps[(True, True)] == {config.fine_reversal_deg}
+    assert steps[(False, True)] == steps[(False, False)] == {params.action_step_deg}
