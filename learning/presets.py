@@ -89,6 +89,9 @@ _PRESETS["fine41"] = replace(_PRESETS["shared-z20-bins7-fdepth-term100-vpen1"], 
 # fine41 with the fine step only in the two velocity cells either side of 0 (under 8 mm/s, one cell's width): screened
 # on seed 13 (48 trials x 400 episodes, hardware-fast) it lost no trial where fine41 lost 3 (docs/learners-hold.md).
 _PRESETS["fine41-v8"] = replace(_PRESETS["fine41"], fine_speed_mps=0.008)
+# fine41-v8 with 1.4 deg (two fine steps) where a step near a hover reverses the last one (LearnerConfig.fine_reversal_deg):
+# screened on seed 13 (48 x 400) as modelled it halved the oscillation (0.61 mm) with travel under the controller's.
+_PRESETS["fine41-rev14"] = replace(_PRESETS["fine41-v8"], fine_reversal_deg=1.4)
 
 # Each -fastplan learner is its base with _FAST_PLAN (the base's figures are kept for comparison).
 _FAST_PLAN_BASES = {
@@ -132,6 +135,7 @@ DESCRIPTIONS: dict[str, str] = {
     "fine41": "41 depth cells, 0.7 deg at a hover",
     "fine41-fastplan": "fine41, planning stops early",
     "fine41-v8": "fine41, fine step under 8 mm/s",
+    "fine41-rev14": "fine41-v8, 1.4 deg on a reversal",
 }
 
 

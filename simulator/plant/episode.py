@@ -207,9 +207,7 @@ def episode_step_kernel(
     rng_state: NDArray[np.uint64],
 ) -> tuple[int, float, bool, bool]:
     """Apply action (0 = less volume, 1 = more) for one control period: (state, reward, term, trunc)."""
-    size = step_size_kernel(env[E_VEL_EST], spec.action_step_deg, lspec)
-    if lspec.fine_reversal_deg > 0.0 and size == lspec.fine_step_deg and action != env[E_LAST_ACTION]:
-        size = lspec.fine_reversal_deg  # a reversal takes up the gear's lash (LearnerConfig.fine_reversal_deg)
+    size = step_size_kernel(env[E_VEL_EST], spec.action_step_deg, action != env[E_LAST_ACTION], lspec)
     env[E_LAST_ACTION] = action
     step = size if action == 1 else -size
     low = env[E_CENTER] - spec.action_window_deg

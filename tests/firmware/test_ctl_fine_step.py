@@ -64,7 +64,7 @@ def test_c_step_follows_python_step_by_step(ctl: ctypes.CDLL, learner: str) -> N
     for k in range(4000):
         action = int(rng.integers(2))
         step_c = ctl.learner_step_deg(velocity_c, params.action_step_deg)
-        step_py = step_size_kernel(float(obs[1]), params.action_step_deg, spec)
+        step_py = step_size_kernel(float(obs[1]), params.action_step_deg, False, spec)
         offset_c = min(max(offset_c + (step_c if action == 1 else -step_c), -window), window)
         obs, _, terminated, truncated, info = env.step(action)
         if abs(abs(velocity_c) - config.fine_speed_mps) < F32_MPS:
