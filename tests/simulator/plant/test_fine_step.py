@@ -1,11 +1,17 @@
 """Issue 43: the fine41 learner's step is 0.7 deg while the velocity it sees is under 16 mm/s, the plant's 2.1 deg
-otherwise (LearnerConfig.fine_step_deg), inside the actuator window as before."""
+otherwise (LearnerConfig.fine_step_deg), inside the actuator window as before; with fine_reversal_deg a reversal near
+a hover steps that instead, in the environment and in the virtual agent alike."""
 
 from __future__ import annotations
+
+from itertools import pairwise
 
 import numpy as np
 
 from learning.presets import learner_preset
+from protocol import FrameEncoder, FrameFlag, Mode, StreamDecoder, messages
+from simulator.agent.mission import MissionConfig
+from simulator.agent.onboard import PythonAgent
 from simulator.gym.task import DivingEnv
 from simulator.parameters import preset
 
@@ -57,3 +63,35 @@ def test_a_reversal_near_a_hover_steps_fine_reversal_deg() -> None:
     assert steps[(True, False)] == {config.fine_step_deg}
     assert steps[(True, True)] == {config.fine_reversal_deg}
     assert steps[(False, True)] == steps[(False, False)] == {params.action_step_deg}
+
+
+def test_the_virtual_agent_steps_the_reversal_step() -> None:
+    """The virtual agent (simulator/agent/modes.py) learning with fine41-rev14 takes the same three step sizes as the
+    environment: in its LEARNING SAMPLEs a step near a hover moves the command 1.4 deg where the action reverses the
+    last one (or starts the episode) and 0.7 deg where it continues; elsewhere 2.1 deg."""
+    params = preset("hardware")
+    config = learner_preset("fine41-rev14")
+    decoder = StreamDecoder()
+    samples: list[messages.Sample] = []
+
+    def wrote(wire: bytes) -> None:
+        samples.extend(f.message for f in decoder.feed(wire) if isinstance(f.message, messages.Sample))
+
+    agent = PythonAgent(params, config, MissionConfig(), np.random.default_rng(6), wrote, node_id=6, key=None)
+    agent.receive(FrameEncoder(first_seq=1).encode(messages.StartLearning(max_episodes=0),
+                                                  int(FrameFlag.ACK_REQUESTED)).wire)
+    for _ in range(12_000):
+        agent.step()
+    seen: dict[float, int] = {}
+    for before, after in pairwise(samples):
+        if not (after.mode == Mode.LEARNING and after.action in (0, 1)):
+            continue
+        first = before.mode != Mode.LEARNING or before.episode != after.episode
+        moved = round(abs(after.actuator_cmd_deg - before.actuator_cmd_deg), 4)
+        slow = abs(after.velocity_mps) < config.fine_speed_mps
+        reversal = first or after.action != before.action
+        expected = (config.fine_reversal_deg if reversal else config.fine_step_deg) if slow else params.action_step_deg
+        if moved in (config.fine_step_deg, config.fine_reversal_deg, params.action_step_deg):  # not clamped
+            assert moved == expected, (after.sample, after.velocity_mps, reversal, moved)
+            seen[expected] = seen.get(expected, 0) + 1
+    assert len(seen) == 3 and min(seen.values()) > 20, seen
