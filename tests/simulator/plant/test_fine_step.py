@@ -7,6 +7,7 @@ from __future__ import annotations
 from itertools import pairwise
 
 import numpy as np
+import pytest
 
 from learning.presets import learner_preset
 from protocol import FrameEncoder, FrameFlag, Mode, StreamDecoder, messages
@@ -65,10 +66,12 @@ def test_a_reversal_near_a_hover_steps_fine_reversal_deg() -> None:
     assert steps[(False, True)] == steps[(False, False)] == {params.action_step_deg}
 
 
-def test_the_virtual_agent_steps_the_reversal_step() -> None:
+@pytest.mark.parametrize("batched", [False, True])
+def test_the_virtual_agent_steps_the_reversal_step(batched: bool) -> None:
     """The virtual agent (simulator/agent/modes.py) learning with fine41-rev14 takes the same three step sizes as the
     environment: in its LEARNING SAMPLEs a step near a hover moves the command 1.4 deg where the action reverses the
-    last one (or starts the episode) and 0.7 deg where it continues; elsewhere 2.1 deg."""
+    last one (or starts the episode) and 0.7 deg where it continues; elsewhere 2.1 deg. Also when run in batches as
+    the server runs it (PythonAgent.run), whose compiled LEARNING batch knows no fine step."""
     params = preset("hardware")
     config = learner_preset("fine41-rev14")
     decoder = StreamDecoder()
@@ -80,8 +83,11 @@ def test_the_virtual_agent_steps_the_reversal_step() -> None:
     agent = PythonAgent(params, config, MissionConfig(), np.random.default_rng(6), wrote, node_id=6, key=None)
     agent.receive(FrameEncoder(first_seq=1).encode(messages.StartLearning(max_episodes=0),
                                                   int(FrameFlag.ACK_REQUESTED)).wire)
-    for _ in range(12_000):
-        agent.step()
+    if batched:
+        agent.run(12_000, 10**15)
+    else:
+        for _ in range(12_000):
+            agent.step()
     seen: dict[float, int] = {}
     for before, after in pairwise(samples):
         if not (after.mode == Mode.LEARNING and after.action in (0, 1)):
