@@ -25,9 +25,10 @@ _HELD = (Mode.RECOVERING, Mode.HOVER, Mode.PAUSED)
 
 
 def _batchable(config: LearnerConfig) -> bool:
-    """Whether LEARNING may run in the compiled batch, which steps by action_step_deg alone: a k-step depth difference
-    and the fine step near a hover (issue 43) run step by step in Python instead."""
-    return not config.velocity_diff_steps and config.fine_step_deg == 0.0
+    """Whether LEARNING may run in the compiled batch, which sees the sensed depth and velocity and steps by
+    action_step_deg alone: a k-step depth difference, the velocity filter and the fine step near a hover (issue 43)
+    run step by step in Python instead."""
+    return not config.velocity_diff_steps and config.filter_depth_gain == 0.0 and config.fine_step_deg == 0.0
 WIRE_BUFFER_BYTES = 64 * 1024  # one batch's frames; bounds its steps (k.SAMPLE_WIRE bytes each)
 _MAX_BATCH_STEPS = WIRE_BUFFER_BYTES // k.SAMPLE_WIRE
 
