@@ -93,8 +93,8 @@ class LearnerConfig:
     fine_speed_mps: float = 0.0
     # > 0 with the fine step: where the fine step applies, an action that reverses the last one's direction steps
     # this many degrees instead (it takes up a gear's lost motion, which a fine step would spend moving nothing);
-    # continuing steps stay fine. A research switch: the study's environment and the virtual agent have it, the C
-    # firmware not (tests/firmware/ctl_lib.py PYTHON_ONLY).
+    # continuing steps stay fine. Both agents have it (agent parameter fine_reversal_deg; firmware/src/learner.c
+    # learner_step_deg).
     fine_reversal_deg: float = 0.0
 
     def __post_init__(self) -> None:

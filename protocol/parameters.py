@@ -163,6 +163,11 @@ _ROWS = (
        "action_step_deg always)"),
     _p("fine_speed_mps", F, "m/s", 0.0, 0.0, 0.5, _LEARNER,
        "the learner's |velocity| under which an action steps fine_step_deg"),
+    # A larger step where the fine step applies and an action reverses the last one (learning/config.py
+    # fine_reversal_deg; issue 43): it takes up a gear's lost motion.
+    _p("fine_reversal_deg", F, "deg", 0.0, 0.0, 20.0, _LEARNER,
+       "gear angle change per learner action where fine_step_deg applies and the action reverses the last one (or "
+       "is the episode's first) (0 = off: fine_step_deg)"),
 )
 
 

@@ -74,6 +74,7 @@ BINDINGS: dict[str, Binding] = {
     "plan_loose_tol": Binding(L, "plan_loose_tolerance"),
     "fine_step_deg": Binding(L, "fine_step_deg"),
     "fine_speed_mps": Binding(L, "fine_speed_mps"),
+    "fine_reversal_deg": Binding(L, "fine_reversal_deg"),
 }
 
 

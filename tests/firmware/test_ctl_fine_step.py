@@ -1,10 +1,12 @@
-"""The fine step near a hover (issue 43, LearnerConfig.fine_step_deg) in C against Python, step by step.
+"""The fine step near a hover (issue 43, LearnerConfig.fine_step_deg, fine_reversal_deg) in C against Python, step
+by step.
 
 learner.c learner_step_deg is the C twin of learning/acting.py step_size_kernel: the Python environment runs the
-fine41 learner on the hardware plant, and the C chain (velocity filter, step size, window clamp, state) given the
-same measured depths must command the same gear angle at every step. The agent parameters `fine_step_deg` and
-`fine_speed_mps` give both agents the learner; and both agents' learning step (modes.c, modes.py) moves the gear by
-the fine step exactly where the velocity in their SAMPLE is under fine_speed_mps.
+fine41 learners on the hardware plant, and the C chain (velocity filter, step size with the reversal, window clamp,
+state) given the same measured depths must command the same gear angle at every step. The agent parameters
+`fine_step_deg`, `fine_speed_mps` and `fine_reversal_deg` give both agents the learner; and both agents' learning
+step (modes.c, modes.py) moves the gear by the fine step (by fine_reversal_deg on a reversal) exactly where the
+velocity in their SAMPLE is under fine_speed_mps.
 """
 
 from __future__ import annotations
@@ -31,6 +33,7 @@ from tests.firmware.core_build import use_firmware_cache
 from tests.firmware.ctl_lib import HARDWARE_BY_PARAMS, BothAgents, VfilterGains, VfilterState, build_ctl_library, c_config
 
 FINE = (("fine_step_deg", 0.7), ("fine_speed_mps", 0.016))  # the fine41 learner's (learning/presets.py)
+REVERSAL = (("fine_reversal_deg", 1.4),)  # fine41-rev14's
 F32_DEG = 1e-3  # the C offset sums f32 steps (0.7f is 0.699999988): ~1e-8 deg per step over a few thousand steps
 F32_MPS = 2e-6  # float32 against float64 in the contracting filter (tests/firmware/test_ctl_velocity_filter.py)
 ACK = int(FrameFlag.ACK_REQUESTED)
@@ -41,11 +44,12 @@ def ctl(tmp_path_factory: pytest.TempPathFactory) -> ctypes.CDLL:
     return build_ctl_library(tmp_path_factory.mktemp("fine"))
 
 
-@pytest.mark.parametrize("learner", ["fine41", "fine41-v8"])
+@pytest.mark.parametrize("learner", ["fine41", "fine41-v8", "fine41-rev14"])
 def test_c_step_follows_python_step_by_step(ctl: ctypes.CDLL, learner: str) -> None:
-    """The learner on the hardware plant, random actions (both step sizes occur): C's velocity, step and commanded offset
-    follow the Python environment's at every step; where the velocity is within float32 rounding of fine_speed_mps
-    the two may choose differently, so C takes Python's offset there (counted, and rare)."""
+    """The learner on the hardware plant, random actions (every step size occurs: the plant's, the fine step and for
+    fine41-rev14 the reversal step): C's velocity, step and commanded offset follow the Python environment's at
+    every step; where the velocity is within float32 rounding of fine_speed_mps the two may choose differently, so C
+    takes Python's offset there (counted, and rare)."""
     config = learner_preset(learner)
     params = preset("hardware")
     assert ctl.learner_configure(ctypes.byref(c_config(ctl, config)))
@@ -59,12 +63,16 @@ def test_c_step_follows_python_step_by_step(ctl: ctypes.CDLL, learner: str) -> N
     obs, _ = env.reset(seed=7)
     ctl.vfilter_start(ctypes.byref(state), float(np.float32(obs[0])), 0.0)
     velocity_c, offset_c = state.v_mps, float(obs[2])
-    sizes = {config.fine_step_deg: 0, params.action_step_deg: 0}
+    sizes = dict.fromkeys({config.fine_step_deg, config.fine_reversal_deg or config.fine_step_deg,
+                           params.action_step_deg}, 0)
     on_the_edge = 0
+    last_action = -1  # the episode's first action is a reversal (simulator/plant/episode.py, modes.c)
     for k in range(4000):
         action = int(rng.integers(2))
-        step_c = ctl.learner_step_deg(velocity_c, params.action_step_deg)
-        step_py = step_size_kernel(float(obs[1]), params.action_step_deg, False, spec)
+        reversal = action != last_action
+        last_action = action
+        step_c = ctl.learner_step_deg(velocity_c, params.action_step_deg, reversal)
+        step_py = step_size_kernel(float(obs[1]), params.action_step_deg, reversal, spec)
         offset_c = min(max(offset_c + (step_c if action == 1 else -step_c), -window), window)
         obs, _, terminated, truncated, info = env.step(action)
         if abs(abs(velocity_c) - config.fine_speed_mps) < F32_MPS:
@@ -81,29 +89,30 @@ def test_c_step_follows_python_step_by_step(ctl: ctypes.CDLL, learner: str) -> N
             obs, _ = env.reset()
             ctl.vfilter_start(ctypes.byref(state), float(np.float32(obs[0])), 0.0)
             velocity_c, offset_c = state.v_mps, float(obs[2])
+            last_action = -1
     assert min(sizes.values()) > 200 and on_the_edge < 10, (sizes, on_the_edge)
 
 
 def test_c_refuses_a_negative_fine_step_as_python(ctl: ctypes.CDLL) -> None:
-    for field_name in ("fine_step_deg", "fine_speed_mps"):
-        c = c_config(ctl, learner_preset("fine41"))
+    for field_name in ("fine_step_deg", "fine_speed_mps", "fine_reversal_deg"):
+        c = c_config(ctl, learner_preset("fine41-rev14"))
         setattr(c, field_name, -0.1)
         assert not ctl.learner_configure(ctypes.byref(c)), field_name
         with pytest.raises(ValueError, match="must not be negative"):
-            learner_preset("fine41", **{field_name: -0.1})
-    assert ctl.learner_configure(ctypes.byref(c_config(ctl, learner_preset("fine41"))))
+            learner_preset("fine41-rev14", **{field_name: -0.1})
+    assert ctl.learner_configure(ctypes.byref(c_config(ctl, learner_preset("fine41-rev14"))))
 
 
 def test_the_fine_step_parameters_give_both_agents_the_fine_learner(
         tmp_path_factory: pytest.TempPathFactory) -> None:
-    """PARAM_SET fine_step_deg = 0.7 and fine_speed_mps = 0.016 on top of the hardware learner's parameters make both
-    agents' learner the hardware learner with fine41's step; 21 depth cells fit the RAM budget, fine41's 41 do not
-    (both refuse them with one reason); out of range is refused by both."""
+    """PARAM_SET fine_step_deg = 0.7, fine_speed_mps = 0.016 and fine_reversal_deg = 1.4 on top of the hardware
+    learner's parameters make both agents' learner the hardware learner with fine41-rev14's steps; 21 depth cells
+    fit the RAM budget, fine41's 41 do not (both refuse them with one reason); out of range is refused by both."""
     use_firmware_cache(tmp_path_factory)
     both = BothAgents(load_library())
-    for name, value in (*HARDWARE_BY_PARAMS, ("z_cells", 21), *FINE):
+    for name, value in (*HARDWARE_BY_PARAMS, ("z_cells", 21), *FINE, *REVERSAL):
         assert both.set(name, value) == (AckResult.ACCEPTED, b""), name
-    config = learner_preset("hardware", z_cells=21, **dict(FINE))
+    config = learner_preset("hardware", z_cells=21, **dict(FINE), **dict(REVERSAL))
     # The Python agent holds the table's values as f32 (0.016 as 0.01600000075995922).
     assert asdict(both.program.config) == pytest.approx(asdict(config), rel=1e-7)
     both.assert_c_is(config)
@@ -112,7 +121,9 @@ def test_the_fine_step_parameters_give_both_agents_the_fine_learner(
     assert c_verdict.result == AckResult.BAD_VALUE and b"2871 states needs 63020 B" in c_verdict.reason
     result, reason = both.program.set_param(param("z_cells").index, 41)
     assert result == AckResult.BAD_VALUE and "2871 states need 63020 bytes" in reason, reason
-    for name, value in (("fine_step_deg", -0.1), ("fine_speed_mps", 0.6)):  # SPEC's ranges [0, 20] and [0, 0.5]
+    # SPEC's ranges [0, 20], [0, 0.5] and [0, 20]
+    for name, value in (("fine_step_deg", -0.1), ("fine_speed_mps", 0.6), ("fine_reversal_deg", -0.1),
+                        ("fine_reversal_deg", 20.5)):
         assert both.set_c(name, value).result == AckResult.BAD_VALUE, name
         assert both.program.set_param(param(name).index, value)[0] == AckResult.BAD_VALUE, name
     both.assert_c_is(config)
@@ -153,27 +164,29 @@ def _agents(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Callable[[Cal
 
 @pytest.mark.parametrize("which", ["python", "c"])
 def test_both_agents_step_fine_at_a_hover(tmp_path_factory: pytest.TempPathFactory, which: str) -> None:
-    """The agent set to the hardware learner with the fine step learns for 2 000 control steps; every LEARNING
-    SAMPLE's command moved by fine_step_deg where its velocity is under fine_speed_mps and by action_step_deg
-    elsewhere (but where the window clamps it), both sizes many times."""
+    """The agent set to the hardware learner with fine41-rev14's steps learns for 2 000 control steps; every LEARNING
+    SAMPLE's command moved, where its velocity is under fine_speed_mps, by fine_reversal_deg if its action reverses
+    the SAMPLE's before and by fine_step_deg if not, and by action_step_deg elsewhere (but where the window clamps
+    it), each size many times."""
     ground = _Ground(_agents(tmp_path_factory)[which])
-    for name, value in (*HARDWARE_BY_PARAMS, *FINE):
+    for name, value in (*HARDWARE_BY_PARAMS, *FINE, *REVERSAL):
         ground.command(messages.ParamSet(index=-1, value=float(value), name=name))
     ground.command(messages.StartLearning(max_episodes=0))
     assert set(ground.acks) == {AckResult.ACCEPTED}
     for _ in range(12_000):  # recovery periods are 0.025 s: a few thousand learning steps among them
         ground.agent.step()
     params = preset("hardware")
-    fine, speed = float(np.float32(0.7)), float(np.float32(0.016))
-    seen = {fine: 0, params.action_step_deg: 0}
+    fine, reverse, speed = (float(np.float32(value)) for value in (0.7, 1.4, 0.016))
+    seen = {fine: 0, reverse: 0, params.action_step_deg: 0}
     for before, after in zip(ground.samples, ground.samples[1:], strict=False):
         if not (before.mode == after.mode == Mode.LEARNING and after.episode == before.episode
-                and after.action in (0, 1)):
-            continue
+                and before.action in (0, 1) and after.action in (0, 1)):
+            continue  # also the episode's first action: its SAMPLE's before is not its last action
         moved = abs(after.actuator_cmd_deg - before.actuator_cmd_deg)
-        if abs(moved - fine) > 1e-4 and abs(moved - params.action_step_deg) > 1e-4:
+        if min(abs(moved - size) for size in seen) > 1e-4:
             continue  # clamped by the window: a smaller move
-        expected = fine if abs(after.velocity_mps) < speed else params.action_step_deg
+        slow_step = reverse if after.action != before.action else fine
+        expected = slow_step if abs(after.velocity_mps) < speed else params.action_step_deg
         if abs(abs(after.velocity_mps) - speed) > 1e-6:  # the SAMPLE's f32 velocity is the one the step used
             assert moved == pytest.approx(expected, abs=1e-4), (after.sample, after.velocity_mps, moved)
             seen[expected] += 1
