@@ -105,14 +105,15 @@ def test_c_refuses_a_negative_fine_step_as_python(ctl: ctypes.CDLL) -> None:
 
 def test_the_fine_step_parameters_give_both_agents_the_fine_learner(
         tmp_path_factory: pytest.TempPathFactory) -> None:
-    """PARAM_SET fine_step_deg = 0.7, fine_speed_mps = 0.016 and fine_reversal_deg = 1.4 on top of the hardware
-    learner's parameters make both agents' learner the hardware learner with fine41-rev14's steps; 21 depth cells
-    fit the RAM budget, fine41's 41 do not (both refuse them with one reason); out of range is refused by both."""
+    """PARAM_SET z_cells = 21, fine_step_deg = 0.7, fine_speed_mps = 0.008 and fine_reversal_deg = 1.4 on top of the
+    hardware learner's parameters make both agents' learner the fine21-rev14 preset; fine41's 41 cells do not fit
+    the RAM budget (both refuse them with one reason); out of range is refused by both."""
     use_firmware_cache(tmp_path_factory)
     both = BothAgents(load_library())
-    for name, value in (*HARDWARE_BY_PARAMS, ("z_cells", 21), *FINE, *REVERSAL):
+    fine21_rev14 = (("z_cells", 21), ("fine_step_deg", 0.7), ("fine_speed_mps", 0.008), *REVERSAL)
+    for name, value in (*HARDWARE_BY_PARAMS, *fine21_rev14):
         assert both.set(name, value) == (AckResult.ACCEPTED, b""), name
-    config = learner_preset("hardware", z_cells=21, **dict(FINE), **dict(REVERSAL))
+    config = learner_preset("fine21-rev14")
     # The Python agent holds the table's values as f32 (0.016 as 0.01600000075995922).
     assert asdict(both.program.config) == pytest.approx(asdict(config), rel=1e-7)
     both.assert_c_is(config)
