@@ -89,8 +89,9 @@ _PRESETS["fine41"] = replace(_PRESETS["shared-z20-bins7-fdepth-term100-vpen1"], 
 # fine41 with the fine step only in the two velocity cells either side of 0 (under 8 mm/s, one cell's width): screened
 # on seed 13 (48 trials x 400 episodes, hardware-fast) it lost no trial where fine41 lost 3 (docs/learners-hold.md).
 _PRESETS["fine41-v8"] = replace(_PRESETS["fine41"], fine_speed_mps=0.008)
-# fine41-v8 with 1.4 deg (two fine steps) where a step near a hover reverses the last one (LearnerConfig.fine_reversal_deg):
-# screened on seed 13 (48 x 400) as modelled it halved the oscillation (0.61 mm) with travel under the controller's.
+# fine41-v8 with 1.4 deg (two fine steps) where a step near a hover reverses the last one
+# (LearnerConfig.fine_reversal_deg): screened on seed 13 (48 x 400) as modelled it halved the oscillation (0.61 mm)
+# with travel under the controller's.
 _PRESETS["fine41-rev14"] = replace(_PRESETS["fine41-v8"], fine_reversal_deg=1.4)
 # fine41-rev14 on 21 depth cells (S = 1 471, 35 020 B: within the agents' 45 056 B learner budget, which 41 cells
 # exceed), still odd so a cell is centred on the target: screened on seed 13 (48 x 400) as modelled it held as the

@@ -30,7 +30,14 @@ from simulator.gym.task import DivingEnv
 from simulator.parameters import preset
 from simulator.serve.firmware_host import FirmwareAgent, load_library
 from tests.firmware.core_build import use_firmware_cache
-from tests.firmware.ctl_lib import HARDWARE_BY_PARAMS, BothAgents, VfilterGains, VfilterState, build_ctl_library, c_config
+from tests.firmware.ctl_lib import (
+    HARDWARE_BY_PARAMS,
+    BothAgents,
+    VfilterGains,
+    VfilterState,
+    build_ctl_library,
+    c_config,
+)
 
 FINE = (("fine_step_deg", 0.7), ("fine_speed_mps", 0.016))  # the fine41 learner's (learning/presets.py)
 REVERSAL = (("fine_reversal_deg", 1.4),)  # fine41-rev14's
