@@ -45,6 +45,18 @@ def reward_kernel(depth_m: float, target_depth_m: float, next_state: int, spec: 
 
 
 @njit(cache=True, error_model="numpy", inline="always")
+def step_size_kernel(velocity_mps: float, plant_step_deg: float, reversal: bool, spec: KernelSpec) -> float:
+    """The gear step of an action: fine_step_deg while the velocity the learner sees is under fine_speed_mps (near
+    a hover, LearnerConfig.fine_step_deg), there fine_reversal_deg instead if set and the action reverses the last
+    one (or is the episode's first), else the plant's step. firmware/src/learner.c learner_step_deg is its C twin."""
+    if spec.fine_step_deg > 0.0 and abs(velocity_mps) < spec.fine_speed_mps:
+        if reversal and spec.fine_reversal_deg > 0.0:
+            return spec.fine_reversal_deg
+        return spec.fine_step_deg
+    return plant_step_deg
+
+
+@njit(cache=True, error_model="numpy", inline="always")
 def explore_probability(episode: int, spec: KernelSpec) -> float:
     """Linear decay from p_explore_start at episode 0 to p_explore_end at explore_decay_episodes."""
     frac = min(episode / spec.explore_decay_episodes, 1.0)

@@ -91,6 +91,11 @@ class LearnerConfig:
     # of the plant's step; far from a hover the full step still brakes in time.
     fine_step_deg: float = 0.0
     fine_speed_mps: float = 0.0
+    # > 0 with the fine step: where the fine step applies, an action that reverses the last one's direction steps
+    # this many degrees instead (it takes up a gear's lost motion, which a fine step would spend moving nothing);
+    # continuing steps stay fine. Both agents have it (agent parameter fine_reversal_deg; firmware/src/learner.c
+    # learner_step_deg).
+    fine_reversal_deg: float = 0.0
 
     def __post_init__(self) -> None:
         if self.z_cells < 1 or self.zdot_cells < 1 or self.actuator_bins < 1:
@@ -124,8 +129,8 @@ class LearnerConfig:
             raise LearnerConfigError("at most 65535 states (successor indices are uint16)")
         if self.plan_stable_sweeps < 0 or self.plan_loose_tolerance < 0:
             raise LearnerConfigError("plan_stable_sweeps and plan_loose_tolerance must not be negative")
-        if self.fine_step_deg < 0 or self.fine_speed_mps < 0:
-            raise LearnerConfigError("fine_step_deg and fine_speed_mps must not be negative")
+        if self.fine_step_deg < 0 or self.fine_speed_mps < 0 or self.fine_reversal_deg < 0:
+            raise LearnerConfigError("fine_step_deg, fine_speed_mps and fine_reversal_deg must not be negative")
         if self.plan_stable_sweeps > 0 and not self.shared_model:
             raise LearnerConfigError("the early planning stop (plan_stable_sweeps) is for the shared model only")
 

@@ -86,6 +86,18 @@ _PRESETS: dict[str, LearnerConfig] = {
 _PRESETS["fine41"] = replace(_PRESETS["shared-z20-bins7-fdepth-term100-vpen1"], z_cells=41, fine_step_deg=0.7,
                              fine_speed_mps=0.016)
 
+# fine41 with the fine step only in the two velocity cells either side of 0 (under 8 mm/s, one cell's width): screened
+# on seed 13 (48 trials x 400 episodes, hardware-fast) it lost no trial where fine41 lost 3 (docs/learners-hold.md).
+_PRESETS["fine41-v8"] = replace(_PRESETS["fine41"], fine_speed_mps=0.008)
+# fine41-v8 with 1.4 deg (two fine steps) where a step near a hover reverses the last one
+# (LearnerConfig.fine_reversal_deg): screened on seed 13 (48 x 400) as modelled it halved the oscillation (0.61 mm)
+# with travel under the controller's.
+_PRESETS["fine41-rev14"] = replace(_PRESETS["fine41-v8"], fine_reversal_deg=1.4)
+# fine41-rev14 on 21 depth cells (S = 1 471, 35 020 B: within the agents' 45 056 B learner budget, which 41 cells
+# exceed), still odd so a cell is centred on the target: screened on seed 13 (48 x 400) as modelled it held as the
+# 41 cells did (0.64 mm, 552 deg/min against the controller's 601) and lost no trial (docs/learners-hold.md).
+_PRESETS["fine21-rev14"] = replace(_PRESETS["fine41-rev14"], z_cells=21)
+
 # Each -fastplan learner is its base with _FAST_PLAN (the base's figures are kept for comparison).
 _FAST_PLAN_BASES = {
     "shared-fastplan": "shared",
@@ -127,6 +139,9 @@ DESCRIPTIONS: dict[str, str] = {
     "hardware-fastplan": "hardware, planning stops early",
     "fine41": "41 depth cells, 0.7 deg at a hover",
     "fine41-fastplan": "fine41, planning stops early",
+    "fine41-v8": "fine41, fine step under 8 mm/s",
+    "fine41-rev14": "fine41-v8, 1.4 deg on a reversal",
+    "fine21-rev14": "fine41-rev14 on 21 cells: fits",
 }
 
 

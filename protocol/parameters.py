@@ -157,6 +157,17 @@ _ROWS = (
        "moved no value by plan_loose_tol or more (0 = off)"),
     _p("plan_loose_tol", F, "", 0.0, 0.0, 10.0, _LEARNER,
        "the value change below which plan_stable_sweeps may end a plan"),
+    # A smaller step near a hover (learning/config.py fine_step_deg, fine_speed_mps; issue 43).
+    _p("fine_step_deg", F, "deg", 0.0, 0.0, 20.0, _LEARNER,
+       "gear angle change per learner action while the learner's |velocity| is under fine_speed_mps (0 = off: "
+       "action_step_deg always)"),
+    _p("fine_speed_mps", F, "m/s", 0.0, 0.0, 0.5, _LEARNER,
+       "the learner's |velocity| under which an action steps fine_step_deg"),
+    # A larger step where the fine step applies and an action reverses the last one (learning/config.py
+    # fine_reversal_deg; issue 43): it takes up a gear's lost motion.
+    _p("fine_reversal_deg", F, "deg", 0.0, 0.0, 20.0, _LEARNER,
+       "gear angle change per learner action where fine_step_deg applies and the action reverses the last one (or "
+       "is the episode's first) (0 = off: fine_step_deg)"),
 )
 
 

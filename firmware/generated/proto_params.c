@@ -40,4 +40,7 @@ const param_def_t param_defs[PARAM_COUNT] = {
     {"velocity_filter", 1u, 1u, 0x06u, 0.0f, 0.0f, 1.0f},  /* 34 BOOL  */
     {"plan_stable_sweeps", 2u, 1u, 0x06u, 0.0f, 0.0f, 100.0f},  /* 35 U8  */
     {"plan_loose_tol", 5u, 1u, 0x06u, 0.0f, 0.0f, 10.0f},  /* 36 F32  */
+    {"fine_step_deg", 5u, 1u, 0x06u, 0.0f, 0.0f, 20.0f},  /* 37 F32 deg */
+    {"fine_speed_mps", 5u, 1u, 0x06u, 0.0f, 0.0f, 0.5f},  /* 38 F32 m/s */
+    {"fine_reversal_deg", 5u, 1u, 0x06u, 0.0f, 0.0f, 20.0f},  /* 39 F32 deg */
 };

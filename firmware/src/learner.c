@@ -116,6 +116,10 @@ static bool config_valid(const learner_config_t *c)
         || (c->plan_stable_sweeps > 0u && !c->shared_model)) {
         return false;  /* the early planning stop is the shared model's (learning/config.py) */
     }
+    if (!(c->fine_step_deg >= 0.0f) || !(c->fine_speed_mps >= 0.0f) || !(c->fine_reversal_deg >= 0.0f)
+        || !isfinite(c->fine_step_deg) || !isfinite(c->fine_speed_mps) || !isfinite(c->fine_reversal_deg)) {
+        return false;  /* learning/config.py: not negative */
+    }
     /* Written so that NaN fails every test. */
     if (!(c->z_tol_m > 0.0f) || !(c->zdot_tol_mps > 0.0f) || !(c->vi_tol > 0.0f)) {
         return false;
@@ -289,6 +293,18 @@ uint8_t learner_act(uint16_t s)
     uint64_t threshold = rng_scale53(g_learner.p_explore);
     bool explore = g_learner.cfg.explore_literal_gt ? draw > threshold : draw < threshold;
     return explore ? (uint8_t)(1u - action) : action;
+}
+
+float learner_step_deg(float velocity_mps, float plant_step_deg, bool reversal)
+{
+    const learner_config_t *c = &g_learner.cfg;
+    if (c->fine_step_deg > 0.0f && fabsf(velocity_mps) < c->fine_speed_mps) {
+        if (reversal && c->fine_reversal_deg > 0.0f) {
+            return c->fine_reversal_deg;  /* a fine step after a reversal would spend itself in the gear's lash */
+        }
+        return c->fine_step_deg;  /* near a hover: chatter between the two actions costs a fraction of the step */
+    }
+    return plant_step_deg;
 }
 
 /* ------------------------------------------------------------------ inspection */

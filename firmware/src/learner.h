@@ -61,6 +61,13 @@ typedef struct {
        the sweep's max change is below plan_loose_tolerance (0 = off; learning/planning.py plan_rows). */
     uint16_t plan_stable_sweeps;
     float    plan_loose_tolerance;
+    /* A smaller gear step near a hover (learning/config.py fine_step_deg; 0 = off, the plant's step always): an
+       action steps fine_step_deg while the learner's |velocity| is under fine_speed_mps (learner_step_deg). */
+    float    fine_step_deg;
+    float    fine_speed_mps;
+    /* There, an action reversing the last one (or the episode's first) steps fine_reversal_deg instead, to take up
+       a gear's lost motion (learning/config.py fine_reversal_deg; 0 = off, fine_step_deg always). */
+    float    fine_reversal_deg;
 } learner_config_t;
 
 /* The defaults of learning/config.py LearnerConfig (the paper's simulation values). */
@@ -90,6 +97,10 @@ uint16_t learner_terminal(void);   /* n_states - 1 */
 /* State of (depth, velocity, actuator fraction in -1..1 of its window); the terminal state outside. */
 uint16_t learner_state(float depth_m, float velocity_mps, float target_m, float actuator_fraction);
 float    learner_reward(float depth_m, float target_m, uint16_t s_next);
+/* The gear step of an action at the learner's velocity: fine_step_deg near a hover (fine_reversal_deg there if
+   set and the action reverses the last one), else plant_step_deg (the action_step_deg parameter);
+   learning/acting.py step_size_kernel is its Python twin. */
+float    learner_step_deg(float velocity_mps, float plant_step_deg, bool reversal);
 /* The policy's action, flipped with the exploration probability of the current episode. */
 uint8_t  learner_act(uint16_t s);
 void     learner_observe(uint16_t s, uint8_t a, float reward, uint16_t s_next);

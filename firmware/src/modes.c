@@ -286,7 +286,8 @@ static void learning_step(void) {
         return;
     }
     uint8_t action = learner_act(state);
-    float step = params_get(PARAM_ACTION_STEP_DEG);
+    bool reversal = g.prev_state < 0 || action != g.prev_action;  /* the episode's first action counts as one */
+    float step = learner_step_deg(g.velocity_mps, params_get(PARAM_ACTION_STEP_DEG), reversal);
     float window = params_get(PARAM_ACTION_WIN_DEG);
     float cmd = g.cmd_deg + (action == ACTION_INCREASE_VOLUME ? step : -step);
     set_cmd(clampf(cmd, g.center_deg - window, g.center_deg + window));

@@ -79,6 +79,9 @@ void params_learner_config(learner_config_t *c) {
     c->vel_penalty = g_values[PARAM_VEL_PENALTY];
     c->plan_stable_sweeps = (uint16_t)g_values[PARAM_PLAN_STABLE_SWEEPS];
     c->plan_loose_tolerance = g_values[PARAM_PLAN_LOOSE_TOL];
+    c->fine_step_deg = g_values[PARAM_FINE_STEP_DEG];
+    c->fine_speed_mps = g_values[PARAM_FINE_SPEED_MPS];
+    c->fine_reversal_deg = g_values[PARAM_FINE_REVERSAL_DEG];
     if (g_values[PARAM_VELOCITY_FILTER] != 0.0f) {
         /* learning/presets.py VELOCITY_FILTER (tests/firmware/test_ctl_velocity_filter.py compares them). */
         c->filter_depth_gain = 0.271f;

@@ -13,6 +13,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from learning.config import LearnerConfig
 from learning.learner import LearnerArrays
 from learning.spec import direct_entry
 from protocol import Mode
@@ -21,6 +22,13 @@ from simulator.agent.link import AgentLink
 from simulator.agent.program import OnboardProgram
 
 _HELD = (Mode.RECOVERING, Mode.HOVER, Mode.PAUSED)
+
+
+def _batchable(config: LearnerConfig) -> bool:
+    """Whether LEARNING may run in the compiled batch, which sees the sensed depth and velocity and steps by
+    action_step_deg alone: a k-step depth difference, the velocity filter and the fine step near a hover (issue 43)
+    run step by step in Python instead."""
+    return not config.velocity_diff_steps and config.filter_depth_gain == 0.0 and config.fine_step_deg == 0.0
 WIRE_BUFFER_BYTES = 64 * 1024  # one batch's frames; bounds its steps (k.SAMPLE_WIRE bytes each)
 _MAX_BATCH_STEPS = WIRE_BUFFER_BYTES // k.SAMPLE_WIRE
 
@@ -58,7 +66,7 @@ class StepBatcher:
             mode = program.mode
             if mode in _HELD:
                 done += self._held_batch(max_steps - done, until_us)
-            elif mode == Mode.LEARNING and not program.config.velocity_diff_steps:
+            elif mode == Mode.LEARNING and _batchable(program.config):
                 done += self._learning_batch(max_steps - done, until_us)
             else:
                 program.step()

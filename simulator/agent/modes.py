@@ -31,7 +31,7 @@ from typing import Protocol
 import numpy as np
 
 from learning import Learner, LearnerConfig, n_states
-from learning.acting import reward_kernel, state_index_kernel
+from learning.acting import reward_kernel, state_index_kernel, step_size_kernel
 from learning.config import kernel_spec
 from learning.shared import raw_cell_kernel
 from learning.spec import direct_entry
@@ -142,6 +142,7 @@ class ModeMachine:
         self._state_index = direct_entry(state_index_kernel, 0.0, 0.0, 0.0, 0.0, self._lspec)
         self._raw_cell = direct_entry(raw_cell_kernel, 0.0, 0.0, 0.0, 0.0, self._lspec)
         self._reward = direct_entry(reward_kernel, 0.0, 0.0, 0, self._lspec)
+        self._step_size = direct_entry(step_size_kernel, 0.0, 0.0, False, self._lspec)
         self._terminal = n_states(config) - 1
         self._depth_difference = (
             DepthDifference(config.velocity_diff_steps) if config.velocity_diff_steps else None
@@ -292,7 +293,9 @@ class ModeMachine:
             self.learning_over(state)
             return
         action = self.learner.act(state)
-        step = self.params.action_step_deg if action == Action.INCREASE_VOLUME else -self.params.action_step_deg
+        reversal = self._prev_state < 0 or action != self._prev_action  # the episode's first action counts as one
+        size = float(self._step_size(self.velocity_mps, self.params.action_step_deg, reversal, self._lspec))
+        step = size if action == Action.INCREASE_VOLUME else -size
         window = self.params.action_window_deg
         cmd = min(max(self.hw.actuator_cmd_deg + step, self._center_deg - window), self._center_deg + window)
         self.hw.set_actuator_cmd_deg(cmd)

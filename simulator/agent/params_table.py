@@ -72,6 +72,9 @@ BINDINGS: dict[str, Binding] = {
     "velocity_filter": Binding(L, "filter_depth_gain", switch=VELOCITY_FILTER),
     "plan_stable_sweeps": Binding(L, "plan_stable_sweeps"),
     "plan_loose_tol": Binding(L, "plan_loose_tolerance"),
+    "fine_step_deg": Binding(L, "fine_step_deg"),
+    "fine_speed_mps": Binding(L, "fine_speed_mps"),
+    "fine_reversal_deg": Binding(L, "fine_reversal_deg"),
 }
 
 

@@ -6,7 +6,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from learning.acting import reward_kernel, state_index_kernel
+from learning.acting import reward_kernel, state_index_kernel, step_size_kernel
 from learning.config import MAX_VELOCITY_DIFF_STEPS
 from learning.rng import uniform
 from learning.shared import raw_cell_kernel
@@ -34,7 +34,8 @@ E_RING = E_CMD + 13  # measured depths of the last MAX_VELOCITY_DIFF_STEPS contr
 E_FILT_Z = E_RING + MAX_VELOCITY_DIFF_STEPS  # the learner's velocity filter: depth, m
 E_FILT_V = E_FILT_Z + 1  # velocity, m/s
 E_FILT_B = E_FILT_Z + 2  # acceleration bias, m/s^2
-ENV_SIZE = E_FILT_Z + 3
+E_LAST_ACTION = E_FILT_Z + 3  # the learner's last action this episode (-1 before its first)
+ENV_SIZE = E_FILT_Z + 4
 _MAX_RECOVERY_ATTEMPTS = 20
 
 
@@ -100,6 +101,7 @@ def episode_reset_kernel(
     """Start an episode at a random depth of the learning region; returns the first state index."""
     env[E_STEPS] = 0.0
     env[E_RECOVERY_S] = 0.0
+    env[E_LAST_ACTION] = -1.0
     half_m = spec.start_depth_fraction * lspec.z_tol_m
     if spec.start_with_recovery:
         if env[E_STARTED] == 0.0:
@@ -205,9 +207,8 @@ def episode_step_kernel(
     rng_state: NDArray[np.uint64],
 ) -> tuple[int, float, bool, bool]:
     """Apply action (0 = less volume, 1 = more) for one control period: (state, reward, term, trunc)."""
-    size = spec.action_step_deg
-    if lspec.fine_step_deg > 0.0 and abs(env[E_VEL_EST]) < lspec.fine_speed_mps:
-        size = lspec.fine_step_deg  # near a hover (LearnerConfig.fine_step_deg)
+    size = step_size_kernel(env[E_VEL_EST], spec.action_step_deg, action != env[E_LAST_ACTION], lspec)
+    env[E_LAST_ACTION] = action
     step = size if action == 1 else -size
     low = env[E_CENTER] - spec.action_window_deg
     high = env[E_CENTER] + spec.action_window_deg

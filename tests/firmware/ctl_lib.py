@@ -70,7 +70,8 @@ class LearnerConfigC(ctypes.Structure):
         ("filter_bias_gain", ctypes.c_float), ("filter_accel_per_deg", ctypes.c_float),
         ("filter_drag_per_m", ctypes.c_float), ("filter_depth_state", ctypes.c_bool),
         ("plan_stable_sweeps", ctypes.c_uint16),
-        ("plan_loose_tolerance", ctypes.c_float),
+        ("plan_loose_tolerance", ctypes.c_float), ("fine_step_deg", ctypes.c_float),
+        ("fine_speed_mps", ctypes.c_float), ("fine_reversal_deg", ctypes.c_float),
     ]
 
 
@@ -79,10 +80,7 @@ class LearnerConfigC(ctypes.Structure):
 C_NAMES = {"sparse_slots": "slots", "actuator_bins": "act_bins", "vi_tolerance": "vi_tol",
            "terminal_reward": "term_reward", "untried_q_value": "untried_q", "dirichlet_weight": "dirichlet_w",
            "velocity_diff_steps": "vel_diff_steps", "velocity_penalty": "vel_penalty"}
-# The fine step near a hover (issue 43) is Python's alone until it wins and gets its C twin: a config that uses it
-# is refused here rather than replayed in C without it.
-PYTHON_ONLY = ("fine_step_deg", "fine_speed_mps")
-NO_C_TWIN = ("model_form", *PYTHON_ONLY)
+NO_C_TWIN = ("model_form",)
 
 
 def c_field_names() -> dict[str, str]:
@@ -92,9 +90,6 @@ def c_field_names() -> dict[str, str]:
 
 def c_config(lib: ctypes.CDLL, config: LearnerConfig) -> LearnerConfigC:
     """The Python config as learner_config_t: the C default, then every LearnerConfig field at its C name."""
-    used = [name for name in PYTHON_ONLY if getattr(config, name) != getattr(LearnerConfig(), name)]
-    if used:
-        raise ValueError(f"{used} have no C twin: the firmware's learner cannot replay this config")
     c = LearnerConfigC()
     lib.learner_default_config(ctypes.byref(c))
     for name, c_name in c_field_names().items():  # test_field_names_cover_python_config: each c_name exists
@@ -154,6 +149,7 @@ _SIGNATURES: dict[str, tuple[object, list[object]]] = {
     "learner_state": (ctypes.c_uint16, [ctypes.c_float] * 4),
     "learner_reward": (ctypes.c_float, [ctypes.c_float, ctypes.c_float, ctypes.c_uint16]),
     "learner_act": (ctypes.c_uint8, [ctypes.c_uint16]),
+    "learner_step_deg": (ctypes.c_float, [ctypes.c_float, ctypes.c_float, ctypes.c_bool]),
     "learner_observe": (None, [ctypes.c_uint16, ctypes.c_uint8, ctypes.c_float, ctypes.c_uint16]),
     "learner_observe_cell": (None, [ctypes.c_uint16, ctypes.c_uint8, ctypes.c_float, ctypes.c_uint16,
                                     ctypes.c_uint32]),
@@ -240,12 +236,12 @@ class BothAgents:
 
     def __init__(self, lib: ctypes.CDLL) -> None:
         self.lib = lib
-        self._set_c = param_setter(lib)
+        self.set_c = param_setter(lib)  # the firmware's side alone
         _, self.program, _ = in_process_agent()
 
     def set(self, name: str, value: float) -> tuple[int, bytes]:
         """PARAM_SET on both in IDLE: the (result, reason) they agree on (asserted)."""
-        c_verdict = self._set_c(name, value)
+        c_verdict = self.set_c(name, value)
         result, reason = self.program.set_param(param(name).index, value)
         assert (c_verdict.result, c_verdict.reason.decode()) == (result, reason), name
         return result, c_verdict.reason

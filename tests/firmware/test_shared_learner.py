@@ -201,6 +201,8 @@ def replay_in_c(lib: ctypes.CDLL, config: LearnerConfig, rec: Recording, slice_b
     ("shared-epsilon", "paper", 20, 250),  # exploration flips: the same draws on both sides
     (VPEN_Z20, "hardware", 20, 333),  # the velocity penalty and a terminal reward of -100
     ("diff8-fastplan", "hardware", 20, 333),  # planning's early stop (plan_stable_sweeps)
+    ("fine41", "hardware", 20, 333),  # the fine step near a hover, 41 depth cells (issue 43); 8 tie plans of 20
+    ("fine21-rev14", "hardware", 20, 333),  # its reversal step too, on 21 depth cells (fits the agents' budget)
 ])
 def test_c_shared_learner_follows_python(
     ctl: ctypes.CDLL, name: str, plant: str, episodes: int, slice_backups: int

@@ -9,13 +9,18 @@ from __future__ import annotations
 import json
 from collections.abc import Callable
 
+import numpy as np
 import pytest
 
-from protocol import compiled, messages
+from learning import learner_preset
+from protocol import FrameEncoder, FrameFlag, Mode, compiled, messages
 from simulator.agent import batch_kernel as onboard_batch_kernel
 from simulator.agent.batch import StepBatcher
 from simulator.agent.link import AgentLink
+from simulator.agent.mission import MissionConfig
+from simulator.agent.onboard import PythonAgent
 from simulator.agent.program import OnboardProgram
+from simulator.parameters import preset
 from tests.simulator import agent_trace
 
 EXPECTED = {(t["preset"], t["seed"]): t for t in json.loads(agent_trace.FIXTURE.read_text())}
@@ -50,3 +55,25 @@ def test_batches_send_and_log_the_bytes_of_the_fixture(preset_name: str, seed: i
 def test_the_batch_kernel_frames_the_sample_the_protocol_defines() -> None:
     assert onboard_batch_kernel.SAMPLE_ID == messages.Sample.MSG_ID
     assert onboard_batch_kernel.SAMPLE_PAYLOAD == messages.Sample.DEFINITION.fixed_size
+
+
+@pytest.mark.parametrize("learner", ["hardware", "fine41-rev14"])
+def test_a_learner_the_batch_cannot_run_is_run_step_by_step(learner: str) -> None:
+    """The velocity filter and the fine step are not in the compiled LEARNING batch: the agent running in batches (as
+    the server does) sends the very bytes it sends run one step at a time (before, a batch used the observer's
+    velocity and the plant's step for them)."""
+    wires = []
+    for batched in (False, True):
+        wire = bytearray()
+        agent = PythonAgent(preset("hardware"), learner_preset(learner), MissionConfig(), np.random.default_rng(8),
+                            wire.extend, node_id=8, key=None)
+        agent.receive(FrameEncoder(first_seq=1).encode(messages.StartLearning(max_episodes=0),
+                                                       int(FrameFlag.ACK_REQUESTED)).wire)
+        if batched:
+            agent.run(4_000, 2**63)
+        else:
+            for _ in range(4_000):
+                agent.step()
+        assert agent.program.mode == Mode.LEARNING or agent.program.learner.episode > 0
+        wires.append(bytes(wire))
+    assert wires[0] == wires[1]

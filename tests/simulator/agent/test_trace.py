@@ -6,7 +6,9 @@ bytes; the speed-ups give the same), and after the `vel_penalty` parameter was a
 before and after differs in one frame only, the PARAM_VALUE's `count` (33 -> 34) and its CRC; the log is unchanged.
 Likewise after `velocity_filter` (35 parameters, regenerated with `python -m tests.simulator.agent_trace`): only
 the wire's hash changed, its length and frames not; and after `plan_stable_sweeps` and `plan_loose_tol`
-(37 parameters, the same way): again only the wire's hash.
+(37 parameters, the same way): again only the wire's hash; and after `fine_step_deg` and `fine_speed_mps`
+(39 parameters, the same way): again only the wire's hash, the log unchanged; and after `fine_reversal_deg` (40
+parameters): the same.
 """
 
 from __future__ import annotations
