@@ -94,6 +94,14 @@ def default_viewer(viewer: Viewer | None, rrd: Path | None, headless_default: Vi
     return Viewer.SPAWN if os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY") else headless_default
 
 
+def say_where(view: RerunView, err: bool = False) -> None:
+    """The web viewer's address, and one line when the viewer's port answers more than its owner."""
+    if view.address:
+        typer.echo(f"Rerun web viewer: {view.address}", err=err)
+    if view.notice:
+        typer.secho(f"note: {view.notice}", err=True, fg="yellow")
+
+
 def open_live_view(viewer: Viewer | None, rrd: Path | None, web_port: int, name: str,
                    headless_default: Viewer = Viewer.WEB, grpc_port: int = 9876) -> RerunView | None:
     """The live view `dive run` attaches to its session, or None when neither a viewer nor a file is wanted."""
@@ -104,8 +112,8 @@ def open_live_view(viewer: Viewer | None, rrd: Path | None, web_port: int, name:
     from groundstation.view.rerun_sink import ViewConfig, attach_view
 
     live = attach_view(ViewConfig(viewer=chosen, rrd=rrd, web_port=web_port, grpc_port=grpc_port), name=name)
-    if live is not None and live.address:
-        typer.echo(f"Rerun web viewer: {live.address}", err=True)
+    if live is not None:
+        say_where(live, err=True)
     return live
 
 
@@ -245,8 +253,7 @@ def replay(
         partial = rrd if rrd is not None and not rrd.exists() else None  # removed again if nothing is shown
         with _removed_on_error(partial), RerunView.open(config, name=parts.files[0].stem
                                                          if len(parts.files) == 1 else parts.name) as view:
-            if view.address:  # now: the browser loads the viewer while the recording is read, and gets it in slices
-                typer.echo(f"Rerun web viewer: {view.address}")
+            say_where(view)  # now: the browser loads the viewer while the recording is read, and gets it in slices
             if factor is None:
                 with Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.completed} frames"),
                               TimeElapsedColumn(), transient=True, disable=not sys.stderr.isatty()) as progress:
@@ -320,8 +327,7 @@ def view(
         web_port, grpc_port = viewer_ports(chosen, web_port, grpc_port)
         config = ViewConfig(viewer=chosen, rrd=rrd, web_port=web_port, grpc_port=grpc_port)
         with RerunView.open(config, name=link.url) as live:
-            if live.address:
-                typer.echo(f"Rerun web viewer: {live.address}")
+            say_where(live)
             # Signed too: a signing agent refuses an unsigned HELLO's follow-ups (PARAM_LIST) as UNAUTHORIZED. Through
             # a run's hub, the run backfills for every tool: no LOG_REQUESTs of our own.
             session_config = SessionConfig(key=resolve_key(key_file), backfill=not link.url.startswith("hub://"))
@@ -361,8 +367,7 @@ def _view_in_foxglove(url: str, port: int, viewer: Viewer | None, rrd: Path | No
                                     name=session.link.url)
         with opened as live:
             if live is not None:
-                if live.address:
-                    typer.echo(f"Rerun web viewer: {live.address}")
+                say_where(live)
                 session.add_listener(live)
             if session.link.url.startswith("hub://"):
                 from protocol import messages as m

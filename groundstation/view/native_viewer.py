@@ -74,6 +74,11 @@ class LoopbackNativeViewer:
         self.grpc_port = grpc_port
         self.uri = f"rerun+http://{HOST}:{grpc_port}/proxy"
         self.address: str | None = None
+        # Said where the viewer's address is said: this door is not the owner's alone (anything that listens says
+        # whom it answers).
+        self.notice = (f"the native viewer's data port {HOST}:{grpc_port} is readable by every local user here "
+                       "(no private network for it on this machine, or the display is over TCP): use --foxglove or "
+                       "--rrd FILE on a shared machine")
         if listening(grpc_port):
             return  # a viewer is open there already (rr.spawn's reuse); our own from an earlier run, as a rule
         command = _command(grpc_port, memory_limit, server_memory_limit)

@@ -305,6 +305,7 @@ class RerunView:
         self._last_send_s = 0.0
         self._layout = Layout(replay=replay)  # what the blueprint sent last was made for
         self.address = server.address if server is not None else None
+        self.notice: str | None = getattr(server, "notice", None)  # whom its port answers, if not the owner alone
 
     @classmethod
     def open(cls, config: ViewConfig, name: str = "live") -> RerunView:

@@ -183,3 +183,23 @@ def test_the_native_viewers_port_is_the_owners_and_a_second_run_reuses_its_windo
     data = owner["grpc_web"]
     assert isinstance(data, dict) and data["status"] == "HTTP/1.1 200 OK" and int(str(data["body"])) > 0, data
     assert not isinstance(second, NativeViewer) and windows == 1  # the same window, not a second one
+
+
+def test_a_native_viewer_on_loopback_says_every_local_user_can_read_it(capfd: pytest.CaptureFixture[str]) -> None:
+    """Where the viewer cannot have a private network (or the display is over TCP), its port is on 127.0.0.1: the
+    tools say so in one line beside the viewer's address, rather than let the owner think it is theirs alone."""
+    from groundstation.cli.view import say_where
+    from groundstation.view.native_viewer import LoopbackNativeViewer
+    from groundstation.view.rerun_sink import RerunView
+
+    with socket.socket() as held:  # a viewer already listening there: rr.spawn's reuse, nothing started
+        held.bind(("127.0.0.1", 0))
+        held.listen()
+        port = held.getsockname()[1]
+        viewer = LoopbackNativeViewer(port, "1GB", "1GB")
+        view = RerunView(rr.RecordingStream("test-notice"), viewer)
+        say_where(view)
+    err = capfd.readouterr().err.splitlines()
+    assert err == [f"note: the native viewer's data port 127.0.0.1:{port} is readable by every local user here (no "
+                   "private network for it on this machine, or the display is over TCP): use --foxglove or --rrd "
+                   "FILE on a shared machine"], err
