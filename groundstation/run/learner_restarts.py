@@ -88,12 +88,15 @@ class LearnerRestarts:
 
     def _restart(self, generation: int, why: str, boot_id: int | None, inferred: bool = False) -> str:
         c = self.chapter
-        cause = why or self._caused and f"{self._caused} sent by this run or a tool attached to it" or \
+        # A learner-resetting command still awaiting its ACK counts: the agent's frames of the new generation may
+        # overtake the ACK on the wire (a HEARTBEAT sent in the same step).
+        caused = self._caused or self._asked
+        cause = why or caused and f"{caused} sent by this run or a tool attached to it" or \
             self._said and f"the agent said \"{self._said}\"" or \
             "not through this ground (another ground, or the robot itself)"
         done = c.last_episode - c.episode_base
         self.chapter = Chapter(c.number + 1, generation, boot_id, 0, -done)
-        self._caused = self._said = ""
+        self._caused = self._said = self._asked = ""
         named = f", generation {generation}" if generation else ", inferred: the agent sends no generation (SPEC 1.2)"
         return (f"the learner restarted ({cause}): chapter {c.number + 1}{named}; its episodes number from 1 again, "
                 f"the run's count goes on from {done}")

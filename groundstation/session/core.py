@@ -53,7 +53,8 @@ class SessionConfig:
 HELLO_RESEND_S = 1.0  # an unanswered HELLO is sent again after this long (the agent answers every HELLO)
 MODE_WAIT_S = 3.0  # for the agent's next SAMPLE or HEARTBEAT (1 Hz of agent time) after a "maybe run" NACK
 HELLO_TRIES = 5  # HELLOs unanswered on one connection after a reconnect: that connection is dropped for a new one
-BUSY_RETRY_S = 1.0  # a command answered BUSY is sent again after this long
+BUSY_RETRY_S = 1.0  # a command answered BUSY is sent again after this long, or as soon as the program runs
+BUSY_POLL_S = 0.02
 
 
 class SessionCore:
@@ -62,6 +63,10 @@ class SessionCore:
         """`cancel`, once set (a run stopped by a signal), ends a wait for a BUSY agent at once (AgentBusy)."""
         self.link = link
         self._cancel = cancel or threading.Event()
+        # Set when the agent's own program shows it runs (its HELLO, a HEARTBEAT past uptime 0: a starting agent's
+        # responder sends uptime 0): a BUSY wait sends again at once, not up to BUSY_RETRY_S later, during which a
+        # virtual agent at --speed max would race through idle agent time (and battery).
+        self._program_up = threading.Event()
         self.config = config or SessionConfig()
         self.listeners = Listeners(listeners)
         # A random first seq: an agent that remembers the last 16 (msg_id, seq) it ACKed must not take a new
@@ -130,7 +135,10 @@ class SessionCore:
                     raise AgentBusy(f"{e} for {waited_s:.0f} s", e.result, e.reason) from e
                 self._emit(LinkEvent(EventKind.AGENT_BUSY, time.time_ns(), e.reason,
                                      {"command": message.DEFINITION.name, "waited_s": round(waited_s, 1)}))
-                self._cancel.wait(BUSY_RETRY_S)
+                self._program_up.clear()
+                deadline = time.monotonic() + BUSY_RETRY_S
+                while not (self._cancel.is_set() or self._program_up.is_set()) and time.monotonic() < deadline:
+                    self._cancel.wait(BUSY_POLL_S)
 
     def _send_once(self, message: Message, *, wait: bool, timeout_s: float | None, flags: int) -> m.Ack | None:
         now = time.monotonic()

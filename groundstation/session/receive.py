@@ -174,8 +174,11 @@ class ReceiveLoop(SessionCore):
             self._on_hello(msg)
             if self.failure is not None:
                 return  # another agent: nothing of it reaches the recording
+            self._program_up.set()
         elif isinstance(msg, m.Heartbeat):
             self.last_heartbeat = msg
+            if msg.uptime_ms > 0:
+                self._program_up.set()
             self.backfill.episodes.saw_generation(msg.generation)
             self._saw_mode(msg.mode)
             self.backfill.saw_log_window(msg.log_first_sample, msg.log_next_sample)
