@@ -14,6 +14,7 @@ import ipaddress
 import os
 import socket
 import struct
+from collections.abc import Iterator
 from pathlib import Path
 
 TABLES = (Path("/proc/net/tcp"), Path("/proc/net/tcp6"))
@@ -33,6 +34,19 @@ def _hex_address(host: str, port: int, width: int) -> str:
     return "".join(f"{word:08X}" for word in words) + f":{port:04X}"
 
 
+def _rows(table: Path) -> Iterator[list[str]]:
+    """The fields of each socket row of one kernel table (read bounded), none where it cannot be read."""
+    try:
+        with table.open("rb") as lines:
+            text = lines.read(TABLE_LIMIT_BYTES).decode("ascii", "replace")
+    except OSError:
+        return
+    for line in text.splitlines()[1:]:
+        fields = line.split()
+        if len(fields) > 7:
+            yield fields
+
+
 def peer_uid(sock: socket.socket) -> int | None:
     """The uid owning the other end of `sock` (an accepted TCP connection on this machine); None where the kernel's
     table cannot tell (no /proc, or the peer is not on this machine, or it is already gone)."""
@@ -46,14 +60,8 @@ def peer_uid(sock: socket.socket) -> int | None:
         local, remote = _hex_address(peer_host, peer_port, width), _hex_address(our_host, our_port, width)
         if not local or not remote:
             continue
-        try:
-            with table.open("rb") as lines:
-                text = lines.read(TABLE_LIMIT_BYTES).decode("ascii", "replace")
-        except OSError:
-            continue
-        for line in text.splitlines()[1:]:
-            fields = line.split()
-            if len(fields) > 7 and fields[1] == local and fields[2] == remote:
+        for fields in _rows(table):
+            if fields[1] == local and fields[2] == remote:
                 try:
                     return int(fields[7])
                 except ValueError:
@@ -69,14 +77,8 @@ def listener_uid(port: int) -> int | None:
         wanted = {_hex_address(host, port, width) for host in ("127.0.0.1", "0.0.0.0")}
         if width == 16:
             wanted.add(_hex_address("::", port, width))
-        try:
-            with table.open("rb") as lines:
-                text = lines.read(TABLE_LIMIT_BYTES).decode("ascii", "replace")
-        except OSError:
-            continue
-        for line in text.splitlines()[1:]:
-            fields = line.split()
-            if len(fields) > 7 and fields[3] == LISTEN and fields[1] in wanted:
+        for fields in _rows(table):
+            if fields[3] == LISTEN and fields[1] in wanted:
                 with contextlib.suppress(ValueError):
                     return int(fields[7])
     return None
