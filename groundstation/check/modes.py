@@ -12,7 +12,8 @@ from dataclasses import dataclass
 
 from groundstation.check.agent import get_param, hover_depth, overridden, reach
 from groundstation.check.errors import CheckSkipped
-from groundstation.check.probe import Probe, result_name
+from groundstation.check.probe import Probe, mode_of, result_name
+from groundstation.check.probe_link import Exchange
 from groundstation.check.registry import check, expect
 from protocol import AckResult, DumpKind, EndReason, Message, Mode
 from protocol import messages as m
@@ -92,8 +93,23 @@ def _judge(probe: Probe, name: str, make: Callable[[], Message], wanted: Mode) -
     if cell.aborts:
         end = probe.wait_message(m.EpisodeEnd, ex.ack_at, probe.timeouts.reply_s)
         if end is None or end[1].reason != EndReason.ABORTED:
-            return before, f"{where}: no EPISODE_END aborted after the ACK"
+            came = (f"the first was {EndReason(end[1].reason).name}" if end is not None
+                    else f"none within {probe.timeouts.reply_s:g} s")
+            return before, f"{where}: no EPISODE_END aborted after the ACK ({came}; {_around(probe, ex)})"
     return before, ""
+
+
+def _around(probe: Probe, ex: Exchange) -> str:
+    """What the agent sent about the command's ACK (a few frames either side): what a failed cell is judged on."""
+    first = max(ex.sent_at - 4, probe.first)
+    shown = []
+    for index, frame in enumerate(probe.frames(first, min(ex.ack_at + 6, probe.end)), first):
+        mode = mode_of(frame)
+        name = type(frame.message).__name__ if frame.message is not None else f"0x{frame.msg_id:02X}"
+        detail = (mode.name if mode is not None else
+                  EndReason(frame.message.reason).name if isinstance(frame.message, m.EpisodeEnd) else "")
+        shown.append(("ACK " if index == ex.ack_at else "") + name + (f" {detail}" if detail else ""))
+    return "frames: " + ", ".join(shown)
 
 
 def matrix_row(name: str) -> Callable[[Probe], str]:

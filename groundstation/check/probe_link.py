@@ -142,6 +142,11 @@ class LinkProbe:
 
     # ------------------------------------------------------------------ frames in
     @property
+    def first(self) -> int:
+        """Index of the oldest received frame still kept."""
+        return self._first
+
+    @property
     def end(self) -> int:
         """Index the next received frame will get."""
         return self._first + len(self._frames)

@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import threading
 import time
 
+from groundstation.check.modes import _judge
 from groundstation.check.probe import Probe, mode_of
 from groundstation.links.memory import MemoryLink
-from protocol import FrameEncoder, Mode
+from protocol import AckResult, EndReason, FrameEncoder, Mode, StreamDecoder
 from protocol import messages as m
 from protocol.decoder import Frame
 
@@ -45,3 +47,31 @@ def test_a_scan_that_outlasts_the_wait_does_not_stop_the_reading() -> None:
 
     found = probe.wait(slow_surfacing, 0, 0.01)
     assert found is not None and found[0] == 1
+
+
+def test_a_stop_in_learning_without_its_aborted_episode_says_what_came_instead() -> None:
+    """The command x mode matrix judges CMD_STOP in LEARNING on the EPISODE_END aborted that must follow its ACK; an
+    agent that ends the episode as a failure instead fails the cell with the frames it judged on, so a rare miss in
+    CI can be told from a race of the check."""
+    probe, agent = _probe_and_agent()
+    encoder = FrameEncoder()
+    agent.send(encoder.encode(_heartbeat(Mode.LEARNING)).wire)
+    probe.pump(0.5)
+
+    def wrong_agent() -> None:
+        decoder = StreamDecoder(agent=True)
+        while not (frames := decoder.feed(agent.recv(5.0))):
+            pass
+        command = frames[0]
+        agent.send(encoder.encode(m.Ack(cmd_msg_id=command.msg_id, cmd_seq=command.seq,
+                                        result=int(AckResult.ACCEPTED), reason="")).wire)
+        agent.send(encoder.encode(m.EpisodeEnd(episode=4, reason=int(EndReason.FAILURE))).wire)
+        agent.send(encoder.encode(_heartbeat(Mode.SURFACING)).wire)
+
+    answering = threading.Thread(target=wrong_agent)
+    answering.start()
+    before, problem = _judge(probe, "CMD_STOP", m.Stop, Mode.LEARNING)
+    answering.join()
+    assert before == Mode.LEARNING
+    assert problem == ("CMD_STOP in LEARNING: no EPISODE_END aborted after the ACK (the first was FAILURE; frames: "
+                       "Heartbeat LEARNING, ACK Ack, EpisodeEnd FAILURE, Heartbeat SURFACING)"), problem
