@@ -8,13 +8,11 @@ own protocol, so `dive view`, `status`, `mark`, `surface`, ... attach with the s
 - every frame the session delivers is fanned out to every client, re-framed with the client's own seq
   (the REPLAYED flag kept), so a client's loss count is its own link's; TIMESYNC answers (the run's) are not;
 - a client's HELLO is answered with the agent's HELLO, its HEARTBEATs are dropped (the run sends its own);
-- a client's command is checked (run/hub_clients.py: a command, signed when the run is, within its limits), then sent
-  to the agent by the session, with the session's seq and signature, once (a client's retry of the same seq is not
-  sent again); the agent's ACK goes back to that client with the client's seq;
+- a client's command is checked, sent to the agent by the session once, and its ACK sent back with the client's
+  seq (run/hub_commands.py);
 - a client's TIMESYNC request is answered by the hub from the run's clock model: no tool's TIMESYNC reaches the agent;
 - a client's TEXT is a marker for the run's recording (`dive mark`), confirmed by a TEXT back; a ground-flagged
   TEXT `ack` acknowledges the run's alarms (`dive ack`, run/alarms.py), answered by a TEXT saying what was;
-- every command a tool sends is echoed once answered, as a `command` event (run/echo.py): who sent what, the answer;
 - the run's markers and alarms are fanned out too, each as a TEXT flagged as the ground's (links/hub_events.py): a
   `dive record` attached to the run records them, a `dive view` shows them, as the run's own recorder and view do.
 
@@ -30,28 +28,24 @@ import selectors
 import socket
 import threading
 import time
-from collections import OrderedDict
 from collections.abc import Callable
 
-from groundstation.errors import LinkError
 from groundstation.links.hub_auth import FULL as HUB_FULL
 from groundstation.links.hub_auth import HubAuthError, HubSide
 from groundstation.links.hub_events import ACK_REQUEST, FANNED_OUT, GROUND_FLAG, ground_text, parse_ground_text
 from groundstation.links.peer import peer_is_owner
-from groundstation.run.echo import echo
 from groundstation.run.history import History
-from groundstation.run.hub_clients import EMERGENCY, FORWARDED, HANDSHAKE_S, MAX_CLIENTS, MAX_REJECTS, HubClient
+from groundstation.run.hub_clients import FORWARDED, HANDSHAKE_S, MAX_CLIENTS, MAX_REJECTS, HubClient
+from groundstation.run.hub_commands import CommandForwarder
 from groundstation.run.hub_outbox import TOOL_QUEUE_FRAMES, ToolOutbox, frame_entry
 from groundstation.run.marker import CONFIRMATION as MARKER_CONFIRMATION
 from groundstation.safe_output import one_line
 from groundstation.session.agent_session import Session
-from groundstation.session.events import EventKind, LinkEvent, Received, Sent
+from groundstation.session.events import LinkEvent, Received, Sent
 from protocol import AckResult, FrameFlag, Message
 from protocol import messages as m
 
-FORWARDED_MEMORY = 256  # forwarded commands remembered (for ACK mapping and client retries)
 _KEPT_FLAGS = int(FrameFlag.REPLAYED)  # of an agent frame; the rest (GROUND_FLAG too) cleared: no forged events
-_TAKE_OVER_IDS = {kind.MSG_ID: kind.DEFINITION.name for kind in (m.Surface, m.Stop, m.Hover, m.Pause)}
 _U64_MAX = 2**64 - 1
 _Client = HubClient
 
@@ -80,20 +74,13 @@ class Hub:
         # without it by the session's reader thread (which so takes no lock the hub's thread holds)
         self._fanout: tuple[_Client, ...] = ()
         self._closing: list[_Client] = []  # dropped, their writer thread still ending: the socket closed after it
-        # session seq of a forwarded command -> (client, client seq); and the client's retries -> session seq
-        self._by_session_seq: OrderedDict[tuple[int, int], tuple[_Client, int, Message]] = OrderedDict()
-        self._by_client_seq: OrderedDict[tuple[int, int, int], tuple[int, m.Ack | None]] = OrderedDict()
-        self._forwarding: Message | None = None
-        self._forwarded_seq: int | None = None
+        self.commands = CommandForwarder(session, self._lock, lambda client: client in self._clients)
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._serve, name="dive-hub", daemon=True)
         self.markers = 0
         self.clients_served = 0
         self.refused_users = 0  # connections from another user's processes, closed at accept
         self.dropped_slow = 0  # tools dropped for falling a whole queue behind (run/hub_outbox.py)
-        # The last command a tool sent that takes the agent out of learning (CMD_SURFACE, STOP, HOVER, PAUSE), or
-        # None after a tool's CMD_START: the run must not start learning again behind an operator's back.
-        self.taken_over: str | None = None
         self.history: History | None = None  # what a tool's LOG_REQUEST is answered from (set by the run)
         # A tool's `dive ack`: the run's alarms acknowledged by that tool; the line saying what was (set by the run)
         self.acknowledge: Callable[[str], str] | None = None
@@ -124,6 +111,11 @@ class Hub:
         self._selector.close()
 
     @property
+    def taken_over(self) -> str | None:
+        """The tool's command that took the agent out of learning, None if none or a tool's CMD_START since."""
+        return self.commands.taken_over
+
+    @property
     def client_count(self) -> int:
         with self._lock:
             return len(self._clients)
@@ -133,7 +125,7 @@ class Hub:
         frame = received.frame
         message = frame.message
         if isinstance(message, m.Ack):
-            self._answer_forwarded(message)
+            self.commands.answer(message)
             return
         if isinstance(message, m.Timesync):
             return  # the run's own clock exchange; a tool's TIMESYNC is answered by the hub (_answer_timesync)
@@ -142,8 +134,7 @@ class Hub:
             client.outbox.put_frame(entry)  # type: ignore[union-attr]  # every tool in _fanout has its outbox
 
     def on_sent(self, sent: Sent) -> None:
-        if self._forwarding is not None and sent.message is self._forwarding:
-            self._forwarded_seq = sent.seq
+        self.commands.on_sent(sent)
 
     def on_event(self, event: LinkEvent) -> None:
         if event.kind not in FANNED_OUT:
@@ -151,37 +142,6 @@ class Hub:
         text = ground_text(event.kind, event.detail, event.data)
         for client in self._fanout:
             client.queue(text, GROUND_FLAG)
-
-    def _answer_forwarded(self, ack: m.Ack) -> None:
-        beat = self.session.last_heartbeat
-        with self._lock:
-            target = self._by_session_seq.get((ack.cmd_msg_id, ack.cmd_seq))
-            if target is None:
-                return  # an answer to the run's own command
-            client, client_seq, message = target
-            first = (id(client), ack.cmd_msg_id, client_seq) in self._by_client_seq and \
-                self._by_client_seq[(id(client), ack.cmd_msg_id, client_seq)][1] is None
-            client.in_flight.pop((ack.cmd_msg_id, client_seq), None)
-            self._note_take_over(ack)
-            mapped = m.Ack(cmd_msg_id=ack.cmd_msg_id, cmd_seq=client_seq, result=ack.result, reason=ack.reason)
-            key = (id(client), ack.cmd_msg_id, client_seq)
-            if key in self._by_client_seq:
-                self._by_client_seq[key] = (ack.cmd_seq, mapped)
-            if client in self._clients:
-                client.queue(mapped)
-        said = echo(client.tool, message, ack, beat.mode if beat is not None else None) if first else None
-        if said is not None:  # outside the lock: the event comes back to this hub's on_event
-            self.session.listeners.event(LinkEvent(EventKind.COMMAND, time.time_ns(), *said))
-
-    def _note_take_over(self, ack: m.Ack) -> None:
-        """A tool's accepted CMD_SURFACE / STOP / HOVER / PAUSE takes the agent from the run; its CMD_START hands it
-        back. A refused one changes nothing (the agent goes on as it was)."""
-        if ack.result != AckResult.ACCEPTED:
-            return
-        if ack.cmd_msg_id in _TAKE_OVER_IDS:
-            self.taken_over = _TAKE_OVER_IDS[ack.cmd_msg_id]
-        elif ack.cmd_msg_id == m.StartLearning.MSG_ID:
-            self.taken_over = None
 
     # ------------------------------------------------------------------ the clients' side (the hub's thread)
     def _wake(self) -> None:
@@ -252,8 +212,7 @@ class Hub:
                 return
             self._clients.remove(client)
             self._fanout = tuple(c for c in self._fanout if c is not client)
-            for key in [k for k, (c, _, _) in self._by_session_seq.items() if c is client]:
-                del self._by_session_seq[key]
+            self.commands.forget(client)
             if client.outbox is not None:
                 self._closing.append(client)
         if client.outbox is not None and client.outbox.too_slow:
@@ -339,25 +298,10 @@ class Hub:
             # from the run's history (run/history.py), never from the on-board log over the agent's one link.
             self._replay_history(client, message, seq)
         elif type(message) in FORWARDED:
-            self._check_command(client, message, seq, inner)
+            self.commands.command(client, message, seq, inner)
         elif not isinstance(message, m.Heartbeat | m.Ack):
             client.rejects += 1  # an agent's message from a tool: not for the agent
         # HEARTBEAT and ACK from a tool: the run's own session speaks for the ground
-
-    def _check_command(self, client: _Client, message: Message, seq: int, inner: bytes) -> None:
-        # CMD_SURFACE from the owner's tool (it proved the token) needs no signature: a keyed agent runs it unsigned on
-        # purpose (SPEC 1.2), and `dive surface` without the key must work through the run too (issue 38 N9)
-        problem = None if isinstance(message, EMERGENCY) else client.signature_problem(inner)
-        if problem is not None:
-            with self._lock:
-                client.refuse(message, seq, AckResult.UNAUTHORIZED, problem)
-            return
-        with self._lock:
-            retry = (id(client), message.MSG_ID, seq) in self._by_client_seq  # answered or in flight: no new one
-            if not isinstance(message, EMERGENCY) and not retry and client.busy(time.monotonic()):
-                client.refuse(message, seq, AckResult.BUSY, "too many commands in flight from this tool")
-                return
-        self._forward_command(client, message, seq)
 
     def _answer_timesync(self, client: _Client, request: m.Timesync) -> None:
         """The agent's time now, from the run's clock model: the tool's answer without a frame to the agent."""
@@ -379,35 +323,3 @@ class Hub:
             client.outbox.frames(frames, _KEPT_FLAGS)  # encoded by the tool's writer, holding nothing the run needs
         if history is not None:
             client.queue(history.log_range(len(frames)))
-
-    def _forward_command(self, client: _Client, message: Message, seq: int) -> None:
-        key = (id(client), message.MSG_ID, seq)
-        # Under the lock from sending to filing the seq: the agent's ACK can come back (and be looked up by the
-        # session's reader thread in _answer_forwarded) before session.send has even returned.
-        with self._lock:
-            known = self._by_client_seq.get(key)
-            if known is not None:
-                _, ack = known
-                if ack is not None:  # a retry after the ACK was lost: answer it again, do not act twice
-                    client.queue(ack)
-                return  # still in flight: the session retries it itself
-            session_seq = self._send(message)
-            if session_seq is None:
-                return  # the link is down; the client's retry will try again
-            client.in_flight[(message.MSG_ID, seq)] = time.monotonic()
-            self._by_session_seq[(message.MSG_ID, session_seq)] = (client, seq, message)
-            self._by_client_seq[key] = (session_seq, None)
-            for table in (self._by_session_seq, self._by_client_seq):
-                while len(table) > FORWARDED_MEMORY:
-                    table.popitem(last=False)  # type: ignore[call-arg]
-
-    def _send(self, message: Message) -> int | None:
-        """Send through the session; the seq it used (seen by on_sent in this thread), None if the link is down."""
-        self._forwarding, self._forwarded_seq = message, None
-        try:
-            self.session.send(message, wait=False)
-        except LinkError:
-            return None
-        finally:
-            self._forwarding = None
-        return self._forwarded_seq
