@@ -42,6 +42,12 @@ class VfilterGains(ctypes.Structure):
         "depth_gain", "velocity_gain", "bias_gain", "accel_per_deg", "drag_per_m")]
 
 
+def vfilter_gains(config: LearnerConfig) -> VfilterGains:
+    """observer.c's filter gains of a learner configuration (learning/config.py's filter_* fields)."""
+    return VfilterGains(config.filter_depth_gain, config.filter_velocity_gain, config.filter_bias_gain,
+                        config.filter_accel_per_deg, config.filter_drag_per_m)
+
+
 class RecoveryParams(ctypes.Structure):
     _fields_ = [(name, ctypes.c_float) for name in (
         "lambda_per_s", "phi_mps", "gain_deg", "avg_time_s", "settle_depth_m", "settle_velocity_mps",

@@ -33,10 +33,10 @@ from tests.firmware.core_build import use_firmware_cache
 from tests.firmware.ctl_lib import (
     HARDWARE_BY_PARAMS,
     BothAgents,
-    VfilterGains,
     VfilterState,
     build_ctl_library,
     c_config,
+    vfilter_gains,
 )
 
 FINE = (("fine_step_deg", 0.7), ("fine_speed_mps", 0.016))  # the fine41 learner's (learning/presets.py)
@@ -61,8 +61,7 @@ def test_c_step_follows_python_step_by_step(ctl: ctypes.CDLL, learner: str) -> N
     params = preset("hardware")
     assert ctl.learner_configure(ctypes.byref(c_config(ctl, config)))
     spec = kernel_spec(config)
-    gains = VfilterGains(config.filter_depth_gain, config.filter_velocity_gain, config.filter_bias_gain,
-                         config.filter_accel_per_deg, config.filter_drag_per_m)
+    gains = vfilter_gains(config)
     env = DivingEnv(params, config)
     rng = np.random.default_rng(43)
     state = VfilterState()

@@ -22,10 +22,10 @@ from tests.firmware.core_build import use_firmware_cache
 from tests.firmware.ctl_lib import (
     HARDWARE_BY_PARAMS,
     BothAgents,
-    VfilterGains,
     VfilterState,
     build_ctl_library,
     c_config,
+    vfilter_gains,
 )
 
 FILTER = "shared-z20-bins7-filter-term100-vpen1"
@@ -52,8 +52,7 @@ def test_c_filter_and_state_follow_python(ctl: ctypes.CDLL, learner: str) -> Non
     config = learner_preset(learner)
     params = with_overrides(preset("hardware"), {"pressure_lag_s": 0.2, "pressure_noise_pa": 13.0})
     assert ctl.learner_configure(ctypes.byref(c_config(ctl, config)))
-    gains = VfilterGains(config.filter_depth_gain, config.filter_velocity_gain, config.filter_bias_gain,
-                         config.filter_accel_per_deg, config.filter_drag_per_m)
+    gains = vfilter_gains(config)
     env = DivingEnv(params, config)
     state = VfilterState()
     target = float(np.float32(params.target_depth_m))
