@@ -8,7 +8,7 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 
 from groundstation.check.errors import CheckFailed, CheckSkipped
-from groundstation.check.probe import Exchange, Probe, result_name
+from groundstation.check.probe import START_AT_REST, Exchange, Probe, result_name
 from protocol import AckResult, Mode
 from protocol import messages as m
 from protocol import parameters as spec_params
@@ -222,9 +222,6 @@ def _start(probe: Probe) -> Mode:
 
     settle()
     return _enter(probe, m.StartLearning(max_episodes=0), {Mode.RECOVERING, Mode.LEARNING}, settle)
-
-
-START_AT_REST = "start_at_rest"
 
 
 def _start_at_rest(probe: Probe, wanted: bool) -> bool:

@@ -28,6 +28,7 @@ from protocol.decoder import Frame
 __all__ = ["Exchange", "Probe", "Timeouts", "mode_of", "result_name"]
 
 _MODES = {int(x) for x in Mode}
+START_AT_REST = "start_at_rest"  # the simulator's parameter (SPEC.md 13), and probe.notes' key for what it holds
 PROGRAM_WAIT_S = 900.0  # a virtual agent's build on a cold compile cache: minutes on a loaded machine
 BUSY_RETRY_S = 1.0
 # Commands whose ACCEPTED may change the mode (SPEC.md 6): the mode shown before their ACK is no longer the present.
@@ -59,6 +60,12 @@ class Probe(LinkProbe):
         mode = mode_of(frame)
         if mode is not None:
             self.mode = mode
+        elif isinstance(frame.message, m.ParamValue) and frame.message.name == START_AT_REST:
+            # Whatever set it (agent.reach, a check putting back every parameter it read before, --param), the
+            # value the agent stored: reach must not defer a CMD_START for an episode at rest the agent no longer
+            # starts (it recovers first, and a command right behind met RECOVERING, not LEARNING)
+            if self.notes.get(START_AT_REST) is not None:
+                self.notes[START_AT_REST] = frame.message.value
         elif _ends_present(frame):
             # The mode shown so far is the past: an accepted command that moves the agent (CMD_SURFACE in IDLE
             # shows SURFACING for a step, SPEC.md 6) or an episode that ended. Wait for a frame that shows it.
@@ -109,7 +116,8 @@ class Probe(LinkProbe):
         """The mode the agent was in when it handled the command: the last mode shown before its ACK.
 
         A command sent right behind one that enters a mode (`self.entered`, see agent.reach) met that mode if the
-        first was ACCEPTED and no frame between the two ACKs shows another.
+        first was ACCEPTED and no frame between the two ACKs shows another; LEARNING only if its EPISODE_START shows
+        it.
         """
         entered, self.entered = self.entered, None
         if entered is not None:
@@ -122,6 +130,11 @@ class Probe(LinkProbe):
             if shown is not None:
                 return shown
             if entered is not None and index == entered[0].ack_at:
+                if mode == Mode.LEARNING:
+                    # An episode that began says so (its EPISODE_START, right after the ACK): none between the two
+                    # ACKs, and the agent met the second command in some other mode (RECOVERING, had it not started
+                    # at rest after all): judged as LEARNING, that cell would fail an agent that is right.
+                    return None
                 return mode if entered[0].result == AckResult.ACCEPTED else None
             if _ends_present(frame):
                 return None  # the agent left the mode last shown (an episode ended, a command moved it): unknown
