@@ -93,10 +93,15 @@ def _judge(probe: Probe, name: str, make: Callable[[], Message], wanted: Mode) -
     if cell.aborts:
         end = probe.wait_message(m.EpisodeEnd, ex.ack_at, probe.timeouts.reply_s)
         if end is None or end[1].reason != EndReason.ABORTED:
-            came = (f"the first was {EndReason(end[1].reason).name}" if end is not None
+            came = (f"the first was {_reason(end[1].reason)}" if end is not None
                     else f"none within {probe.timeouts.reply_s:g} s")
             return before, f"{where}: no EPISODE_END aborted after the ACK ({came}; {_around(probe, ex)})"
     return before, ""
+
+
+def _reason(value: int) -> str:
+    """An EPISODE_END's reason by name; a number SPEC.md does not define as the number."""
+    return EndReason(value).name if value in EndReason._value2member_map_ else str(value)
 
 
 def _around(probe: Probe, ex: Exchange) -> str:
@@ -107,7 +112,7 @@ def _around(probe: Probe, ex: Exchange) -> str:
         mode = mode_of(frame)
         name = type(frame.message).__name__ if frame.message is not None else f"0x{frame.msg_id:02X}"
         detail = (mode.name if mode is not None else
-                  EndReason(frame.message.reason).name if isinstance(frame.message, m.EpisodeEnd) else "")
+                  _reason(frame.message.reason) if isinstance(frame.message, m.EpisodeEnd) else "")
         shown.append(("ACK " if index == ex.ack_at else "") + name + (f" {detail}" if detail else ""))
     return "frames: " + ", ".join(shown)
 
