@@ -71,7 +71,7 @@ def _commands(probe: Probe) -> dict[str, Callable[[], Message]]:
     }
 
 
-def _judge(probe: Probe, name: str, make: Callable[[], Message], wanted: Mode) -> tuple[Mode | None, str]:
+def judge_cell(probe: Probe, name: str, make: Callable[[], Message], wanted: Mode) -> tuple[Mode | None, str]:
     """Send the command once; (the mode it met, "" or what was wrong)."""
     ex = probe.command(make())
     if ex.ack is None:
@@ -129,7 +129,7 @@ def matrix_row(name: str) -> Callable[[Probe], str]:
                 if wanted in passed or len(failures.get(wanted, ())) >= 2:
                     break
                 reach(probe, wanted)
-                before, problem = _judge(probe, name, makers[name], wanted)
+                before, problem = judge_cell(probe, name, makers[name], wanted)
                 if before is None:
                     continue
                 if problem:
@@ -195,7 +195,7 @@ def idle_refusals(probe: Probe) -> str:
     if probe.current_mode() != ID:
         raise CheckSkipped(f"the agent is in {probe.current_mode().name}, not IDLE")
     for name, make in (("CMD_PAUSE", m.Pause), ("CMD_STOP", m.Stop)):
-        _, problem = _judge(probe, name, make, ID)
+        _, problem = judge_cell(probe, name, make, ID)
         expect(not problem, problem)
     return "CMD_PAUSE refused, CMD_STOP accepted, still IDLE"
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import threading
 import time
 
-from groundstation.check.modes import _judge
+from groundstation.check.modes import judge_cell
 from groundstation.check.probe import Probe, mode_of
 from groundstation.links.memory import MemoryLink
 from protocol import AckResult, EndReason, FrameEncoder, Mode, StreamDecoder
@@ -70,7 +70,7 @@ def test_a_stop_in_learning_without_its_aborted_episode_says_what_came_instead()
 
     answering = threading.Thread(target=wrong_agent)
     answering.start()
-    before, problem = _judge(probe, "CMD_STOP", m.Stop, Mode.LEARNING)
+    before, problem = judge_cell(probe, "CMD_STOP", m.Stop, Mode.LEARNING)
     answering.join()
     assert before == Mode.LEARNING
     assert problem == ("CMD_STOP in LEARNING: no EPISODE_END aborted after the ACK (the first was FAILURE; frames: "

@@ -12,7 +12,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from groundstation.check.agent import reach, restore
-from groundstation.check.modes import _judge
+from groundstation.check.modes import judge_cell
 from groundstation.check.probe import START_AT_REST, Probe, Timeouts
 from groundstation.links import make_link
 from protocol import Mode
@@ -35,7 +35,7 @@ def test_a_start_at_rest_put_back_behind_reach_is_followed_and_a_stop_in_learnin
             judged = []
             for _ in range(20):
                 reach(probe, Mode.LEARNING)
-                before, problem = _judge(probe, "CMD_STOP", m.Stop, Mode.LEARNING)
+                before, problem = judge_cell(probe, "CMD_STOP", m.Stop, Mode.LEARNING)
                 assert problem == "", problem
                 judged.append(before)
                 if before == Mode.LEARNING:
