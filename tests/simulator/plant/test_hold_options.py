@@ -1,0 +1,78 @@
+"""Issue 43's two screened options (docs/learners-hold.md, "A hold and a re-centred window"): a hold (a step of 0
+while the depth error and velocity the learner sees are inside LearnerConfig.hold_depth_m / hold_speed_mps) and the
+action window re-centred on the neutral the learner finds (LearnerConfig.neutral_gain), in the environment the study
+runs."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from learning.errors import LearnerConfigError
+from learning.presets import learner_preset
+from simulator.agent.mission import MissionConfig
+from simulator.agent.onboard import PythonAgent
+from simulator.gym.task import DivingEnv
+from simulator.parameters import preset
+from simulator.plant.episode import E_FILT_Z, E_NEUTRAL, E_REC_AVG
+
+
+def test_a_step_inside_the_hold_leaves_the_command_still() -> None:
+    params = preset("hardware")
+    config = learner_preset("fine21-rev14", hold_depth_m=0.003, hold_speed_mps=0.004)
+    env = DivingEnv(params, config)
+    obs, info = env.reset(seed=5)
+    rng = np.random.default_rng(5)
+    moved: dict[bool, list[float]] = {True: [], False: []}
+    for _ in range(6000):
+        error_m = env._env[E_FILT_Z] - params.target_depth_m  # the learner's depth: its filter's (fdepth)
+        held = abs(error_m) < config.hold_depth_m and abs(obs[1]) < config.hold_speed_mps
+        # Mostly towards the target, so that the hold is reached; sometimes the other way.
+        toward = 1 if error_m > 0.0 else 0
+        action = toward if rng.random() < 0.8 else 1 - toward
+        before = info["alpha_cmd_deg"]
+        obs, _, terminated, truncated, info = env.step(action)
+        if abs(obs[2]) < params.action_window_deg - 1e-9:  # not clamped by the window
+            moved[held].append(abs(info["alpha_cmd_deg"] - before))
+        if terminated or truncated:
+            obs, info = env.reset()
+    assert len(moved[True]) > 20 and max(moved[True]) == 0.0
+    assert len(moved[False]) > 20 and min(moved[False]) > 0.0
+
+
+def test_the_window_is_centred_on_the_neutral_the_learner_finds() -> None:
+    """With neutral_gain the learner's neutral follows its own command (by that gain) at each step inside a quarter
+    of the region, and not elsewhere; a hand-over then centres the window, and starts the command, on it instead of
+    on the controller's average (which the tank family hands over up to 3 deg off neutral, start_trim_error_deg)."""
+    params = replace(preset("hardware"), start_trim_error_deg=3.0)
+    config = learner_preset("fine21-rev14", neutral_gain=0.01)
+    env = DivingEnv(params, config)
+    obs, info = env.reset(seed=7)
+    assert env._env[E_NEUTRAL] == info["alpha_cmd_deg"] - obs[2]  # the first: the controller's hand-over
+    rng = np.random.default_rng(7)
+    updated = {True: 0, False: 0}
+    for _ in range(3000):
+        error_m = env._env[E_FILT_Z] - params.target_depth_m
+        inside = abs(error_m) < 0.25 * config.z_tol_m and abs(obs[1]) < 0.25 * config.zdot_tol_mps
+        before = env._env[E_NEUTRAL]
+        obs, _, terminated, truncated, info = env.step(int(rng.integers(2)))
+        expected = before + config.neutral_gain * (info["alpha_cmd_deg"] - before) if inside else before
+        assert env._env[E_NEUTRAL] == pytest.approx(expected, abs=1e-12)
+        updated[inside] += 1
+        if terminated or truncated:
+            obs, info = env.reset()
+    assert min(updated.values()) > 20, updated
+    found = env._env[E_REC_AVG] + params.start_trim_error_deg + 2.0  # a neutral 2 deg off the controller's
+    env._env[E_NEUTRAL] = found
+    obs, info = env.reset()
+    assert info["alpha_cmd_deg"] == found and obs[2] == 0.0  # command and window centre on it
+
+
+def test_the_agents_refuse_them() -> None:
+    """The agents have no parameter for either option: a virtual agent given one refuses it rather than ignore it."""
+    for option in ({"hold_depth_m": 0.003, "hold_speed_mps": 0.004}, {"neutral_gain": 0.01}):
+        with pytest.raises(LearnerConfigError, match="study options"):
+            PythonAgent(preset("hardware"), learner_preset("fine21-rev14", **option), MissionConfig(),
+                        np.random.default_rng(1), lambda wire: None, node_id=6, key=None)
