@@ -99,7 +99,8 @@ class LearnerConfig:
     # Issue 43, screened (study only; the agents have no parameter for them yet, so they refuse a config with
     # them set): a hold, a step of 0 while the depth error the learner sees is under hold_depth_m and its velocity
     # under hold_speed_mps (both > 0 to apply); a held step is not counted in the shared model, whose types assume
-    # every action moves the gear, and a move after a hold reverses the last move, not the held action.
+    # every action moves the gear, and a move after a hold reverses the last move, not the held action. With
+    # neutral_gain as well a held step goes to the neutral found instead of staying where it is.
     hold_depth_m: float = 0.0
     hold_speed_mps: float = 0.0
     # > 0: the action window re-centred on the neutral the learner finds: an average of its own command, updated

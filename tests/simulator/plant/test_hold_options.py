@@ -17,6 +17,7 @@ from simulator.agent.onboard import PythonAgent
 from simulator.gym.task import DivingEnv
 from simulator.parameters import preset
 from simulator.plant.episode import E_FILT_Z, E_NEUTRAL, E_REC_AVG
+from simulator.study.runner import run_study
 
 
 def test_a_step_inside_the_hold_leaves_the_command_still() -> None:
@@ -76,3 +77,16 @@ def test_the_agents_refuse_them() -> None:
         with pytest.raises(LearnerConfigError, match="study options"):
             PythonAgent(preset("hardware"), learner_preset("fine21-rev14", **option), MissionConfig(),
                         np.random.default_rng(1), lambda wire: None, node_id=6, key=None)
+
+
+def test_a_held_step_teaches_the_model_nothing() -> None:
+    """The shared model's types assume every action moves the gear: held steps are not counted. With the hold over the
+    whole region every step is held, so the learner's values after several episodes are those it planned from an
+    empty model; without the hold they are not."""
+    params = preset("hardware")
+    everywhere = learner_preset("fine21-rev14", hold_depth_m=1.0, hold_speed_mps=1.0)
+    untaught = run_study(params, everywhere, 1, 1, seed=3, threads=1).values
+    held = run_study(params, everywhere, 1, 4, seed=3, threads=1).values
+    taught = run_study(params, learner_preset("fine21-rev14"), 1, 4, seed=3, threads=1).values
+    np.testing.assert_array_equal(held, untaught)
+    assert not np.array_equal(taught, untaught)
