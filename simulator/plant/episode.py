@@ -104,6 +104,7 @@ def episode_reset_kernel(
     env[E_STEPS] = 0.0
     env[E_RECOVERY_S] = 0.0
     env[E_LAST_ACTION] = -1.0
+    env[E_HELD] = 0.0
     half_m = spec.start_depth_fraction * lspec.z_tol_m
     if spec.start_with_recovery:
         if env[E_STARTED] == 0.0:
@@ -215,24 +216,28 @@ def episode_step_kernel(
     """Apply action (0 = less volume, 1 = more) for one control period: (state, reward, term, trunc)."""
     error_m = learner_depth(env, lspec) - target_depth_m
     held = abs(error_m) < lspec.hold_depth_m and abs(env[E_VEL_EST]) < lspec.hold_speed_mps
-    env[E_HELD] = 1.0 if held else 0.0
+    base = env[E_CMD]
     if held:
         size = 0.0
+        if lspec.neutral_gain > 0.0 and env[E_HELD] == 0.0:
+            # Entering a hold with a neutral found: go to it (held anywhere else the gear would push the robot out
+            # of the hold), overshooting by hold_lash_deg in the direction of the move so the output lands on it.
+            up = env[E_NEUTRAL] > base or (env[E_NEUTRAL] == base and env[E_LAST_ACTION] == 1.0)
+            base = env[E_NEUTRAL] + (lspec.hold_lash_deg if up else -lspec.hold_lash_deg)
     else:
         size = step_size_kernel(env[E_VEL_EST], spec.action_step_deg, action != env[E_LAST_ACTION], lspec)
         env[E_LAST_ACTION] = action
+    env[E_HELD] = 1.0 if held else 0.0
     step = size if action == 1 else -size
     low = env[E_CENTER] - spec.action_window_deg
     high = env[E_CENTER] + spec.action_window_deg
-    # A hold with a neutral found goes to it: held anywhere else the gear would push the robot out of the hold.
-    base = env[E_NEUTRAL] if held and lspec.neutral_gain > 0.0 else env[E_CMD]
     env[E_CMD] = min(max(base + step, low), high)
     # The learner believes every step lasts control_period_s; the plant may run a jittered one.
     plant_step(env[:E_PLANT_END], env[E_CMD], jittered_period_s(spec.control_period_s, spec, rng_state), spec)
     env[E_STEPS] += 1.0
     # The neutral the learner finds: its command's average while near the target (a chatter about the neutral).
     near = abs(error_m) < 0.25 * lspec.z_tol_m and abs(env[E_VEL_EST]) < 0.25 * lspec.zdot_tol_mps
-    if lspec.neutral_gain > 0.0 and near:
+    if lspec.neutral_gain > 0.0 and near and not held:
         env[E_NEUTRAL] += lspec.neutral_gain * (env[E_CMD] - env[E_NEUTRAL])
     measure_kernel(env, spec.control_period_s, spec, rng_state)
     if lspec.velocity_diff_steps > 0:

@@ -90,3 +90,35 @@ def test_a_held_step_teaches_the_model_nothing() -> None:
     taught = run_study(params, learner_preset("fine21-rev14"), 1, 4, seed=3, threads=1).values
     np.testing.assert_array_equal(held, untaught)
     assert not np.array_equal(taught, untaught)
+
+
+def test_a_hold_goes_to_the_neutral_past_the_lash_and_stays() -> None:
+    """With neutral_gain, entering a hold moves the command to the neutral found plus hold_lash_deg in the direction
+    of that move (a gear's output trails its motor by half the lash); the held steps after it leave it there."""
+    params = preset("hardware")
+    config = learner_preset("fine21-rev14", neutral_gain=0.01, hold_depth_m=0.003, hold_speed_mps=0.004,
+                            hold_lash_deg=0.5)
+    env = DivingEnv(params, config)
+    obs, info = env.reset(seed=5)
+    rng = np.random.default_rng(5)
+    entered, stayed, was_held = 0, 0, False
+    for _ in range(6000):
+        error_m = env._env[E_FILT_Z] - params.target_depth_m
+        held = abs(error_m) < config.hold_depth_m and abs(obs[1]) < config.hold_speed_mps
+        toward = 1 if error_m > 0.0 else 0
+        action = toward if rng.random() < 0.8 else 1 - toward
+        before, neutral = info["alpha_cmd_deg"], env._env[E_NEUTRAL]
+        obs, _, terminated, truncated, info = env.step(action)
+        if held and abs(obs[2]) < params.action_window_deg - 1e-9:
+            if was_held:
+                assert info["alpha_cmd_deg"] == before
+                stayed += 1
+            elif neutral != before:
+                overshoot = config.hold_lash_deg if neutral > before else -config.hold_lash_deg
+                assert info["alpha_cmd_deg"] == pytest.approx(neutral + overshoot, abs=1e-12)
+                entered += 1
+        was_held = held
+        if terminated or truncated:
+            obs, info = env.reset()
+            was_held = False
+    assert entered >= 5 and stayed > 10, (entered, stayed)
