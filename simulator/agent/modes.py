@@ -139,10 +139,10 @@ class ModeMachine:
 
     def _bind_learner(self, config: LearnerConfig) -> None:
         """The compiled per-step learner kernels of this config, and its velocity input."""
-        if config.hold_depth_m > 0.0 or config.hold_speed_mps > 0.0 or config.neutral_gain > 0.0:
+        if max(config.hold_depth_m, config.hold_speed_mps, config.hold_lash_deg, config.neutral_gain) > 0.0:
             # Screened in the study only (docs/learners-hold.md): no agent parameter, so the agent would ignore them.
-            raise LearnerConfigError("hold_depth_m, hold_speed_mps and neutral_gain are study options: the agents "
-                                     "have no parameter for them")
+            raise LearnerConfigError("hold_depth_m, hold_speed_mps, hold_lash_deg and neutral_gain are study options: "
+                                     "the agents have no parameter for them")
         self._lspec = kernel_spec(config)
         self._state_index = direct_entry(state_index_kernel, 0.0, 0.0, 0.0, 0.0, self._lspec)
         self._raw_cell = direct_entry(raw_cell_kernel, 0.0, 0.0, 0.0, 0.0, self._lspec)

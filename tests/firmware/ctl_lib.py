@@ -81,7 +81,7 @@ class LearnerConfigC(ctypes.Structure):
 C_NAMES = {"sparse_slots": "slots", "actuator_bins": "act_bins", "vi_tolerance": "vi_tol",
            "terminal_reward": "term_reward", "untried_q_value": "untried_q", "dirichlet_weight": "dirichlet_w",
            "velocity_diff_steps": "vel_diff_steps", "velocity_penalty": "vel_penalty"}
-NO_C_TWIN = ("model_form", "hold_depth_m", "hold_speed_mps", "neutral_gain")
+NO_C_TWIN = ("model_form", "hold_depth_m", "hold_speed_mps", "hold_lash_deg", "neutral_gain")
 
 
 def c_field_names() -> dict[str, str]:

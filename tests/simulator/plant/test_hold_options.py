@@ -73,7 +73,7 @@ def test_the_window_is_centred_on_the_neutral_the_learner_finds() -> None:
 
 def test_the_agents_refuse_them() -> None:
     """The agents have no parameter for either option: a virtual agent given one refuses it rather than ignore it."""
-    for option in ({"hold_depth_m": 0.003, "hold_speed_mps": 0.004}, {"neutral_gain": 0.01}):
+    for option in ({"hold_depth_m": 0.003, "hold_speed_mps": 0.004}, {"hold_lash_deg": 0.5}, {"neutral_gain": 0.01}):
         with pytest.raises(LearnerConfigError, match="study options"):
             PythonAgent(preset("hardware"), learner_preset("fine21-rev14", **option), MissionConfig(),
                         np.random.default_rng(1), lambda wire: None, node_id=6, key=None)
