@@ -96,6 +96,20 @@ class LearnerConfig:
     # continuing steps stay fine. Both agents have it (agent parameter fine_reversal_deg; firmware/src/learner.c
     # learner_step_deg).
     fine_reversal_deg: float = 0.0
+    # Issue 43, screened (study only; the agents have no parameter for them yet, so they refuse a config with
+    # them set): a hold, a step of 0 while the depth error the learner sees is under hold_depth_m and its velocity
+    # under hold_speed_mps (both > 0 to apply); a held step is not counted in the shared model, whose types assume
+    # every action moves the gear, and a move after a hold reverses the last move, not the held action. With
+    # neutral_gain as well a held step goes to the neutral found instead of staying where it is.
+    hold_depth_m: float = 0.0
+    hold_speed_mps: float = 0.0
+    # With a hold to the neutral: the command entering a hold overshoots the neutral by this many degrees in the
+    # direction it moves (a gear's output trails its motor by half the lash; the chatter's average is the output's).
+    hold_lash_deg: float = 0.0
+    # > 0: the action window re-centred on the neutral the learner finds: an average of its own command, updated
+    # with this gain at every step where its depth error and velocity are within a quarter of the region's, taken
+    # as the window's centre (and the first command) at each hand-over instead of the controller's average.
+    neutral_gain: float = 0.0
 
     def __post_init__(self) -> None:
         if self.z_cells < 1 or self.zdot_cells < 1 or self.actuator_bins < 1:
@@ -129,6 +143,9 @@ class LearnerConfig:
             raise LearnerConfigError("at most 65535 states (successor indices are uint16)")
         if self.plan_stable_sweeps < 0 or self.plan_loose_tolerance < 0:
             raise LearnerConfigError("plan_stable_sweeps and plan_loose_tolerance must not be negative")
+        if min(self.hold_depth_m, self.hold_speed_mps, self.hold_lash_deg) < 0 or not 0.0 <= self.neutral_gain < 1.0:
+            raise LearnerConfigError("hold_depth_m, hold_speed_mps and hold_lash_deg must not be negative, "
+                                     "neutral_gain in [0, 1)")
         if self.fine_step_deg < 0 or self.fine_speed_mps < 0 or self.fine_reversal_deg < 0:
             raise LearnerConfigError("fine_step_deg, fine_speed_mps and fine_reversal_deg must not be negative")
         if self.plan_stable_sweeps > 0 and not self.shared_model:

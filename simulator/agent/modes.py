@@ -33,6 +33,7 @@ import numpy as np
 from learning import Learner, LearnerConfig, n_states
 from learning.acting import reward_kernel, state_index_kernel, step_size_kernel
 from learning.config import kernel_spec
+from learning.errors import LearnerConfigError
 from learning.shared import raw_cell_kernel
 from learning.spec import direct_entry
 from protocol import Action, EndReason, Mode, Severity, messages
@@ -138,6 +139,10 @@ class ModeMachine:
 
     def _bind_learner(self, config: LearnerConfig) -> None:
         """The compiled per-step learner kernels of this config, and its velocity input."""
+        if max(config.hold_depth_m, config.hold_speed_mps, config.hold_lash_deg, config.neutral_gain) > 0.0:
+            # Screened in the study only (docs/learners-hold.md): no agent parameter, so the agent would ignore them.
+            raise LearnerConfigError("hold_depth_m, hold_speed_mps, hold_lash_deg and neutral_gain are study options: "
+                                     "the agents have no parameter for them")
         self._lspec = kernel_spec(config)
         self._state_index = direct_entry(state_index_kernel, 0.0, 0.0, 0.0, 0.0, self._lspec)
         self._raw_cell = direct_entry(raw_cell_kernel, 0.0, 0.0, 0.0, 0.0, self._lspec)

@@ -35,7 +35,9 @@ E_FILT_Z = E_RING + MAX_VELOCITY_DIFF_STEPS  # the learner's velocity filter: de
 E_FILT_V = E_FILT_Z + 1  # velocity, m/s
 E_FILT_B = E_FILT_Z + 2  # acceleration bias, m/s^2
 E_LAST_ACTION = E_FILT_Z + 3  # the learner's last action this episode (-1 before its first)
-ENV_SIZE = E_FILT_Z + 4
+E_HELD = E_FILT_Z + 4  # 1 if the last step was a hold (LearnerConfig.hold_depth_m), else 0
+E_NEUTRAL = E_FILT_Z + 5  # the neutral the learner finds (LearnerConfig.neutral_gain), deg; 0 before its first
+ENV_SIZE = E_FILT_Z + 6
 _MAX_RECOVERY_ATTEMPTS = 20
 
 
@@ -102,6 +104,7 @@ def episode_reset_kernel(
     env[E_STEPS] = 0.0
     env[E_RECOVERY_S] = 0.0
     env[E_LAST_ACTION] = -1.0
+    env[E_HELD] = 0.0
     half_m = spec.start_depth_fraction * lspec.z_tol_m
     if spec.start_with_recovery:
         if env[E_STARTED] == 0.0:
@@ -114,6 +117,10 @@ def episode_reset_kernel(
             if _recover(env, start_m, spec, rng_state):
                 break
         env[E_CENTER] = env[E_REC_AVG] + spec.start_trim_error_deg
+        if lspec.neutral_gain > 0.0:
+            if env[E_NEUTRAL] == 0.0:
+                env[E_NEUTRAL] = env[E_CENTER]
+            env[E_CENTER] = env[E_NEUTRAL]
         env[E_CMD] = env[E_CENTER]
     else:
         # The paper's simulation: restart at rest at a random depth, gear at neutral.
@@ -207,15 +214,31 @@ def episode_step_kernel(
     rng_state: NDArray[np.uint64],
 ) -> tuple[int, float, bool, bool]:
     """Apply action (0 = less volume, 1 = more) for one control period: (state, reward, term, trunc)."""
-    size = step_size_kernel(env[E_VEL_EST], spec.action_step_deg, action != env[E_LAST_ACTION], lspec)
-    env[E_LAST_ACTION] = action
+    error_m = learner_depth(env, lspec) - target_depth_m
+    held = abs(error_m) < lspec.hold_depth_m and abs(env[E_VEL_EST]) < lspec.hold_speed_mps
+    base = env[E_CMD]
+    if held:
+        size = 0.0
+        if lspec.neutral_gain > 0.0 and env[E_HELD] == 0.0:
+            # Entering a hold with a neutral found: go to it (held anywhere else the gear would push the robot out
+            # of the hold), overshooting by hold_lash_deg in the direction of the move so the output lands on it.
+            up = env[E_NEUTRAL] > base or (env[E_NEUTRAL] == base and env[E_LAST_ACTION] == 1.0)
+            base = env[E_NEUTRAL] + (lspec.hold_lash_deg if up else -lspec.hold_lash_deg)
+    else:
+        size = step_size_kernel(env[E_VEL_EST], spec.action_step_deg, action != env[E_LAST_ACTION], lspec)
+        env[E_LAST_ACTION] = action
+    env[E_HELD] = 1.0 if held else 0.0
     step = size if action == 1 else -size
     low = env[E_CENTER] - spec.action_window_deg
     high = env[E_CENTER] + spec.action_window_deg
-    env[E_CMD] = min(max(env[E_CMD] + step, low), high)
+    env[E_CMD] = min(max(base + step, low), high)
     # The learner believes every step lasts control_period_s; the plant may run a jittered one.
     plant_step(env[:E_PLANT_END], env[E_CMD], jittered_period_s(spec.control_period_s, spec, rng_state), spec)
     env[E_STEPS] += 1.0
+    # The neutral the learner finds: its command's average while near the target (a chatter about the neutral).
+    near = abs(error_m) < 0.25 * lspec.z_tol_m and abs(env[E_VEL_EST]) < 0.25 * lspec.zdot_tol_mps
+    if lspec.neutral_gain > 0.0 and near and not held:
+        env[E_NEUTRAL] += lspec.neutral_gain * (env[E_CMD] - env[E_NEUTRAL])
     measure_kernel(env, spec.control_period_s, spec, rng_state)
     if lspec.velocity_diff_steps > 0:
         _depth_difference(env, spec, lspec)

@@ -15,6 +15,7 @@ from learning.planning import plan_kernel
 from learning.shared import allocate_arrays, plan_shared_kernel, record_shared
 from learning.spec import KernelSpec
 from simulator.plant.episode import (
+    E_HELD,
     E_STEPS,
     episode_cell_kernel,
     episode_reset_kernel,
@@ -123,7 +124,7 @@ def _trial(
                 _record_step(record, episode, action, next_state, env)
             if env[E_STEPS] > hold_from:
                 hold_add(acc, env[Z] - target_depth_m, abs(env[MOTOR] - motor_before), spec.control_period_s)
-            if shared:
+            if shared and env[E_HELD] == 0.0:
                 cell = episode_cell_kernel(env, target_depth_m, spec, lspec)
                 if record_shared(model, state, action, cell, lspec):
                     counters[C_EVICTIONS] += 1

@@ -82,11 +82,12 @@ class LearnerConfigC(ctypes.Structure):
 
 
 # LearnerConfig fields that learner_config_t names otherwise; every other field has its C twin under its own name,
-# but model_form (the firmware's model is always the sparse form).
+# but model_form (the firmware's model is always the sparse form) and issue 43's screened study options (a hold and the
+# re-centred window, docs/learners-hold.md: no agent has them, the virtual agent refuses them).
 C_NAMES = {"sparse_slots": "slots", "actuator_bins": "act_bins", "vi_tolerance": "vi_tol",
            "terminal_reward": "term_reward", "untried_q_value": "untried_q", "dirichlet_weight": "dirichlet_w",
            "velocity_diff_steps": "vel_diff_steps", "velocity_penalty": "vel_penalty"}
-NO_C_TWIN = ("model_form",)
+NO_C_TWIN = ("model_form", "hold_depth_m", "hold_speed_mps", "hold_lash_deg", "neutral_gain")
 
 
 def c_field_names() -> dict[str, str]:
