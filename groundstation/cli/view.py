@@ -30,6 +30,7 @@ from groundstation.view.options import (
 if TYPE_CHECKING:  # Rerun, mcap, foxglove and the replay code are imported by the commands that use them
     from rich.progress import Progress
 
+    from groundstation.session.agent_session import Session
     from groundstation.view.foxglove.live import FoxgloveLive
     from groundstation.view.replay_items import Item
     from groundstation.view.rerun_sink import RerunView
@@ -183,14 +184,30 @@ def _interrupt(signum: int, frame: object) -> None:
     raise KeyboardInterrupt
 
 
-def wait_for_interrupt(what: str) -> None:
-    """Keep going (serving the web viewer, watching the agent) until Ctrl-C or SIGTERM, then return."""
+def wait_for_interrupt(what: str, session: Session | None = None) -> bool:
+    """Keep going (serving the web viewer, watching the agent) until Ctrl-C or SIGTERM, then return.
+
+    With the session it watches through, also until that session ends by itself, rather than watch nothing for ever:
+    what it gave up on (the run's hub dropped this tool for falling behind, another agent answered) is raised, one
+    line and exit 1; the run it is attached to through its hub has ended: one line, and True is returned."""
+    from groundstation.links.runs import is_running
+
     typer.echo(f"{what}; Ctrl-C to stop", err=True)
+    url = session.link.url if session is not None else ""
+    run = url.removeprefix("hub://") if url.startswith("hub://") else None
     try:
         while True:
             time.sleep(0.2)
+            if session is None:
+                continue
+            if session.failure is not None:
+                raise session.failure
+            if run is not None and not session.link_up and not is_running(run):
+                typer.echo(f"dive run {one_line(run)} ended and closed its hub")
+                return True
     except KeyboardInterrupt:
         pass
+    return False
 
 
 def _progress_items(items: Iterator[Item], progress: Progress, task: object) -> Iterator[Item]:
@@ -340,8 +357,10 @@ def view(
                     # learning curve and the heatmaps are whole from the start
                     session.command(m.LogRequest(first_sample=0, end_sample=0xFFFFFFFF))
                 typer.echo(f"watching {one_line(hello.name) if hello else 'the agent'} at {one_line(link.url)}")
-                wait_for_interrupt("watching")
-                stopped = True
+                ended = wait_for_interrupt("watching", session)
+            if ended and live.address:  # what it showed stays to be looked at, as a run's own web viewer does
+                wait_for_interrupt(f"the web viewer stays at {live.address}")
+            stopped = not ended or bool(live.address)
     if stopped:
         raise typer.Exit(130)  # ended by Ctrl-C, after a clean shutdown: the one convention (README)
 
@@ -378,5 +397,6 @@ def _view_in_foxglove(url: str, port: int, viewer: Viewer | None, rrd: Path | No
             hello = session.agent_hello
             typer.echo(f"serving {one_line(hello.name) if hello else 'the agent'} at {one_line(session.link.url)} "
                        f"to Foxglove on {fox.address}")
-            wait_for_interrupt("serving Foxglove")
+            if wait_for_interrupt("serving Foxglove", session):
+                return  # the run ended: exit 0
     raise typer.Exit(130)  # ended by Ctrl-C, after a clean shutdown: the one convention (README)

@@ -152,6 +152,12 @@ def running() -> list[RunInfo]:
     return sorted(runs, key=lambda r: r.started)
 
 
+def is_running(run: str) -> bool:
+    """The run is announced on this machine as running: a run withdraws its announcement (or marks it finished)
+    before it closes its hub, so a tool whose hub link is down while this is False has seen its run end."""
+    return any(info.run == run and info.state == "running" for info in running())
+
+
 def find_run(run: str | None = None, hint: str = "") -> RunInfo:
     """The run named, or the one run there is, that tools can attach to; NoRunError with one line (and `hint`)
     otherwise, naming a run that is still connecting or is over."""

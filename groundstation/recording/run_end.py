@@ -7,7 +7,7 @@ has ended: the recording says so (`run_ended`), and `dive log info` counts no li
 
 from __future__ import annotations
 
-from groundstation.links.runs import running
+from groundstation.links.runs import is_running
 from groundstation.recording.recorder import Recorder
 from groundstation.session.events import EventKind, LinkEvent, Received, Sent
 
@@ -28,10 +28,7 @@ class RunEndAware:
         self.recorder.on_sent(sent)
 
     def on_event(self, event: LinkEvent) -> None:
-        if event.kind == EventKind.LINK_LOST and not self._running():
+        if event.kind == EventKind.LINK_LOST and not is_running(self.run):
             event = LinkEvent(EventKind.RUN_ENDED, event.host_time_ns, f"dive run {self.run} ended and closed its hub",
                               {"run": self.run})
         self.recorder.on_event(event)
-
-    def _running(self) -> bool:
-        return any(info.run == self.run and info.state == "running" for info in running())
