@@ -153,19 +153,30 @@ def noise_estimate(hull: HullFit, windows: Windows, params: PlantParams) -> Esti
     return Estimate("pressure_noise_pa", noise_pa, half_width, True)
 
 
+def corr_time_interval(rho: float, se: float, white_share: float, dt_s: float) -> tuple[float, float]:
+    """An AR(1) noise's correlation time and its 95 % half-width, from the lag-1 autocorrelation rho (standard error
+    se) of samples dt_s apart, scaled by white_share (the quantisation's white part taken out); inf when rho's
+    interval reaches 1 (longer than the windows can show)."""
+
+    def corr_s(f: float) -> float:
+        return 0.0 if f <= 0.0 else (float("inf") if f >= 1.0 else -dt_s / float(np.log(f)))
+
+    low, mid, high = ((rho - Z95 * se) * white_share, rho * white_share, (rho + Z95 * se) * white_share)
+    value, lo_s, hi_s = corr_s(mid), corr_s(low), corr_s(high)
+    # Never narrower than the correlation the lag-1 test can tell from white at all (phi = 1.96 se): white noise's
+    # fitted starts pull rho below 0, and a whole interval below 0 read as "0 s, +/- 0" (the tank family's draw 84
+    # in issue 42's benchmark: a true 0.64 ms, its error infinitely many half-widths out).
+    resolution_s = corr_s(min(Z95 * se * white_share, 0.5))
+    return value, max(value - lo_s, hi_s - value, resolution_s)
+
+
 def colour_estimate(hull: HullFit, windows: Windows, params: PlantParams, noise_pa: float) -> Estimate:
     """The noise's AR(1) correlation time from the residuals' lag-1 autocorrelation (the quantisation's white
     share taken out), at the recording's typical sample interval."""
     rho, se = lag1_phi(hull, windows)
     dt = float(np.median(np.diff(windows.t_s)[windows.owner()[1:] == windows.owner()[:-1]]))
     white_share = 1.0 + params.pressure_lsb_pa**2 / 12.0 / max(noise_pa, 1e-9) ** 2
-    low, mid, high = ((rho - Z95 * se) * white_share, rho * white_share, (rho + Z95 * se) * white_share)
-
-    def corr_s(f: float) -> float:
-        return 0.0 if f <= 0.0 else (float("inf") if f >= 1.0 else -dt / float(np.log(f)))
-
-    value, lo_s, hi_s = corr_s(mid), corr_s(low), corr_s(high)
-    half_width = max(value - lo_s, hi_s - value)
+    value, half_width = corr_time_interval(rho, se, white_share, dt)
     if not np.isfinite(half_width):
         return Estimate("pressure_noise_corr_s", params.pressure_noise_corr_s, float("nan"), False,
                         "needs longer windows than the noise's correlation (--window)")
