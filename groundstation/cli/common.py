@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 import functools
+import os
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any, TypeVar
+from urllib.parse import urlsplit
 
 import typer
 from rich.text import Text
@@ -22,6 +24,21 @@ if TYPE_CHECKING:  # the session (mcap, numpy) is imported by the commands that 
 F = TypeVar("F", bound=Callable[..., Any])
 err = SafeConsole(stderr=True)  # agent text and file names are data: no markup, control characters escaped
 out = SafeConsole()
+
+
+def wait_while_run_connects(url: str | None) -> None:
+    """A run still connecting to its agent (a virtual one compiles for minutes) is waited for, saying so in one line,
+    not answered "no dive run" or "tools attach once it is up" (`dive record`, `dive view`)."""
+    from groundstation.links.runs import holder, wait_while_connecting
+
+    given = url or os.environ.get("DIVE_URL")
+    if given and not given.startswith("hub://"):
+        held = holder(given)  # an agent URL a run holds: that run's hub
+        if held is None:
+            return
+        given = f"hub://{held.run}"
+    wait_while_connecting(urlsplit(given).netloc or None if given else None,
+                          lambda line: typer.echo(one_line(line), err=True))
 
 
 def one_line_errors(func: F) -> F:

@@ -8,15 +8,14 @@ can be started and stopped at any time (a second copy on another disk, a recordi
 
 from __future__ import annotations
 
-import os
 import signal
 import time
 from pathlib import Path
 from typing import Annotated
-from urllib.parse import urlsplit
 
 import typer
 
+from groundstation.cli.common import wait_while_run_connects
 from groundstation.cli.validate import UsageError
 from groundstation.errors import GroundStationError, RecordingExistsError
 from groundstation.safe_output import one_line, printable
@@ -30,20 +29,6 @@ def _interrupt(signum: int, frame: object) -> None:
 def _fail(message: str, code: int = 1) -> typer.Exit:
     typer.echo(f"dive: {one_line(message)}", err=True)  # the prefix of every dive error (cli.py)
     return typer.Exit(code)
-
-
-def _wait_while_connecting(url: str | None) -> None:
-    """A run still connecting to its agent (a virtual one compiles for minutes) is waited for, not "no dive run"."""
-    from groundstation.links.runs import holder, wait_while_connecting
-
-    given = url or os.environ.get("DIVE_URL")
-    if given and not given.startswith("hub://"):
-        held = holder(given)  # an agent URL a run holds: that run's hub
-        if held is None:
-            return
-        given = f"hub://{held.run}"
-    wait_while_connecting(urlsplit(given).netloc or None if given else None,
-                          lambda line: typer.echo(one_line(line), err=True))
 
 
 def record(
@@ -78,7 +63,7 @@ def record(
         if config.first_file is not None and config.first_file.exists():  # before attaching, as dive run does
             raise RecordingExistsError(f"{one_line(config.first_file)} exists; a recording is never overwritten: "
                                        "give another name or a directory")
-        _wait_while_connecting(url)
+        wait_while_run_connects(url)
         link = make_link(attach_url(url))
         through_hub = link.url.startswith("hub://")
         recorder = Recorder(config, session_info(link.url))

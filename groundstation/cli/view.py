@@ -328,10 +328,12 @@ def view(
     signal.signal(signal.SIGTERM, _interrupt)
     stopped = False
     with _one_line_errors():
+        from groundstation.cli.common import wait_while_run_connects
         from groundstation.links import make_link
         from groundstation.links.runs import attach_url
 
         if foxglove is not None:
+            wait_while_run_connects(url)  # as `dive record` does: a run still connecting is waited for
             _view_in_foxglove(attach_url(url), foxglove, viewer, rrd, web_port, grpc_port, key_file)
             return
         from groundstation.cli.common import err
@@ -339,6 +341,7 @@ def view(
         from groundstation.session.agent_session import Session, SessionConfig
         from groundstation.view.rerun_sink import RerunView, ViewConfig
 
+        wait_while_run_connects(url)  # after the imports (a second or so): attached as soon as the run is up
         link = make_link(attach_url(url))
         chosen = default_viewer(viewer, rrd)
         web_port, grpc_port = viewer_ports(chosen, web_port, grpc_port)

@@ -1,9 +1,10 @@
-"""A run as the machine's other tools see it from start to end (issue 40): while it connects, `dive record` waits for
-it (not "no `dive run` is running") and records it; the run's normal end is its end in that file, not a link loss;
-and a run that is over but keeps its web viewer up is one `dive status` names, with the viewer's address.
+"""A run as the machine's other tools see it from start to end (issue 40): while it connects, `dive record` and
+`dive view` wait for it (not "no `dive run` is running") and record or watch it, the view ending with the run; the
+run's normal end is its end in that file, not a link loss; and a run that is over but keeps its web viewer up is one
+`dive status` names, with the viewer's address.
 
-Real processes: `dive run` on the virtual agent, `dive record` and `dive status` as children attached to its hub
-over TCP; the second recording read back with the mcap library and `dive log info`'s reader."""
+Real processes: `dive run` on the virtual agent, `dive record`, `dive view` and `dive status` as children attached
+to its hub over TCP; the second recording read back with the mcap library and `dive log info`'s reader."""
 
 from __future__ import annotations
 
@@ -50,11 +51,12 @@ def _line_with(proc: subprocess.Popen[str], text: str, timeout_s: float = 120.0)
 def test_a_run_connecting_then_over_with_its_viewer_up_as_other_tools_see_it(tmp_path: Path) -> None:
     runtime = tmp_path / "runtime"
     env = {**dive_env(runtime), "PYTHONUNBUFFERED": "1"}
-    run = subprocess.Popen([*DIVE, "run", "sim://?speed=20&seed=4", "--episodes", "2", "--success-time", "5",
+    # speed 5: the run's episodes last seconds, long enough for the view to open its .rrd and attach once it is up
+    run = subprocess.Popen([*DIVE, "run", "sim://?speed=5&seed=4", "--episodes", "2", "--success-time", "5",
                             "--viewer", "web", "--web-port", str(free_port()), "--grpc-port", str(free_port()),
                             "--out", str(tmp_path / "run")], env=env, stdout=subprocess.PIPE,
                            stderr=subprocess.PIPE, text=True)
-    record = None
+    record = view = None
     try:
         # Held while it connects (its virtual agent starting): a stopped process keeps the state it was in
         deadline = time.monotonic() + 60
@@ -70,6 +72,10 @@ def test_a_run_connecting_then_over_with_its_viewer_up_as_other_tools_see_it(tmp
                                       stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
             waiting = _line_with(record, "waiting for it")
             assert f"dive run {run.pid} is connecting to sim://" in waiting, waiting
+            view = subprocess.Popen([*DIVE, "view", "--viewer", "none", "--rrd", str(tmp_path / "view.rrd")], env=env,
+                                    stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+            waiting = _line_with(view, "waiting for it")
+            assert f"dive run {run.pid} is connecting to sim://" in waiting, waiting
         finally:
             run.send_signal(signal.SIGCONT)
         _line_with(record, "recording ")  # attached once the run's hub is up
@@ -80,6 +86,9 @@ def test_a_run_connecting_then_over_with_its_viewer_up_as_other_tools_see_it(tmp
         out, err = record.communicate(timeout=60)
         assert record.returncode == 0 and "the run ended; the recording is complete" in err, err
         assert "no `dive run`" not in err and "Traceback" not in err
+        view_out, view_err = view.communicate(timeout=60)  # it watched the run, and ends with it
+        assert view.returncode == 0 and f"watching sim-agent at hub://{run.pid}" in view_out, (view_out, view_err)
+        assert f"dive run {run.pid} ended and closed its hub" in view_out and "Traceback" not in view_err, view_out
         status = dive(runtime, "status")
         assert status.returncode == 0, status.stderr
         assert f"dive run {run.pid} is finished (sim://" in status.stdout, status.stdout
@@ -93,7 +102,7 @@ def test_a_run_connecting_then_over_with_its_viewer_up_as_other_tools_see_it(tmp
         gone = dive(runtime, "status")
         assert gone.returncode == 1 and "no `dive run` is running" in gone.stderr, gone
     finally:
-        for proc in (run, record):
+        for proc in (run, record, view):
             if proc is not None and proc.poll() is None:
                 proc.send_signal(signal.SIGCONT)
                 proc.kill()
