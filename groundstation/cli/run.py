@@ -12,6 +12,7 @@ from urllib.parse import urlencode
 
 import typer
 
+from groundstation.cli import live_views
 from groundstation.cli import view as view_cli
 from groundstation.cli.common import UrlArg, err, one_line_errors
 from groundstation.cli.pane_keys import AckKey
@@ -118,8 +119,8 @@ def run_command(
     recorder = RecorderConfig(recorder.directory, recorder.path, int(split_mb * 1e6), split_minutes * 60.0)
     key = resolve_key(key_file)
     # Bound before the agent is started: a port in use is one line, not a virtual agent started for nothing.
-    fox = view_cli.open_foxglove(foxglove, name=f"dive run {url}") if foxglove is not None else None
-    view = view_cli.open_live_view(viewer, rrd, web_port, name=url, headless_default=Viewer.NONE,
+    fox = live_views.open_foxglove(foxglove, name=f"dive run {url}") if foxglove is not None else None
+    view = live_views.open_live_view(viewer, rrd, web_port, name=url, headless_default=Viewer.NONE,
                                    grpc_port=grpc_port)
     config = RunConfig(url=url, episodes=episodes, params=values, recorder=recorder,
                        session=SessionConfig(reconnect=not no_reconnect, key=key),
@@ -128,8 +129,8 @@ def run_command(
                        alarms=AlarmConfig(link_lost_s=alarm_link_lost, silent_s=alarm_link_lost, depth_m=alarm_depth))
     stop, signalled, ack = threading.Event(), list[str](), threading.Event()
     finished: list[RunInfo] = []  # the run over, its web viewer up: still announced, so `dive status` says where
-    with stop_on_signals(stop, signalled), view_cli.closing_foxglove(fox), \
-            view_cli.closing_view(view, signalled, lambda: _withdraw(finished)):
+    with stop_on_signals(stop, signalled), live_views.closing_foxglove(fox), \
+            live_views.closing_view(view, signalled, lambda: _withdraw(finished)):
         # the live view is fed from a thread of its own: a slow viewer never holds up the session that records
         rerun = Handoff(view, VIEW_HANDOFF_FRAMES, "dive-rerun-publish") if view is not None else None
         try:

@@ -150,7 +150,7 @@ def test_a_taken_default_port_is_an_error_and_the_server_names_itself(monkeypatc
                                                                       capsys: pytest.CaptureFixture[str]) -> None:
     """N5: another user who bound 8765 first got the operator (the run moved to a free port, the app connected to
     the impostor). Now the default port taken is one line and exit 2; the printed #tag is in the server's name."""
-    from groundstation.cli.view import open_foxglove
+    from groundstation.cli.live_views import open_foxglove
 
     code = ("import socket, sys, time\ns = socket.create_server(('127.0.0.1', 0))\nprint(s.getsockname()[1], "
             "flush=True)\ntime.sleep(30)\n")

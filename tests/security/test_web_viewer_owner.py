@@ -188,7 +188,7 @@ def test_the_native_viewers_port_is_the_owners_and_a_second_run_reuses_its_windo
 def test_a_native_viewer_on_loopback_says_every_local_user_can_read_it(capfd: pytest.CaptureFixture[str]) -> None:
     """Where the viewer cannot have a private network (or the display is over TCP), its port is on 127.0.0.1: the
     tools say so in one line beside the viewer's address, rather than let the owner think it is theirs alone."""
-    from groundstation.cli.view import say_where
+    from groundstation.cli.live_views import say_where
     from groundstation.view.native_viewer import LoopbackNativeViewer
     from groundstation.view.rerun_sink import RerunView
 
