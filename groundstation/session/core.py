@@ -192,7 +192,7 @@ class SessionCore:
 
     def _resync_nonce(self, message: Message, ack: m.Ack) -> int | None:
         """The nonce to re-sync with when the agent refused our timestamp (replayed, too old or too new: a ground
-        with a clock far off signed first) and this session holds the key and has not re-synced yet; else None."""
+        with a clock far off signed first) and we hold the key and have not re-synced yet; else None."""
         if ack.result != AckResult.UNAUTHORIZED or self.config.key is None or self._resynced:
             return None
         if isinstance(message, m.ParamSet) and message.name == RESYNC_NAME:

@@ -338,7 +338,7 @@ class ReceiveLoop(SessionCore):
             # A starting agent's clock reads 0 until its program runs (SPEC s. 4, a starting agent): no measurement
             self._timesync_origins.remove(msg.origin_us)
             return
-        problem = "not an answer to a request of this session" if msg.origin_us not in self._timesync_origins \
+        problem = "not an answer to a TIMESYNC we sent" if msg.origin_us not in self._timesync_origins \
             else timesync_problem(msg.origin_us, msg.receive_us, msg.transmit_us, host_us)
         if problem is not None:  # ignored and counted: one such frame must not move every recorded time
             self.stats.timesyncs_ignored += 1
