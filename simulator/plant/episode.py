@@ -214,8 +214,10 @@ def episode_step_kernel(
     rng_state: NDArray[np.uint64],
 ) -> tuple[int, float, bool, bool]:
     """Apply action (0 = less volume, 1 = more) for one control period: (state, reward, term, trunc)."""
-    error_m = learner_depth(env, lspec) - target_depth_m
-    held = abs(error_m) < lspec.hold_depth_m and abs(env[E_VEL_EST]) < lspec.hold_speed_mps
+    # Issue 43's screened options only (off in every preset): no extra work per step without them.
+    screened = lspec.hold_depth_m > 0.0 or lspec.neutral_gain > 0.0
+    error_m = learner_depth(env, lspec) - target_depth_m if screened else 0.0
+    held = lspec.hold_depth_m > 0.0 and abs(error_m) < lspec.hold_depth_m and abs(env[E_VEL_EST]) < lspec.hold_speed_mps
     base = env[E_CMD]
     if held:
         size = 0.0
@@ -236,8 +238,8 @@ def episode_step_kernel(
     plant_step(env[:E_PLANT_END], env[E_CMD], jittered_period_s(spec.control_period_s, spec, rng_state), spec)
     env[E_STEPS] += 1.0
     # The neutral the learner finds: its command's average while near the target (a chatter about the neutral).
-    near = abs(error_m) < 0.25 * lspec.z_tol_m and abs(env[E_VEL_EST]) < 0.25 * lspec.zdot_tol_mps
-    if lspec.neutral_gain > 0.0 and near and not held:
+    if lspec.neutral_gain > 0.0 and not held and abs(error_m) < 0.25 * lspec.z_tol_m \
+            and abs(env[E_VEL_EST]) < 0.25 * lspec.zdot_tol_mps:
         env[E_NEUTRAL] += lspec.neutral_gain * (env[E_CMD] - env[E_NEUTRAL])
     measure_kernel(env, spec.control_period_s, spec, rng_state)
     if lspec.velocity_diff_steps > 0:
