@@ -20,7 +20,7 @@ from learning.acting import explore_probability, reward_kernel, select_action_ke
 from learning.config import kernel_spec  # noqa: E402
 from learning.model import N_ACTIONS  # noqa: E402
 from learning.planning import plan_rows  # noqa: E402
-from learning.shared import allocate_arrays, compile_shared_rows, record_shared  # noqa: E402
+from learning.shared import allocate_arrays, compile_shared_rows, plan_due, record_shared  # noqa: E402
 from learning.spec import KernelSpec  # noqa: E402
 from simulator.parameters import kernel_params, preset  # noqa: E402
 from simulator.plant.episode import (  # noqa: E402
@@ -111,6 +111,8 @@ def _trial(learner_stream: NDArray[np.uint64], env_stream: NDArray[np.uint64], t
             if terminated or truncated:
                 break
         tally[3] += int(env[E_STEPS])
+        if not plan_due(model, lspec):
+            continue
         for _ in range(extra):
             if part == P_ROWS:
                 compile_shared_rows(model, lspec)
@@ -123,6 +125,7 @@ def _trial(learner_stream: NDArray[np.uint64], env_stream: NDArray[np.uint64], t
                 values.copy()
                 q.copy()
                 policy.copy()
+        model.since_plan[:] = 0
         tally[2] += plan_rows(compile_shared_rows(model, lspec), values, q, policy, lspec, learner_stream)
         tally[1] += 1
 

@@ -84,6 +84,12 @@ class LearnerConfig:
     # whose greedy actions no longer move (docs/reproduction.md, "Planning that stops early").
     plan_stable_sweeps: int = 0
     plan_loose_tolerance: float = 0.0
+    # Issue 43 item 4: plan only once the model has grown (0 = off, a plan after every episode). An episode's end
+    # plans once some type has counted, since the last plan, at least plan_growth times the transitions it had
+    # then (at least one): UCRL2's doubling rule at 1 (Jaksch, Ortner and Auer 2010), more often below it. A type
+    # seen for the first time always plans; late in learning, when a type's counts move its probabilities by a
+    # fraction of a percent an episode, most plans are skipped (learning/shared.py plan_due).
+    plan_growth: float = 0.0
     # Issue 43: a smaller step near a hover (0 = off, every step is the plant's action_step_deg). The step is this
     # many degrees while the velocity the learner sees is below fine_speed_mps: a multiple of the velocity cell
     # width keeps the step a function of the velocity cell, which the shared model's types already hold, so
@@ -150,6 +156,10 @@ class LearnerConfig:
             raise LearnerConfigError("fine_step_deg, fine_speed_mps and fine_reversal_deg must not be negative")
         if self.plan_stable_sweeps > 0 and not self.shared_model:
             raise LearnerConfigError("the early planning stop (plan_stable_sweeps) is for the shared model only")
+        if not 0.0 <= self.plan_growth <= 100.0:
+            raise LearnerConfigError("plan_growth must lie in [0, 100]")
+        if self.plan_growth > 0 and not self.shared_model:
+            raise LearnerConfigError("planning on growth (plan_growth) is for the shared model only")
 
 
 LearnerSpec = kernel_tuple_type(LearnerConfig, "LearnerSpec")

@@ -15,6 +15,7 @@ from learning.planning import plan_kernel
 from learning.rng import new_stream
 from learning.shared import (
     allocate_arrays,
+    plan_due,
     plan_shared_kernel,
     record_shared,
     shared_dense_counts,
@@ -119,6 +120,10 @@ class Learner:
         return int(plan_kernel(m.succ_idx, m.succ_cnt, m.reward_sum, self._values, self._q, self._policy,
                                self._spec, self._rng_state))
 
+    def plan_due(self) -> bool:
+        """Whether the end of the episode now would plan (always, unless LearnerConfig.plan_growth is set)."""
+        return (not self._shared) or bool(plan_due(self._model, self._spec))
+
     @property
     def config(self) -> LearnerConfig:
         return self._config
@@ -170,8 +175,9 @@ class Learner:
         ))
 
     def end_episode(self) -> None:
-        """Value iteration on the updated model, warm-started from the current values; next episode."""
-        self.last_sweeps = self._plan()
+        """Value iteration on the updated model, warm-started from the current values (with plan_growth only
+        once the model has grown enough: else last_sweeps is 0 and the policy stays); next episode."""
+        self.last_sweeps = self._plan() if self.plan_due() else 0
         self._episode += 1
         self._p_explore = float(explore_probability(self._episode, self._spec))
 

@@ -24,6 +24,7 @@ class ModelArrays(NamedTuple):
     type_counts: NDArray[np.uint16]  # [T, slots] count of each slot of a type
     totals: NDArray[np.uint16]  # [T] sum of a type's counts
     type_evictions: NDArray[np.uint16]  # [T] slots a type evicted (saturating)
+    since_plan: NDArray[np.uint16]  # [T] transitions a type counted since the last plan (saturating; plan_due)
 
 
 @njit(cache=True, error_model="numpy")

@@ -27,6 +27,9 @@ Model, for porting (the C twin keeps exactly this layout; `shared_memory_bytes` 
 - Counts saturate as the per-state model's do: when a total would pass 65535 every count of the type is
   halved (rounding up) and the total recomputed. A successor that finds no free slot evicts the rarest
   one (its count leaves the total; the eviction counter counts it).
+- With plan_growth > 0 (planning on growth, plan_due): per type a uint16 count of the transitions recorded since
+  the last plan (saturating), zeroed by every plan. The firmware keeps it beside the model, as it does the early
+  stop's greedy bits (firmware/src/shared.h shared_total_bytes), so shared_memory_bytes does not count it.
 - Optional Dirichlet blend (dirichlet_weight w > 0): the per-state sparse model of learning/model.py as
   well (slots of {uint8 successor, uint16 count} per (s, a), no reward sums); P(s'|s, a) = (c_local(s')
   + w * P_shared(s')) / (n_local + w).
@@ -96,7 +99,8 @@ def allocate_arrays(spec: KernelSpec) -> ModelArrays:
     succ_idx, succ_cnt, reward_sum = allocate_model(n_states if local else 0, spec.model_form == 1, spec.sparse_slots)
     n_type = spec.zdot_cells * spec.actuator_bins * N_ACTIONS if shared else 0
     codes, type_counts, totals, type_evictions = allocate_shared(n_type, spec.sparse_slots)
-    return ModelArrays(succ_idx, succ_cnt, reward_sum, codes, type_counts, totals, type_evictions)
+    since_plan = np.zeros(n_type, dtype=np.uint16)
+    return ModelArrays(succ_idx, succ_cnt, reward_sum, codes, type_counts, totals, type_evictions, since_plan)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -189,6 +193,8 @@ def record_shared(model: ModelArrays, state: int, action: int, next_cell: int, s
         totals[t] = total
     counts[t, slot] += 1
     totals[t] += 1
+    if model.since_plan[t] < COUNT_MAX:
+        model.since_plan[t] += 1
     return evicted
 
 
@@ -395,6 +401,24 @@ def plan_shared_kernel(
     spec: KernelSpec,
     rng_state: NDArray[np.uint64],
 ) -> int:
-    """Value iteration over the shared model (see plan_rows); returns sweeps."""
+    """Value iteration over the shared model (see plan_rows); returns sweeps. Every type's count since the last
+    plan starts again from 0 (plan_due)."""
+    model.since_plan[:] = 0
     rows = compile_shared_rows(model, spec)
     return plan_rows(rows, values, q, policy, spec, rng_state)
+
+
+@njit(cache=True, error_model="numpy")
+def plan_due(model: ModelArrays, spec: KernelSpec) -> bool:
+    """Whether an episode's end plans (LearnerConfig.plan_growth): always with plan_growth 0; else once some type
+    has counted, since the last plan, at least plan_growth times what it had then (its total less those, at least
+    1: a type seen for the first time always plans, and so does one whose counts were halved or evicted below
+    what it counted since). In double precision, as the firmware compares (shared_plan_due)."""
+    if spec.plan_growth <= 0.0:
+        return True
+    totals, since = model.totals, model.since_plan
+    for t in range(totals.shape[0]):
+        new = int(since[t])
+        if new > 0 and new >= spec.plan_growth * max(int(totals[t]) - new, 1):
+            return True
+    return False

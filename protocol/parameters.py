@@ -168,6 +168,10 @@ _ROWS = (
     _p("fine_reversal_deg", F, "deg", 0.0, 0.0, 20.0, _LEARNER,
        "gear angle change per learner action where fine_step_deg applies and the action reverses the last one (or "
        "is the episode's first) (0 = off: fine_step_deg)"),
+    # Planning on growth (learning/config.py plan_growth; issue 43 item 4).
+    _p("plan_growth", F, "", 0.0, 0.0, 100.0, _LEARNER,
+       "shared model: an episode's end plans only once some type has counted, since the last plan, this many times "
+       "what it had then (0 = off: a plan after every episode)"),
 )
 
 

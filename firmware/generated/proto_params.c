@@ -43,4 +43,5 @@ const param_def_t param_defs[PARAM_COUNT] = {
     {"fine_step_deg", 5u, 1u, 0x06u, 0.0f, 0.0f, 20.0f},  /* 37 F32 deg */
     {"fine_speed_mps", 5u, 1u, 0x06u, 0.0f, 0.0f, 0.5f},  /* 38 F32 m/s */
     {"fine_reversal_deg", 5u, 1u, 0x06u, 0.0f, 0.0f, 20.0f},  /* 39 F32 deg */
+    {"plan_growth", 5u, 1u, 0x06u, 0.0f, 0.0f, 100.0f},  /* 40 F32  */
 };

@@ -5,7 +5,7 @@
 
 #include <stdint.h>
 
-#define PARAM_COUNT 40u
+#define PARAM_COUNT 41u
 #define PARAM_NAME_BYTES 24u
 #define PARAM_RAM_BUDGET_BYTES 45056u  /* learner model + snapshot copies */
 #define PARAM_SNAPSHOTS_HELD 4u
@@ -53,6 +53,7 @@ typedef enum {
     PARAM_FINE_STEP_DEG = 37,
     PARAM_FINE_SPEED_MPS = 38,
     PARAM_FINE_REVERSAL_DEG = 39,
+    PARAM_PLAN_GROWTH = 40,
 } param_index_t;
 
 typedef struct {

@@ -75,6 +75,7 @@ BINDINGS: dict[str, Binding] = {
     "fine_step_deg": Binding(L, "fine_step_deg"),
     "fine_speed_mps": Binding(L, "fine_speed_mps"),
     "fine_reversal_deg": Binding(L, "fine_reversal_deg"),
+    "plan_growth": Binding(L, "plan_growth"),
 }
 
 

@@ -12,7 +12,7 @@ from numpy.typing import NDArray
 from learning.acting import explore_probability, select_action_kernel
 from learning.model import N_ACTIONS, record_transition
 from learning.planning import plan_kernel
-from learning.shared import allocate_arrays, plan_shared_kernel, record_shared
+from learning.shared import allocate_arrays, plan_due, plan_shared_kernel, record_shared
 from learning.spec import KernelSpec
 from simulator.plant.episode import (
     E_HELD,
@@ -138,6 +138,9 @@ def _trial(
         durations_s[episode] = env[E_STEPS] * spec.control_period_s
         hold_write(acc, hold[episode], truncated)
         if shared:
+            if not plan_due(model, lspec):
+                progress[trial] = episode + 1
+                continue
             sweeps = plan_shared_kernel(model, values, q, policy, lspec, learner_stream)
         else:
             sweeps = plan_kernel(succ_idx, succ_cnt, reward_sum, values, q, policy, lspec, learner_stream)

@@ -8,7 +8,7 @@ Likewise after `velocity_filter` (35 parameters, regenerated with `python -m tes
 the wire's hash changed, its length and frames not; and after `plan_stable_sweeps` and `plan_loose_tol`
 (37 parameters, the same way): again only the wire's hash; and after `fine_step_deg` and `fine_speed_mps`
 (39 parameters, the same way): again only the wire's hash, the log unchanged; and after `fine_reversal_deg` (40
-parameters): the same.
+parameters): the same; and after `plan_growth` (41 parameters): the same.
 """
 
 from __future__ import annotations
