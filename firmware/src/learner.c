@@ -116,6 +116,9 @@ static bool config_valid(const learner_config_t *c)
         || (c->plan_stable_sweeps > 0u && !c->shared_model)) {
         return false;  /* the early planning stop is the shared model's (learning/config.py) */
     }
+    if (!(c->plan_growth >= 0.0f && c->plan_growth <= 100.0f) || (c->plan_growth > 0.0f && !c->shared_model)) {
+        return false;  /* planning on growth: in [0, 100], the shared model's (learning/config.py) */
+    }
     if (!(c->fine_step_deg >= 0.0f) || !(c->fine_speed_mps >= 0.0f) || !(c->fine_reversal_deg >= 0.0f)
         || !isfinite(c->fine_step_deg) || !isfinite(c->fine_speed_mps) || !isfinite(c->fine_reversal_deg)) {
         return false;  /* learning/config.py: not negative */
@@ -226,6 +229,10 @@ void learner_end_episode(void)
 {
     g_learner.episode++;
     g_learner.p_explore = explore_probability(g_learner.episode);
+    if (g_learner.cfg.shared_model && !shared_plan_due()) {
+        g_learner.last_sweeps = 0u;  /* planning on growth: the model has not grown enough, values and policy stay */
+        return;
+    }
     learner_start_planning();
 }
 

@@ -61,6 +61,9 @@ typedef struct {
        the sweep's max change is below plan_loose_tolerance (0 = off; learning/planning.py plan_rows). */
     uint16_t plan_stable_sweeps;
     float    plan_loose_tolerance;
+    /* Shared model: an episode's end plans only once some type has counted, since the last plan, this many times
+       the transitions it had then (0 = off, a plan after every episode; learning/shared.py plan_due). */
+    float    plan_growth;
     /* A smaller gear step near a hover (learning/config.py fine_step_deg; 0 = off, the plant's step always): an
        action steps fine_step_deg while the learner's |velocity| is under fine_speed_mps (learner_step_deg). */
     float    fine_step_deg;
@@ -112,7 +115,8 @@ uint32_t learner_cell(float depth_m, float velocity_mps, float target_m, float a
 void     learner_observe_cell(uint16_t s, uint8_t a, float reward, uint16_t s_next, uint32_t next_cell);
 uint32_t learner_evictions(void);    /* shared model: slots evicted so far (saturating per type) */
 
-/* Episode over: the episode count advances, planning starts (learner_plan_slice finishes it). */
+/* Episode over: the episode count advances, planning starts (learner_plan_slice finishes it); with plan_growth > 0
+   only if the shared model has grown enough (shared_plan_due): else no planning, last_sweeps 0, the policy stays. */
 void     learner_end_episode(void);
 /* Up to max_sweeps value iteration sweeps; true when planning is done (then the policy is new). */
 bool     learner_plan_slice(uint32_t max_sweeps);

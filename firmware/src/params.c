@@ -82,6 +82,7 @@ void params_learner_config(learner_config_t *c) {
     c->fine_step_deg = g_values[PARAM_FINE_STEP_DEG];
     c->fine_speed_mps = g_values[PARAM_FINE_SPEED_MPS];
     c->fine_reversal_deg = g_values[PARAM_FINE_REVERSAL_DEG];
+    c->plan_growth = g_values[PARAM_PLAN_GROWTH];
     if (g_values[PARAM_VELOCITY_FILTER] != 0.0f) {
         /* learning/presets.py VELOCITY_FILTER (tests/firmware/test_ctl_velocity_filter.py compares them). */
         c->filter_depth_gain = 0.271f;
@@ -163,6 +164,11 @@ static bool check_learner(uint16_t index, float stored, verdict_t *v) {
         /* learning/config.py refuses it in the Python agent, with this reason (learner_configure would too) */
         verdict_set(v, ACK_RESULT_BAD_VALUE,
                     "the early planning stop (plan_stable_sweeps) is for the shared model only");
+        return false;
+    }
+    if (c.plan_growth > 0.0f && !c.shared_model) {
+        /* the same for planning on growth (learning/config.py's reason) */
+        verdict_set(v, ACK_RESULT_BAD_VALUE, "planning on growth (plan_growth) is for the shared model only");
         return false;
     }
     uint32_t need = params_ram_bytes(&c);

@@ -2,7 +2,8 @@
 
    Arena order: shared_type_t types[T], float values[S], float new_values[S] (Jacobi only),
    local counts[2 S] (Dirichlet only), uint8_t policy[ceil(S / 4)] (2 bits per state), uint8_t
-   greedy[ceil(S / 8)] (1 bit per state, only with plan_stable_sweeps). Planning is in shared_plan.c. */
+   greedy[ceil(S / 8)] (1 bit per state, only with plan_stable_sweeps), uint16_t since_plan[T] (only with
+   plan_growth), each of the last three in whole words. Planning is in shared_plan.c. */
 #include "shared_internal.h"
 
 #include <math.h>
@@ -17,11 +18,6 @@ shared_learner_t g_shared;
 static uint32_t states_of(const learner_config_t *c)
 {
     return (uint32_t)c->z_cells * c->zdot_cells * c->act_bins + 1u;
-}
-
-static uint32_t types_of(const learner_config_t *c)
-{
-    return (uint32_t)c->zdot_cells * c->act_bins * LEARNER_ACTIONS;
 }
 
 static uint32_t local_bytes(const learner_config_t *c)
@@ -51,10 +47,17 @@ static uint32_t greedy_bytes(const learner_config_t *c)
     return c->plan_stable_sweeps > 0u ? ((states_of(c) + 7u) / 8u + 3u) & ~3u : 0u;
 }
 
+/* Planning on growth's count per type since the last plan, a uint16 each in whole words (none when it is off). */
+static uint32_t since_plan_bytes(const learner_config_t *c)
+{
+    return c->plan_growth > 0.0f ? (types_of(c) * (uint32_t)sizeof(uint16_t) + 3u) & ~3u : 0u;
+}
+
 uint32_t shared_total_bytes(const learner_config_t *c)
 {
     uint32_t sweep_buffer = c->in_place_sweeps ? 0u : states_of(c) * (uint32_t)sizeof(float);
-    return shared_memory_bytes(c) + sweep_buffer + policy_bytes(states_of(c)) + greedy_bytes(c);
+    return shared_memory_bytes(c) + sweep_buffer + policy_bytes(states_of(c)) + greedy_bytes(c)
+           + since_plan_bytes(c);
 }
 
 void shared_carve(uint8_t *base, const learner_config_t *c)
@@ -85,6 +88,8 @@ void shared_carve(uint8_t *base, const learner_config_t *c)
     g_shared.policy = base + off;
     off += policy_bytes(g_shared.n_states);
     g_shared.greedy = c->plan_stable_sweeps > 0u ? base + off : NULL;
+    off += greedy_bytes(c);
+    g_shared.since_plan = c->plan_growth > 0.0f ? (uint16_t *)(void *)(base + off) : NULL;
     /* learning.shared.cell_reward: minus the distance of the depth cell's centre from the target. */
     for (uint32_t iz = 0u; iz < c->z_cells && iz < SHARED_MAX_Z_CELLS; iz++) {
         g_shared.z_reward[iz] = -fabsf(-c->z_tol_m + ((float)iz + 0.5f) * 2.0f * c->z_tol_m / (float)c->z_cells);
@@ -237,7 +242,11 @@ void shared_observe(uint16_t s, uint8_t a, uint16_t s_next, uint32_t next_cell)
     int32_t dz = (int32_t)((next_cell / v3) % z3) - (int32_t)((here / v3) % z3);
     int32_t db = (int32_t)(next_cell / (v3 * z3)) - (int32_t)(here / (v3 * z3));
     uint8_t code = next_cell == SHARED_FAR_CELL ? (uint8_t)SHARED_FAR : offset_code(dz, dv, db);
-    record_type(type_of(s, a), code);
+    uint32_t t = type_of(s, a);
+    record_type(t, code);
+    if (g_shared.since_plan != NULL && g_shared.since_plan[t] < LEARNER_COUNT_MAX) {
+        g_shared.since_plan[t]++;  /* after the count (and any halving), as record_shared */
+    }
     if (g_shared.dirichlet) {
         record_local((uint32_t)s * LEARNER_ACTIONS + a, s_next);
     }
@@ -299,3 +308,7 @@ uint16_t shared_type_evictions(uint32_t t)
     return t < types_of(&g_shared.cfg) ? g_shared.types[t].evictions : 0u;
 }
 
+uint16_t shared_type_since_plan(uint32_t t)
+{
+    return g_shared.since_plan != NULL && t < types_of(&g_shared.cfg) ? g_shared.since_plan[t] : 0u;
+}

@@ -52,7 +52,8 @@ typedef struct {
 uint32_t shared_memory_bytes(const learner_config_t *c);
 /* shared_memory_bytes plus what the firmware keeps besides: the Jacobi sweep buffer (none with in-place
    sweeps) and the policy, 2 bits per state (the plan's action or tied), rounded up to whole words; with
-   plan_stable_sweeps also each state's last greedy action, 1 bit per state in whole words. */
+   plan_stable_sweeps also each state's last greedy action, 1 bit per state in whole words; with plan_growth also
+   each type's count since the last plan, a uint16 per type in whole words. */
 uint32_t shared_total_bytes(const learner_config_t *c);
 /* Lays the arrays out from base (learner.c's arena, at least shared_total_bytes long). */
 void     shared_carve(uint8_t *base, const learner_config_t *c);
@@ -72,7 +73,13 @@ uint32_t shared_evictions(void);
 uint16_t shared_slot(uint32_t t, uint32_t k, uint8_t *code);
 uint16_t shared_type_total(uint32_t t);
 uint16_t shared_type_evictions(uint32_t t);
+/* Transitions type t counted since the last plan (kept only with plan_growth > 0; else 0). */
+uint16_t shared_type_since_plan(uint32_t t);
 
+/* learning.shared.plan_due: true with plan_growth 0; else whether some type has counted, since the last plan,
+   n > 0 transitions with n >= plan_growth * max(total - n, 1) (in double, as Python). */
+bool     shared_plan_due(void);
+/* A plan from the current values; every type's count since the last plan starts again from 0. */
 void     shared_start_planning(void);
 /* Up to max_backups units of the planning in progress: state backups of the sweeps (a sweep may stop in
    the middle and resume at the next call: exactly whole sweeps, in-place or Jacobi), then, once the values

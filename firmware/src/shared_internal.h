@@ -27,6 +27,7 @@ typedef struct {
     shared_local16_t *local16;
     uint8_t *policy;
     uint8_t *greedy;           /* each state's greedy action in the last sweep, 1 bit (plan_stable_sweeps > 0) */
+    uint16_t *since_plan;      /* per type: transitions counted since the last plan, saturating (plan_growth > 0) */
     float z_reward[SHARED_MAX_Z_CELLS];  /* reward of arriving in each depth cell (cell_reward of learning) */
     float v_penalty[SHARED_MAX_ZDOT_CELLS];  /* what arriving in each velocity cell costs (0 without vel_penalty) */
     /* planning in progress */
@@ -41,6 +42,12 @@ typedef struct {
 
 /* The one shared-model learner (defined in shared.c). */
 extern shared_learner_t g_shared;
+
+/* The types of a grid: one per (velocity cell, actuator bin, action). */
+static inline uint32_t types_of(const learner_config_t *c)
+{
+    return (uint32_t)c->zdot_cells * c->act_bins * LEARNER_ACTIONS;
+}
 
 static inline uint32_t type_of(uint32_t s, uint8_t a)
 {

@@ -67,8 +67,28 @@ static float action_value(uint32_t s, uint8_t a, const float *values)
     return reward + c->gamma * expected;
 }
 
+bool shared_plan_due(void)
+{
+    if (g_shared.since_plan == NULL) {
+        return true;  /* plan_growth 0: a plan after every episode */
+    }
+    for (uint32_t t = 0u; t < types_of(&g_shared.cfg); t++) {
+        uint32_t n = g_shared.since_plan[t];
+        uint32_t total = g_shared.types[t].total;
+        /* What the type had at the last plan; at least 1, and so when halving or evictions took it below n. */
+        uint32_t before = total > n + 1u ? total - n : 1u;
+        if (n > 0u && (double)n >= (double)g_shared.cfg.plan_growth * (double)before) {
+            return true;
+        }
+    }
+    return false;
+}
+
 void shared_start_planning(void)
 {
+    if (g_shared.since_plan != NULL) {
+        memset(g_shared.since_plan, 0, (size_t)types_of(&g_shared.cfg) * sizeof(uint16_t));
+    }
     g_shared.values[g_shared.terminal] = 0.0f;
     if (!g_shared.cfg.in_place_sweeps) {
         memcpy(g_shared.new_values, g_shared.values, (size_t)g_shared.n_states * sizeof(float));

@@ -76,7 +76,7 @@ class LearnerConfigC(ctypes.Structure):
         ("filter_bias_gain", ctypes.c_float), ("filter_accel_per_deg", ctypes.c_float),
         ("filter_drag_per_m", ctypes.c_float), ("filter_depth_state", ctypes.c_bool),
         ("plan_stable_sweeps", ctypes.c_uint16),
-        ("plan_loose_tolerance", ctypes.c_float), ("fine_step_deg", ctypes.c_float),
+        ("plan_loose_tolerance", ctypes.c_float), ("plan_growth", ctypes.c_float), ("fine_step_deg", ctypes.c_float),
         ("fine_speed_mps", ctypes.c_float), ("fine_reversal_deg", ctypes.c_float),
     ]
 
@@ -168,6 +168,7 @@ _SIGNATURES: dict[str, tuple[object, list[object]]] = {
     "shared_slot": (ctypes.c_uint16, [ctypes.c_uint32, ctypes.c_uint32, ctypes.POINTER(ctypes.c_uint8)]),
     "shared_type_total": (ctypes.c_uint16, [ctypes.c_uint32]),
     "shared_type_evictions": (ctypes.c_uint16, [ctypes.c_uint32]),
+    "shared_type_since_plan": (ctypes.c_uint16, [ctypes.c_uint32]),
     "shared_memory_bytes": (ctypes.c_uint32, [ctypes.POINTER(LearnerConfigC)]),
     "shared_total_bytes": (ctypes.c_uint32, [ctypes.POINTER(LearnerConfigC)]),
     "learner_plan_slice": (ctypes.c_bool, [ctypes.c_uint32]),
@@ -268,11 +269,14 @@ class BothAgents:
 @dataclass
 class Recording:
     """One Python learning run, for the C learner to replay: per step (state, action, reward, next state, next raw
-    cell); q[0] before any episode, then after each; values, policy, sweeps and the stream's state after each plan."""
+    cell); q[0] before any episode, then after each (the last plan's Q, which made the policy); live_q after each
+    episode (the Q the model and values give then: a plan's Q, or with a skipped plan the newer model's, as the C
+    learner_q renders it); values, policy, sweeps (0: planning on growth skipped the plan) and the stream's state."""
 
     episodes: list[list[tuple[int, int, float, int, int]]] = field(default_factory=list)
     values: list[np.ndarray] = field(default_factory=list)
     q: list[np.ndarray] = field(default_factory=list)
+    live_q: list[np.ndarray] = field(default_factory=list)
     policy: list[np.ndarray] = field(default_factory=list)
     sweeps: list[int] = field(default_factory=list)
     rng_after: list[int] = field(default_factory=list)
@@ -301,6 +305,7 @@ def record_python(config: LearnerConfig, plant: str, episodes: int, seed: int) -
         rec.episodes.append(steps)
         rec.values.append(learner.values)
         rec.q.append(learner.q_values)
+        rec.live_q.append(learner.live_q_values())
         rec.policy.append(learner.policy)
         rec.sweeps.append(learner.last_sweeps)
         rec.rng_after.append(int(learner.arrays.rng_state[0]))
