@@ -56,8 +56,9 @@ def test_the_early_stop_parameters_give_both_agents_hardware_fastplan(
 def test_the_teensy_hardware_variant_has_room_for_the_early_stop(tmp_path: Path,
                                                                  tmp_path_factory: pytest.TempPathFactory) -> None:
     """The Teensy build's `shared-z20` variant (boards/teensy/teensy.mk) reserves, by its arena_size tool, exactly
-    what `hardware-fastplan`'s learner needs (learner_total_bytes), its greedy bits included: more than `hardware`
-    without the stop, so the robot does not refuse plan_stable_sweeps for want of storage."""
+    what `hardware-lazyplan`'s learner needs (learner_total_bytes), the early stop's greedy bits and planning on
+    growth's counts per type included: more than `hardware-fastplan`, more again than `hardware`, so the robot
+    refuses neither plan_stable_sweeps nor plan_growth for want of storage."""
     for tool in ("make", "cc"):
         if shutil.which(tool) is None:
             pytest.skip(f"{tool} not on PATH")
@@ -72,4 +73,4 @@ def test_the_teensy_hardware_variant_has_room_for_the_early_stop(tmp_path: Path,
     def needs(name: str) -> int:
         return int(lib.learner_total_bytes(ctypes.byref(c_config(lib, learner_preset(name)))))
 
-    assert reserved == needs("hardware-fastplan") > needs("hardware")
+    assert reserved == needs("hardware-lazyplan") > needs("hardware-fastplan") > needs("hardware")
