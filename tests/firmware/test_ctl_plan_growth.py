@@ -6,15 +6,17 @@ from __future__ import annotations
 
 import ctypes
 from dataclasses import asdict, replace
+from typing import Any
 
 import numpy as np
 import pytest
 
 from learning import Learner, LearnerConfig, learner_preset, n_states
 from learning.shared import shared_memory_bytes
-from protocol import AckResult
+from protocol import AckResult, FrameEncoder, FrameFlag, StreamDecoder, messages
 from protocol.parameters import param
-from simulator.serve.firmware_host import load_library
+from simulator.parameters import preset
+from simulator.serve.firmware_host import FirmwareAgent, load_library
 from tests.firmware.core_build import use_firmware_cache
 from tests.firmware.ctl_lib import HARDWARE_BY_PARAMS, BothAgents, build_ctl_library, c_config
 
@@ -151,3 +153,40 @@ def test_the_growth_parameter_gives_both_agents_hardware_lazyplan(tmp_path_facto
     off = replace(config, plan_stable_sweeps=0, plan_growth=0.0)
     assert asdict(program.config) == pytest.approx(asdict(off), rel=1e-7)
     both.assert_c_is(off)
+
+
+def test_the_c_agent_learns_on_through_skipped_plans(tmp_path_factory: pytest.TempPathFactory) -> None:
+    """The C agent (modes.c on the host build, the paper plant) set by PARAM_SET to the shared model with
+    plan_growth 1 (UCRL2's doubling): episodes follow one another whether the plan after the last one ran or was
+    skipped (nothing to wait for in RECOVERING); at an episode's start the last plan's sweeps are 0 after a skipped
+    plan and > 0 after one that ran, and both happen, a plan after a skip included."""
+    use_firmware_cache(tmp_path_factory)
+    lib = load_library()  # the agent's own library (one per process): its learner is the agent's
+    lib.learner_last_sweeps.restype = ctypes.c_uint32
+    decoder = StreamDecoder()
+    starts: list[tuple[int, int]] = []  # (episode, the sweeps of the plan before it)
+    acks: list[Any] = []
+
+    def wrote(wire: bytes) -> None:
+        for frame in decoder.feed(wire):
+            if isinstance(frame.message, messages.EpisodeStart):
+                starts.append((frame.message.episode, lib.learner_last_sweeps()))
+            elif isinstance(frame.message, messages.Ack):
+                acks.append(frame.message.result)
+
+    agent = FirmwareAgent(preset("paper"), np.random.default_rng(5), wrote, node_id=5, key=None, seed=5)
+    encoder = FrameEncoder(first_seq=1)
+    commands: list[Any] = [messages.ParamSet(index=-1, value=float(value), name=name)
+                           for name, value in (("shared_model", 1), ("in_place_sweeps", 1), ("plan_growth", 1))]
+    for message in (*commands, messages.StartLearning(max_episodes=0)):
+        agent.receive(encoder.encode(message, int(FrameFlag.ACK_REQUESTED)).wire)
+        for _ in range(20):
+            agent.step()
+    assert acks == [AckResult.ACCEPTED] * 4
+    for _ in range(60_000):  # measured: 77 episodes, 14 plans after the first
+        agent.step()
+    assert [episode for episode, _ in starts] == list(range(1, len(starts) + 1)) and len(starts) >= 40
+    sweeps = [n for _, n in starts[1:]]  # the first episode's: the reset's plan
+    skipped = sum(n == 0 for n in sweeps)
+    after_skip = sum(a == 0 < b for a, b in zip(sweeps, sweeps[1:], strict=False))
+    assert skipped >= 10 and after_skip >= 3, sweeps
