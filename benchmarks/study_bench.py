@@ -21,11 +21,11 @@ from tests.simulator.python_trial import python_loop_trial  # noqa: E402
 ANCHOR = "a0a1fc7"  # main when issue 29 item 6's trial-kernel work began (693fc12, before its planning work, gives
 # other hardware-preset bits: the plant's state grew since)
 GOAL = 3.0  # issue 29 item 6, then issue 43 item 4: studies 3x faster than the anchor
-# Issue 43 item 4: the recommended learner (`hardware`; fine41 did not win, docs/learners-hold.md) and its early-stop
-# twin on the closed-form plant against the anchor's `hardware` learner (the 8-step-difference one,
-# docs/reproduction.md "Speed") on its sub-stepped plant.
+# Issue 43 item 4: the recommended learner (`hardware`, since issue 43 `hardware-lazyplan`: docs/learners.md) and the
+# one it replaced (full planning after every episode) on the closed-form plant, against the anchor's `hardware`
+# learner (the 8-step-difference one, docs/reproduction.md "Speed") on its sub-stepped plant.
 ANCHOR_PAIRS = ("hardware-fast/hardware=hardware/shared-z20-bins7-diff8-term100-vpen1,"
-                "hardware-fast/hardware-fastplan=hardware/shared-z20-bins7-diff8-term100-vpen1")
+                "hardware-fast/shared-z20-bins7-fdepth-term100-vpen1=hardware/shared-z20-bins7-diff8-term100-vpen1")
 
 
 def python_loop(preset_name: str, learner: str, trial: int, episodes: int, seed: int) -> tuple[float, int]:

@@ -108,13 +108,14 @@ _FAST_PLAN_BASES = {
 }
 _PRESETS.update({name: replace(_PRESETS[base], **_FAST_PLAN) for name, base in _FAST_PLAN_BASES.items()})
 # Issue 43 item 4: hardware-fastplan planning only once some type's counts grew by a quarter since the last plan
-# (LearnerConfig.plan_growth): ~90 plans a trial of 400 episodes instead of 400, the learning goals kept
-# (docs/learners.md, "Planning on growth").
+# (LearnerConfig.plan_growth): ~90 plans a trial of 400 episodes instead of 400, and the early stop's lean toward
+# never-stable trials gone; every goal on the seven plants of shared-z20-bins7-fdepth-term100-vpen1 (docs/learners.md,
+# "Planning on growth"). The recommended `hardware` learner since issue 43.
 _PRESETS["hardware-lazyplan"] = replace(_PRESETS["hardware-fastplan"], plan_growth=0.25)
 
 # Plain names a user can pick: the recommended learner of each plant preset (docs/learners.md).
 ALIASES: dict[str, str] = {
-    "hardware": "shared-z20-bins7-fdepth-term100-vpen1",
+    "hardware": "hardware-lazyplan",  # shared-z20-bins7-fdepth-term100-vpen1 before issue 43 (docs/learners.md)
     "paper-best": "shared",
 }
 

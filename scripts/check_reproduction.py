@@ -162,6 +162,7 @@ def mean_episode(run: str) -> Callable[[Study], list[Value]]:
 
 S = "python -m simulator study "  # every command below is a study of the page, written as the page writes it
 _P100 = "--trials 100 --episodes 400 --out study-out/"
+_FDEPTH = "shared-z20-bins7-fdepth-term100-vpen1"  # `hardware` until issue 43 (docs/reproduction.md)
 _ROW_KEYS = ("first_success_median", "first_success_ci95", "median_alc_stable_from", "median_alc_ci95",
              "own_stable_from_median", "own_stable_from_ci95", "never_stable_fraction")
 _ROW_600 = ("trials", "median_alc_stable_from", "median_alc_ci95", "never_stable_fraction", "never_stable_ci95",
@@ -248,13 +249,13 @@ CHECKS: tuple[Check, ...] = (
                "4.107 (4.035 - 4.107) |",
                row("paper/shared", *_ROW_600, scale=_PERCENT)),
     ), slow=True, seconds=240),
-    Check("robust-modelled", S + "--preset hardware --learner hardware --seeds 40-42 " + _P100 + "robust-modelled", (
+    Check("robust-modelled", S + f"--preset hardware --learner {_FDEPTH} --seeds 40-42 " + _P100 + "robust-modelled", (
         Figure("hardware, as modelled, 0.15/0.03",
                "12 (12 - 12) | 64 (64 - 65) | 64.5 (64 - 65) | 0.7 % (2 of 300; 0.2 - 2.4 %) | 3.32 [1.35 - 9.65] / "
-               "0.11 | 1260 / 600.9", goals_row("hardware_hardware_0.15_0.03")),
+               "0.11 | 1260 / 600.9", goals_row(f"hardware_{_FDEPTH}_0.15_0.03")),
         Figure("hardware, as modelled, 0.1/0.04",
                "11 (10 - 11) | 63 (63 - 64) | 65 (63.5 - 66) | 1.3 % (4 of 300; 0.5 - 3.4 %) | 2.71 [1.12 - 5.7] / "
-               "0.11 | 1260 / 600.9", goals_row("hardware_hardware_0.1_0.04")),
+               "0.11 | 1260 / 600.9", goals_row(f"hardware_{_FDEPTH}_0.1_0.04")),
     ), slow=True, seconds=430),
 )
 

@@ -4,7 +4,8 @@ offset, travel) beside the recovery controller's, one line per variant; small st
     .venv/bin/python scripts/screen_hold.py '{"name": {"fine_step_deg": 0.7, "fine_speed_mps": 0.016}}' \\
         --trials 16 --episodes 200 --seed 11 [--preset hardware-fast] [--family docs/families/tank.toml]
 
-Each variant is the `hardware` learner with the given LearnerConfig fields replaced (docs/learners-hold.md).
+Each variant is BASE (the filtered-depth learner, `hardware` until issue 43 made it plan on growth) with the given
+LearnerConfig fields replaced (docs/learners-hold.md).
 """
 
 from __future__ import annotations
@@ -22,12 +23,15 @@ from simulator.study.hold import hold_summary
 from simulator.study.runner import run_study
 from simulator.study.stats import summarise
 
+# The learner every variant starts from: `hardware` before issue 43 made it plan on growth (the screens' base).
+BASE = "shared-z20-bins7-fdepth-term100-vpen1"
+
 
 def screen(name: str, preset_name: str, overrides: dict[str, Any], trials: int, episodes: int, seed: int,
            family: Path | None) -> str:
     """One variant's line."""
     params = preset(preset_name)
-    config = learner_preset("hardware", **overrides)
+    config = learner_preset(BASE, **overrides)
     plants = None
     if family is not None:
         drawn = load_family(family, params)

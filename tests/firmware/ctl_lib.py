@@ -233,8 +233,9 @@ def param_setter(lib: ctypes.CDLL) -> Callable[[str, float], Verdict]:
     return set_param
 
 
-# The hardware learner (the filtered-depth preset) reached by PARAM_SET from the agents' defaults, velocity_filter
-# last; shared_model first so that each learner on the way fits.
+# The filtered-depth learner (shared-z20-bins7-fdepth-term100-vpen1; `hardware` adds planning's early stop and planning
+# on growth) reached by PARAM_SET from the agents' defaults, velocity_filter last; shared_model first so that each
+# learner on the way fits.
 HARDWARE_BY_PARAMS = (("shared_model", 1), ("in_place_sweeps", 1), ("p_explore_start", 0.0), ("term_reward", -100.0),
                       ("vel_penalty", 1.0), ("act_bins", 7), ("z_cells", 20), ("velocity_filter", 1))
 

@@ -73,4 +73,4 @@ def test_the_teensy_hardware_variant_has_room_for_the_early_stop(tmp_path: Path,
     def needs(name: str) -> int:
         return int(lib.learner_total_bytes(ctypes.byref(c_config(lib, learner_preset(name)))))
 
-    assert reserved == needs("hardware-lazyplan") > needs("hardware-fastplan") > needs("hardware")
+    assert reserved == needs("hardware-lazyplan") > needs("hardware-fastplan") > needs("shared-z20-bins7-fdepth-term100-vpen1")

@@ -29,7 +29,8 @@ from tests.firmware.ctl_lib import (
 )
 
 FILTER = "shared-z20-bins7-filter-term100-vpen1"
-DEPTH_FILTER = "hardware"  # the robust learner: its depth from the filter too (filter_depth_state)
+# The robust learner: its depth from the filter too (filter_depth_state); `hardware` plans on growth as well.
+DEPTH_FILTER = "shared-z20-bins7-fdepth-term100-vpen1"
 F32_ATOL_MPS = 2e-6  # float32 against float64 in a contracting filter: measured below 1e-7
 
 

@@ -11,9 +11,9 @@ from learning.presets import DESCRIPTIONS
 
 
 def test_aliases_are_the_recommended_presets() -> None:
-    assert learner_preset("hardware") == learner_preset("shared-z20-bins7-fdepth-term100-vpen1")
+    assert learner_preset("hardware") == learner_preset("hardware-lazyplan")
     assert learner_preset("paper-best") == learner_preset("shared")
-    assert resolve_learner("hardware") == "shared-z20-bins7-fdepth-term100-vpen1"
+    assert resolve_learner("hardware") == "hardware-lazyplan"
     assert resolve_learner("paper") == "paper"
     assert set(DESCRIPTIONS) == set(learner_names())
 
