@@ -51,6 +51,9 @@ class PlantParams:
     # studies outside the paper's reproduction; depth within 0.1 mm of the sub-steps' over 300 s on every plant
     # (s. 2's rule; tests/simulator/plant/test_closed_form.py).
     closed_form_step: bool = False
+    # Issue 43: the study's trial loop compiled with LLVM's fast-math flags simulator/study/kernel.FAST_MATH_FLAGS
+    # (reciprocals, fused multiply-adds, reassociation): other last bits, for studies outside the paper's reproduction.
+    fast_arithmetic: bool = False
     # --- pressure sensor MS5803-01BA
     surface_pressure_pa: float = 101325.0  # standard atmosphere (F: P0 measured at start)
     pressure_noise_pa: float = 6.5  # S: 0.065 mbar RMS at OSR 256 = 0.66 mm of water
@@ -102,9 +105,10 @@ _PRESETS: dict[str, PlantParams] = {
     # Issue 43: the same plant with its 5 ms sub-steps summed in closed form (closed_form_step): depth within
     # 0.01 mm of the sub-steps' over 300 s on every plant variant, a study's plant at O(1) per control period.
     # For studies outside the paper's reproduction (diving-agent.md s. 2); the paper preset keeps its sub-steps.
-    # It also draws the sensor's noise by the ziggurat (ziggurat_noise).
+    # It also draws the sensor's noise by the ziggurat (ziggurat_noise) and runs a study's trial loop in fast
+    # arithmetic (fast_arithmetic).
     "hardware-fast": PlantParams(trim_error_fraction=0.005, recovery_near_gain_deg=3.0, closed_form_step=True,
-                                 ziggurat_noise=True),
+                                 ziggurat_noise=True, fast_arithmetic=True),
     # Calibration P1 of diving-agent.md s. 7, which reproduces the paper's Fig. 5: a narrow actuator
     # window (+/- 6.5 deg) and slower step (1.625 deg) around the true neutral, the true velocity
     # to the learner (the paper names its observer only for the experiment), restarts at rest.
