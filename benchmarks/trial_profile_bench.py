@@ -38,6 +38,7 @@ from simulator.plant.episode import (  # noqa: E402
 )
 from simulator.plant.kernel import MOTOR, Z, jittered_period_s, plant_step  # noqa: E402
 from simulator.study.hold import N_ACC, hold_add, hold_reset  # noqa: E402
+from simulator.study.kernel import FAST_MATH_FLAGS, compiled_again  # noqa: E402
 from simulator.study.runner import trial_streams  # noqa: E402
 
 # The parts, in the order of a learner step; each is repeated on scratch copies when chosen.
@@ -130,6 +131,10 @@ def _trial(learner_stream: NDArray[np.uint64], env_stream: NDArray[np.uint64], t
         tally[1] += 1
 
 
+# The study's fast arithmetic (PlantParams.fast_arithmetic, hardware-fast) in this copy of its trial loop too.
+_trial_fast = compiled_again(_trial, "_trial_fast", FAST_MATH_FLAGS)
+
+
 def cpu_ms(pair: str, trials: int, episodes: int, part: int, extra: int) -> tuple[float, NDArray[np.int64]]:
     """CPU ms per trial-episode of trials 0.. of seed 0 with `extra` repeats of the part, and the tallies."""
     preset_name, learner = pair.split("/")
@@ -141,7 +146,8 @@ def cpu_ms(pair: str, trials: int, episodes: int, part: int, extra: int) -> tupl
     start = time.process_time()
     for t in range(trials):
         learner_stream, env_stream = trial_streams(0, t)
-        _trial(learner_stream, env_stream, params.target_depth_m, spec, lspec, episodes, part, extra, tally)
+        trial = _trial_fast if params.fast_arithmetic else _trial
+        trial(learner_stream, env_stream, params.target_depth_m, spec, lspec, episodes, part, extra, tally)
     return (time.process_time() - start) / (trials * episodes) * 1e3, tally
 
 

@@ -25,7 +25,7 @@ from learning.config import kernel_spec  # noqa: E402
 from learning.presets import learner_preset  # noqa: E402
 from simulator.parameters import kernel_params, preset  # noqa: E402
 from simulator.plant.episode import E_CMD, E_MOTOR, E_Z, episode_steps  # noqa: E402
-from simulator.study.kernel import S_ENV, StepRecord, TrialArrays, replay_trial  # noqa: E402
+from simulator.study.kernel import S_ENV, StepRecord, TrialArrays, trial_kernels  # noqa: E402
 from simulator.study.runner import trial_streams  # noqa: E402
 
 WINDOW_S = (200.0, 260.0)
@@ -39,7 +39,7 @@ def hold_trace(preset_name: str, learner: str, seed: int, trial: int, episodes: 
     spec, lspec = kernel_params(params), kernel_spec(config)
     out = TrialArrays.zeros((), episodes, n_states(config))
     record = StepRecord(np.array([E_Z, E_CMD, E_MOTOR]), np.full((episodes, episode_steps(spec), S_ENV + 3), np.nan))
-    replay_trial(*trial_streams(seed, trial), params.target_depth_m, spec, lspec, out, record)
+    trial_kernels(params).replay_trial(*trial_streams(seed, trial), params.target_depth_m, spec, lspec, out, record)
     held = np.nonzero(out.durations_s >= params.episode_limit_s - 1e-6)[0]
     if held.size == 0:
         raise SystemExit(f"{preset_name}/{learner}: trial {trial} of seed {seed} never held 300 s")

@@ -25,7 +25,7 @@ from learning.config import kernel_spec
 from learning.presets import learner_preset
 from simulator.parameters import PlantParams, kernel_params, load_params, preset
 from simulator.plant.episode import E_CENTER, E_CMD, E_DEPTH_MEAS, E_VEL_EST, E_ZDOT, neutral_alpha_kernel
-from simulator.study.kernel import S_ACTION, S_ENV, S_STATE, StepRecord, TrialArrays, replay_trial
+from simulator.study.kernel import S_ACTION, S_ENV, S_STATE, StepRecord, TrialArrays, trial_kernels
 from simulator.study.runner import trial_streams
 from simulator.study.stats import per_trial
 
@@ -92,7 +92,7 @@ def main() -> None:
     for t in range(args.trials):
         ls, es = trial_streams(args.seed, t)
         out = TrialArrays.zeros((), args.episodes, n_states(config))
-        replay_trial(ls, es, params.target_depth_m, spec, lspec, out, record)
+        trial_kernels(params).replay_trial(ls, es, params.target_depth_m, spec, lspec, out, record)
         durations[t] = out.durations_s
         steps = [record.rows[e, :round(d / params.control_period_s)] for e, d in enumerate(out.durations_s)]
         records[t] = episode_records(steps, params, config, neutral_deg)

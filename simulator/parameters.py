@@ -51,6 +51,9 @@ class PlantParams:
     # studies outside the paper's reproduction; depth within 0.1 mm of the sub-steps' over 300 s on every plant
     # (s. 2's rule; tests/simulator/plant/test_closed_form.py).
     closed_form_step: bool = False
+    # Issue 43: the study's trial loop compiled with LLVM's fast-math flags simulator/study/kernel.FAST_MATH_FLAGS
+    # (reciprocals, fused multiply-adds, reassociation): other last bits, for studies outside the paper's reproduction.
+    fast_arithmetic: bool = False
     # --- pressure sensor MS5803-01BA
     surface_pressure_pa: float = 101325.0  # standard atmosphere (F: P0 measured at start)
     pressure_noise_pa: float = 6.5  # S: 0.065 mbar RMS at OSR 256 = 0.66 mm of water
@@ -63,6 +66,9 @@ class PlantParams:
     pressure_lag_s: float = 0.0  # E: first-order lag of the sensed depth behind the true one; robot 0..0.3 s
     pressure_noise_corr_s: float = 0.0  # E: AR(1) noise correlation time (0 = white); robot 0..1 s
     depth_scale_error: float = 0.0  # E: sensed depth = true depth x (1 + this) (water density, span); +/-0.03
+    # Issue 43: the noise drawn by the ziggurat (learning/rng.normal_ziggurat, ~3.5x cheaper than Box-Muller), for
+    # studies outside the paper's reproduction: the same normal distribution, another sequence from the same seed.
+    ziggurat_noise: bool = False
     # --- sliding mode velocity observer (diving-agent.md s. 3)
     use_observer: bool = True  # F: the agent measures depth only; False feeds the true velocity
     observer_rho_mps: float = 2.5  # F
@@ -99,7 +105,10 @@ _PRESETS: dict[str, PlantParams] = {
     # Issue 43: the same plant with its 5 ms sub-steps summed in closed form (closed_form_step): depth within
     # 0.01 mm of the sub-steps' over 300 s on every plant variant, a study's plant at O(1) per control period.
     # For studies outside the paper's reproduction (diving-agent.md s. 2); the paper preset keeps its sub-steps.
-    "hardware-fast": PlantParams(trim_error_fraction=0.005, recovery_near_gain_deg=3.0, closed_form_step=True),
+    # It also draws the sensor's noise by the ziggurat (ziggurat_noise) and runs a study's trial loop in fast
+    # arithmetic (fast_arithmetic).
+    "hardware-fast": PlantParams(trim_error_fraction=0.005, recovery_near_gain_deg=3.0, closed_form_step=True,
+                                 ziggurat_noise=True, fast_arithmetic=True),
     # Calibration P1 of diving-agent.md s. 7, which reproduces the paper's Fig. 5: a narrow actuator
     # window (+/- 6.5 deg) and slower step (1.625 deg) around the true neutral, the true velocity
     # to the learner (the paper names its observer only for the experiment), restarts at rest.

@@ -11,17 +11,23 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from learning.rng import new_stream, normal
+from learning.rng import new_stream, normal, normal_ziggurat
 from learning.spec import KernelSpec, direct_entry
 from simulator.parameters import PlantParams, kernel_params
 from simulator.plant.kernel import CLOCK_S, LAST_READ_S, NOISE_PA, PLANT_SIZE, SENSED_Z, Z
 
 
 @njit(cache=True, error_model="numpy", inline="always")
+def _noise_draw(spec: KernelSpec, rng_state: NDArray[np.uint64]) -> float:
+    """A standard normal for the sensor's noise, by the preset's draw (PlantParams.ziggurat_noise)."""
+    return normal_ziggurat(rng_state) if spec.ziggurat_noise else normal(rng_state)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
 def read_pressure_kernel(depth_m: float, spec: KernelSpec, rng_state: NDArray[np.uint64]) -> float:
     """Absolute pressure in Pa as the sensor reports it at depth_m."""
     pressure_pa = spec.surface_pressure_pa + spec.water_density_kgpm3 * spec.gravity_mps2 * depth_m
-    pressure_pa += spec.pressure_noise_pa * normal(rng_state)
+    pressure_pa += spec.pressure_noise_pa * _noise_draw(spec, rng_state)
     pressure_pa = np.round(pressure_pa / spec.pressure_lsb_pa) * spec.pressure_lsb_pa
     return min(max(pressure_pa, spec.pressure_min_pa), spec.pressure_max_pa)
 
@@ -38,12 +44,12 @@ def sense_pressure_kernel(plant: NDArray[np.float64], spec: KernelSpec, rng_stat
     if spec.pressure_noise_corr_s > 0.0:
         # AR(1) over the time since the last reading: the same stationary spread at any reading rate.
         keep = np.exp(-(plant[CLOCK_S] - plant[LAST_READ_S]) / spec.pressure_noise_corr_s)
-        plant[NOISE_PA] = keep * plant[NOISE_PA] + np.sqrt(1.0 - keep * keep) * spec.pressure_noise_pa * normal(
-            rng_state)
+        plant[NOISE_PA] = keep * plant[NOISE_PA] + np.sqrt(1.0 - keep * keep) * spec.pressure_noise_pa * _noise_draw(
+            spec, rng_state)
         plant[LAST_READ_S] = plant[CLOCK_S]
         pressure_pa += plant[NOISE_PA]
     else:
-        pressure_pa += spec.pressure_noise_pa * normal(rng_state)
+        pressure_pa += spec.pressure_noise_pa * _noise_draw(spec, rng_state)
     pressure_pa = np.round(pressure_pa / spec.pressure_lsb_pa) * spec.pressure_lsb_pa
     return min(max(pressure_pa, spec.pressure_min_pa), spec.pressure_max_pa)
 

@@ -3,7 +3,9 @@ of one trial that also records every step (scripts/replay_trials.py)."""
 
 from __future__ import annotations
 
-from typing import NamedTuple
+import types
+from collections.abc import Callable
+from typing import Any, NamedTuple
 
 import numpy as np
 from numba import njit, prange
@@ -14,6 +16,7 @@ from learning.model import N_ACTIONS, record_transition
 from learning.planning import plan_kernel
 from learning.shared import allocate_arrays, plan_due, plan_shared_kernel, record_shared
 from learning.spec import KernelSpec
+from simulator.parameters import PlantParams
 from simulator.plant.episode import (
     E_HELD,
     E_STEPS,
@@ -25,6 +28,12 @@ from simulator.plant.episode import (
 )
 from simulator.plant.kernel import MOTOR, Z
 from simulator.study.hold import N_ACC, N_HOLD, RECOVERY_HOLDS, hold_add, hold_reset, hold_write, recovery_hold_run
+
+# The fast arithmetic of PlantParams.fast_arithmetic (issue 43), LLVM's fast-math flags that the trial loop may take:
+# reciprocals for divisions by a figure the loop holds fixed (arcp), fused multiply-adds (contract), reassociation
+# (reassoc) and no signed zeros (nsz). Of a hardware-fast study's CPU arcp alone cut ~8 %, all four ~12 %
+# (docs/learners-hold.md s. 4). Not nnan or ninf: the hold's bookkeeping keeps NaN and inf.
+FAST_MATH_FLAGS = frozenset({"arcp", "contract", "nsz", "reassoc"})
 
 # Columns of a trial's planning/model counters.
 C_EVICTIONS, C_SWEEPS_TOTAL, C_SWEEPS_MAX, C_PLANS = 0, 1, 2, 3
@@ -198,3 +207,43 @@ def run_trials(
         rows = TrialArrays(out.durations_s[t], out.values[t], out.policy[t], out.counters[t], out.hold[t],
                            out.recovery_hold[t])
         run_trial(learner_streams[t], env_streams[t], target_depth_m, spec, lspec, rows, progress, t)
+
+
+def compiled_again(kernel: Any, name: str, fastmath: frozenset[str] = frozenset(), **rebound: Any) -> Any:
+    """kernel's Python function compiled again as `name`, with fastmath and its global `rebound` names bound to other
+    kernels. Its own name gives it its own cache entry: numba keys a cached kernel by its qualified name and source
+    line, not by its flags, so a second build of the same name would load the first's machine code."""
+    func = kernel.py_func
+    copy = types.FunctionType(func.__code__, {**func.__globals__, **rebound}, name, func.__defaults__,
+                              func.__closure__)
+    copy.__qualname__ = name
+    options = {k: v for k, v in kernel.targetoptions.items() if k != "nopython"}  # njit's own
+    if fastmath:
+        options["fastmath"] = set(fastmath)
+    return njit(cache=True, **options)(copy)
+
+
+# The same trial loop in fast arithmetic: only _trial takes the flags (the step's kernels are inlined into it); the
+# entries around it are the same code calling it. numba compiles a build the first time it runs, so studies that
+# never ask for fast arithmetic never compile it.
+_trial_fast = compiled_again(_trial, "_trial_fast", FAST_MATH_FLAGS)
+_run_trial_fast = compiled_again(run_trial, "_run_trial_fast", _trial=_trial_fast)
+_replay_trial_fast = compiled_again(replay_trial, "_replay_trial_fast", _trial=_trial_fast)
+_run_trials_fast = compiled_again(run_trials, "_run_trials_fast", run_trial=_run_trial_fast)
+
+
+class TrialKernels(NamedTuple):
+    """The study's compiled entries of one arithmetic: run_trial, run_trials (prange) and replay_trial."""
+
+    run_trial: Callable[..., None]
+    run_trials: Callable[..., None]
+    replay_trial: Callable[..., None]
+
+
+_EXACT = TrialKernels(run_trial, run_trials, replay_trial)
+_FAST = TrialKernels(_run_trial_fast, _run_trials_fast, _replay_trial_fast)
+
+
+def trial_kernels(params: PlantParams) -> TrialKernels:
+    """The entries a study of params runs: in fast arithmetic if it asks for it (PlantParams.fast_arithmetic)."""
+    return _FAST if params.fast_arithmetic else _EXACT

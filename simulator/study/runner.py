@@ -18,7 +18,7 @@ from learning.config import kernel_spec
 from learning.rng import new_stream
 from simulator.errors import StudyError
 from simulator.parameters import PlantParams, kernel_params
-from simulator.study.kernel import TrialArrays, run_trial, run_trials
+from simulator.study.kernel import TrialArrays, trial_kernels
 
 _POLL_S = 0.1
 
@@ -88,7 +88,8 @@ def run_study(
     def one_trial(t: int) -> None:
         assert plants is not None
         spec = kernel_params(plants[t])
-        run_trial(learner_streams[t], env_streams[t], plants[t].target_depth_m, spec, lspec, out.row(t), progress, t)
+        trial_kernels(plants[t]).run_trial(learner_streams[t], env_streams[t], plants[t].target_depth_m, spec, lspec,
+                                           out.row(t), progress, t)
 
     def work() -> None:
         try:
@@ -96,7 +97,7 @@ def run_study(
                 numba.set_num_threads(threads)
                 # Trials differ in length: hand them out one at a time so neither core idles at the end.
                 with numba.parallel_chunksize(1):
-                    run_trials(*args)
+                    trial_kernels(params).run_trials(*args)
             else:
                 # One plant per trial: numba's prange takes one spec, so trials go to threads here (the
                 # trial kernel releases the GIL), one at a time as in the batch.

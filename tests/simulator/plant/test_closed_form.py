@@ -13,6 +13,7 @@ from numpy.typing import NDArray
 from learning.spec import KernelSpec
 from simulator.parameters import PlantParams, kernel_params, neutral_alpha_deg, preset, with_overrides
 from simulator.plant.kernel import PLANT_SIZE, SENSED_Z, ZDOT, Z, plant_place, plant_step
+from simulator.study.kernel import FAST_MATH_FLAGS, compiled_again
 
 RULE_M = 1e-4  # diving-agent.md s. 2: a sixth of the sensor's noise
 EPISODE_S = 300.0
@@ -57,8 +58,14 @@ def _replay(state: NDArray[np.float64], spec: KernelSpec, cmds: NDArray[np.float
     return out
 
 
-def _episode(params: PlantParams, period_s: float, seed: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """(reference, closed form) depth and sensed depth of one 300 s episode from a random start and neutral error."""
+# The closed form in the fast arithmetic the hardware-fast preset's study runs it in (PlantParams.fast_arithmetic).
+_replay_fast = compiled_again(_replay, "_replay_fast", FAST_MATH_FLAGS)
+
+
+def _episode(params: PlantParams, period_s: float, seed: int,
+             fast_arithmetic: bool = False) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """(reference, closed form) depth and sensed depth of one 300 s episode from a random start and neutral error;
+    the reference in exact arithmetic, the closed form in fast arithmetic if asked."""
     rng = np.random.default_rng(seed)
     n = round(EPISODE_S / period_s)
     periods = period_s + params.control_jitter_s * (2.0 * rng.uniform(size=n) - 1.0)
@@ -68,17 +75,19 @@ def _episode(params: PlantParams, period_s: float, seed: int) -> tuple[NDArray[n
     cmds = _commands(start.copy(), kernel_params(params), centre, params.action_step_deg, periods,
                      rng.normal(0.0, 0.002, n))
     fast = dataclasses.replace(params, closed_form_step=True)
+    closed_form = _replay_fast if fast_arithmetic else _replay
     return (_replay(start.copy(), kernel_params(params), cmds, periods),
-            _replay(start.copy(), kernel_params(fast), cmds, periods))
+            closed_form(start.copy(), kernel_params(fast), cmds, periods))
 
 
+@pytest.mark.parametrize("fast_arithmetic", [False, True], ids=["exact", "fast arithmetic"])
 @pytest.mark.parametrize("name", list(PLANTS))
-def test_closed_form_depth_stays_within_a_tenth_of_a_millimetre(name: str) -> None:
+def test_closed_form_depth_stays_within_a_tenth_of_a_millimetre(name: str, fast_arithmetic: bool) -> None:
     base, overrides = PLANTS[name]
     params = with_overrides(preset(base), overrides)
     for period_s in (params.control_period_s, params.recovery_period_s):  # the learner's and the controller's
         for seed in range(2):
-            reference, fast = _episode(params, period_s, seed)
+            reference, fast = _episode(params, period_s, seed, fast_arithmetic)
             assert np.ptp(reference[:, 0]) > 0.01  # the commands moved the agent
             assert np.abs(fast[:, 0] - reference[:, 0]).max() < RULE_M
             # The sensed depth (the port's lag) as well: what the learner reads.
