@@ -7,7 +7,7 @@ import shutil
 import struct
 import subprocess
 from collections.abc import Callable
-from dataclasses import dataclass, field, fields
+from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 
 import numpy as np
@@ -265,6 +265,15 @@ class BothAgents:
         got, expected = self.c_learner(), c_config(self.lib, config)
         for field_name, *_ in LearnerConfigC._fields_:
             assert getattr(got, field_name) == getattr(expected, field_name), field_name
+
+    def assert_both_learn(self, config: LearnerConfig) -> None:
+        """Both agents' parameters make config (the Python agent's held as f32, its learner to restart), and the C
+        learner takes it (learner.c: it fits the host build's arena)."""
+        assert asdict(self.program.config) == pytest.approx(asdict(config), rel=1e-7)
+        assert self.program.restart_pending  # a learner parameter: the learner restarts
+        self.assert_c_is(config)
+        self.lib.learner_configure.restype = ctypes.c_bool
+        assert self.lib.learner_configure(ctypes.byref(self.c_learner()))
 
 
 @dataclass

@@ -39,13 +39,9 @@ def test_the_early_stop_parameters_give_both_agents_hardware_fastplan(
         assert both.set(name, value) == (AckResult.ACCEPTED, b""), name
     config = learner_preset("hardware-fastplan")
     assert (config.plan_stable_sweeps, config.plan_loose_tolerance) == (2, 0.05)
-    # The Python agent holds the table's values as f32 (0.05 as 0.05000000074505806).
-    assert asdict(program.config) == pytest.approx(asdict(config), rel=1e-7)
-    assert program.restart_pending  # a learner parameter: the learner restarts
-    both.assert_c_is(config)
-    lib.learner_configure.restype = ctypes.c_bool
-    # The C learner takes it (firmware/src/learner.c; the early stop's bits per state fit its arena).
-    assert lib.learner_configure(ctypes.byref(both.c_learner()))
+    # The Python agent holds the table's values as f32 (0.05 as 0.05000000074505806); the early stop's bits per state
+    # fit the C learner's arena.
+    both.assert_both_learn(config)
     assert both.set("shared_model", 0) == (AckResult.BAD_VALUE, SHARED_ONLY.encode())
     assert both.set("plan_stable_sweeps", 0) == (AckResult.ACCEPTED, b"")
     off = replace(config, plan_stable_sweeps=0)
@@ -73,4 +69,5 @@ def test_the_teensy_hardware_variant_has_room_for_the_early_stop(tmp_path: Path,
     def needs(name: str) -> int:
         return int(lib.learner_total_bytes(ctypes.byref(c_config(lib, learner_preset(name)))))
 
-    assert reserved == needs("hardware-lazyplan") > needs("hardware-fastplan") > needs("shared-z20-bins7-fdepth-term100-vpen1")
+    full_plans = needs("shared-z20-bins7-fdepth-term100-vpen1")
+    assert reserved == needs("hardware-lazyplan") > needs("hardware-fastplan") > full_plans

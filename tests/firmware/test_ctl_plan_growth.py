@@ -137,14 +137,9 @@ def test_the_growth_parameter_gives_both_agents_hardware_lazyplan(tmp_path_facto
         assert both.set(name, value) == (AckResult.ACCEPTED, b""), name
     config = learner_preset("hardware-lazyplan")
     assert config == replace(learner_preset("hardware-fastplan"), plan_growth=0.25)
-    # The Python agent holds the table's values as f32 (0.25 exactly).
-    assert asdict(program.config) == pytest.approx(asdict(config), rel=1e-7)
+    # The Python agent holds the table's values as f32 (0.25 exactly); the count per type fits the C learner's arena.
+    both.assert_both_learn(config)
     assert program.config.plan_growth == 0.25
-    assert program.restart_pending  # a learner parameter: the learner restarts
-    both.assert_c_is(config)
-    lib.learner_configure.restype = ctypes.c_bool
-    # The C learner takes it (firmware/src/learner.c; the count per type fits the host build's arena).
-    assert lib.learner_configure(ctypes.byref(both.c_learner()))
     # Without the shared model: the early stop's reason first (as learning/config.py checks it first), then this one.
     assert both.set("shared_model", 0) == (AckResult.BAD_VALUE, STOP_SHARED_ONLY.encode())
     assert both.set("plan_stable_sweeps", 0) == (AckResult.ACCEPTED, b"")
