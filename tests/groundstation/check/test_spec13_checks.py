@@ -26,6 +26,23 @@ def test_the_virtual_agent_passes_the_1_3_checks(tmp_path: Path) -> None:
     assert code == 0
 
 
+def test_the_cross_refusals_pass_on_the_hardware_learner(tmp_path: Path) -> None:
+    """Planning on growth is refused without the shared model like the early stop; an agent whose learner has no room
+    without the shared model (the `hardware` learner's 1 401 states: the RAM budget refuses shared_model = 0) is not
+    failed for it: those pairs are named as not tried, with the agent's reason."""
+    with agent(tmp_path, "--tcp", "127.0.0.1:0", "--seed", "3") as url:
+        code, report = check(url, "--allow-motion", "--timeout", "10", "--only", "params.cross_refused")
+    assert code == 0
+    plain = {c["id"]: c["detail"] for c in report["checks"] if c["result"] == "PASS"}
+    assert "plan_growth with shared_model = 0 refused" in plain["params.cross_refused"]
+    with agent(tmp_path, "--tcp", "127.0.0.1:0", "--seed", "3", "--preset", "hardware", "--learner", "hardware") as url:
+        code, report = check(url, "--allow-motion", "--timeout", "10", "--only", "params.cross_refused")
+    assert code == 0
+    detail = {c["id"]: c["detail"] for c in report["checks"] if c["result"] == "PASS"}["params.cross_refused"]
+    assert "velocity_filter with vel_diff_steps = 2 refused" in detail
+    assert "plan_growth not tried: shared_model = 0 alone refused" in detail and "bytes of RAM" in detail
+
+
 @pytest.mark.parametrize(("fault", "failed", "said"), [
     ("generation-stuck", "generation.restart", "after CMD_RESET_MODEL generation"),
     ("slow-answers", "link.answer_time", "over the 1 s bound"),
