@@ -19,7 +19,8 @@ from learning import learner_preset  # noqa: E402
 from learning.acting import explore_probability, select_action_kernel  # noqa: E402
 from learning.config import kernel_spec  # noqa: E402
 from learning.model import N_ACTIONS  # noqa: E402
-from learning.shared import allocate_arrays, compile_shared_rows, plan_shared_kernel, record_shared  # noqa: E402
+from learning.shared import allocate_arrays, compile_shared_rows, record_shared  # noqa: E402
+from learning.shared_plan import plan_shared_kernel  # noqa: E402
 from learning.spec import KernelSpec  # noqa: E402
 from simulator.parameters import kernel_params, preset  # noqa: E402
 from simulator.plant.episode import (  # noqa: E402

@@ -20,7 +20,8 @@ from learning.acting import explore_probability, reward_kernel, select_action_ke
 from learning.config import kernel_spec  # noqa: E402
 from learning.model import N_ACTIONS  # noqa: E402
 from learning.planning import plan_rows  # noqa: E402
-from learning.shared import allocate_arrays, compile_shared_rows, plan_due, record_shared  # noqa: E402
+from learning.shared import allocate_arrays, compile_shared_rows, record_shared  # noqa: E402
+from learning.shared_plan import plan_due  # noqa: E402
 from learning.spec import KernelSpec  # noqa: E402
 from simulator.parameters import kernel_params, preset  # noqa: E402
 from simulator.plant.episode import (  # noqa: E402

@@ -88,7 +88,7 @@ class LearnerConfig:
     # plans once some type has counted, since the last plan, at least plan_growth times the transitions it had
     # then (at least one): UCRL2's doubling rule at 1 (Jaksch, Ortner and Auer 2010), more often below it. A type
     # seen for the first time always plans; late in learning, when a type's counts move its probabilities by a
-    # fraction of a percent an episode, most plans are skipped (learning/shared.py plan_due).
+    # fraction of a percent an episode, most plans are skipped (learning/shared_plan.py plan_due).
     plan_growth: float = 0.0
     # Issue 43: a smaller step near a hover (0 = off, every step is the plant's action_step_deg). The step is this
     # many degrees while the velocity the learner sees is below fine_speed_mps: a multiple of the velocity cell

@@ -15,14 +15,12 @@ from learning.planning import plan_kernel
 from learning.rng import new_stream
 from learning.shared import (
     allocate_arrays,
-    plan_due,
-    plan_shared_kernel,
     record_shared,
     shared_dense_counts,
     shared_memory_bytes,
-    shared_q_kernel,
     state_cell_code,
 )
+from learning.shared_plan import plan_due, plan_shared_kernel, shared_q_kernel
 from learning.spec import KernelSpec, direct_entry
 
 _REWARD_SUM_BYTES = 4  # float32 per (s, a) on the Teensy

@@ -62,7 +62,7 @@ typedef struct {
     uint16_t plan_stable_sweeps;
     float    plan_loose_tolerance;
     /* Shared model: an episode's end plans only once some type has counted, since the last plan, this many times
-       the transitions it had then (0 = off, a plan after every episode; learning/shared.py plan_due). */
+       the transitions it had then (0 = off, a plan after every episode; learning/shared_plan.py plan_due). */
     float    plan_growth;
     /* A smaller gear step near a hover (learning/config.py fine_step_deg; 0 = off, the plant's step always): an
        action steps fine_step_deg while the learner's |velocity| is under fine_speed_mps (learner_step_deg). */

@@ -76,7 +76,7 @@ uint16_t shared_type_evictions(uint32_t t);
 /* Transitions type t counted since the last plan (kept only with plan_growth > 0; else 0). */
 uint16_t shared_type_since_plan(uint32_t t);
 
-/* learning.shared.plan_due: true with plan_growth 0; else whether some type has counted, since the last plan,
+/* learning.shared_plan.plan_due: true with plan_growth 0; else whether some type has counted, since the last plan,
    n > 0 transitions with n >= plan_growth * max(total - n, 1) (in double, as Python). */
 bool     shared_plan_due(void);
 /* A plan from the current values; every type's count since the last plan starts again from 0. */

@@ -14,7 +14,8 @@ from numpy.typing import NDArray
 from learning.acting import explore_probability, select_action_kernel
 from learning.model import N_ACTIONS, record_transition
 from learning.planning import plan_kernel
-from learning.shared import allocate_arrays, plan_due, plan_shared_kernel, record_shared
+from learning.shared import allocate_arrays, record_shared
+from learning.shared_plan import plan_due, plan_shared_kernel
 from learning.spec import KernelSpec
 from simulator.parameters import PlantParams
 from simulator.plant.episode import (

@@ -1,5 +1,6 @@
-"""Planning on growth (LearnerConfig.plan_growth, learning/shared.py plan_due): an episode's end plans only once some
-type has counted, since the last plan, plan_growth times what it had then; the learner, the study and the config."""
+"""Planning on growth (LearnerConfig.plan_growth, learning/shared_plan.py plan_due): an episode's end plans only once
+some type has counted, since the last plan, plan_growth times what it had then; the learner, the study and the
+config."""
 
 from __future__ import annotations
 
@@ -10,7 +11,8 @@ from learning import Learner, LearnerConfig, learner_preset
 from learning.config import kernel_spec
 from learning.errors import LearnerConfigError
 from learning.model import ModelArrays
-from learning.shared import allocate_arrays, plan_due, raw_cell_kernel, record_shared
+from learning.shared import allocate_arrays, raw_cell_kernel, record_shared
+from learning.shared_plan import plan_due
 from simulator.parameters import preset
 from simulator.study.runner import run_study
 
