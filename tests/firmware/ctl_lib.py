@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from learning import Learner, LearnerConfig
-from protocol import Mode
+from protocol import AckResult, Mode
 from protocol.parameters import param
 from simulator.gym.task import DivingEnv
 from simulator.parameters import preset
@@ -265,6 +265,14 @@ class BothAgents:
         got, expected = self.c_learner(), c_config(self.lib, config)
         for field_name, *_ in LearnerConfigC._fields_:
             assert getattr(got, field_name) == getattr(expected, field_name), field_name
+
+    def assert_refused_alone(self, name: str, value: float, field_name: str, reason: str) -> None:
+        """From the agents' defaults (no shared model) both refuse the shared model's option `name` with one reason,
+        and neither stores it: the Python agent's table and LearnerConfig.`field_name` stay 0, C's learner the
+        default."""
+        assert self.set(name, value) == (AckResult.BAD_VALUE, reason.encode())
+        assert self.program.table.value(name) == 0.0 and getattr(self.program.config, field_name) == 0
+        self.assert_c_is(LearnerConfig())
 
     def assert_both_learn(self, config: LearnerConfig) -> None:
         """Both agents' parameters make config (the Python agent's held as f32, its learner to restart), and the C

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from learning import LearnerConfig, learner_preset
+from learning import learner_preset
 from protocol import AckResult
 from simulator.serve.firmware_host import load_library
 from tests.firmware.core_build import use_firmware_cache
@@ -29,9 +29,7 @@ def test_the_early_stop_parameters_give_both_agents_hardware_fastplan(
     lib = load_library()
     both = BothAgents(lib)
     program = both.program
-    assert both.set("plan_stable_sweeps", 2) == (AckResult.BAD_VALUE, SHARED_ONLY.encode())
-    assert program.table.value("plan_stable_sweeps") == 0.0 and program.config.plan_stable_sweeps == 0
-    both.assert_c_is(LearnerConfig())
+    both.assert_refused_alone("plan_stable_sweeps", 2, "plan_stable_sweeps", SHARED_ONLY)
     assert both.set("plan_stable_sweeps", 101) == (AckResult.BAD_VALUE, b"plan_stable_sweeps: 101 outside [0, 100]")
     # The tolerance alone changes no plan: any learner takes it.
     assert both.set("plan_loose_tol", 0.05) == (AckResult.ACCEPTED, b"")

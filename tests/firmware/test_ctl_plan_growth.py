@@ -124,9 +124,7 @@ def test_the_growth_parameter_gives_both_agents_hardware_lazyplan(tmp_path_facto
     lib = load_library()
     both = BothAgents(lib)
     program = both.program
-    assert both.set("plan_growth", 0.25) == (AckResult.BAD_VALUE, GROWTH_SHARED_ONLY.encode())
-    assert program.table.value("plan_growth") == 0.0 and program.config.plan_growth == 0.0
-    both.assert_c_is(LearnerConfig())
+    both.assert_refused_alone("plan_growth", 0.25, "plan_growth", GROWTH_SHARED_ONLY)
     # Both refuse 101 (an F32's range refusal: the Python agent's reason names the value, params.c's does not).
     c_verdict = both.set_c("plan_growth", 101)
     assert (c_verdict.result, c_verdict.reason) == (AckResult.BAD_VALUE, b"plan_growth: outside [0, 100]")
